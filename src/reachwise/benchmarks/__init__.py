@@ -1,0 +1,13 @@
+"""Benchmarks run by ``reachwise bench NAME``: our code and its baseline in one run.
+
+Each module exposes ``run(quick: bool = False) -> BenchReport``. Register it in
+``REGISTRY`` below. The harness in ``_harness`` times calls, summarizes medians and
+tails, and renders the JSON shape of DESIGN.md or a rich table.
+"""
+
+from __future__ import annotations
+
+REGISTRY: dict[str, str] = {
+    "kinematics": "reachwise.benchmarks.kinematics",
+    "distance": "reachwise.benchmarks.distance",
+}

@@ -1,0 +1,47 @@
+"""The ``reachwise`` command. Each command group lives in its own module here."""
+
+from __future__ import annotations
+
+import typer
+
+from reachwise import __version__
+from reachwise.cli import bench, cloud, demo, robot
+
+app = typer.Typer(
+    name="reachwise",
+    help="Design serial manipulators from their task and move them without collisions.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+app.add_typer(robot.app, name="robot")
+app.add_typer(cloud.app, name="cloud")
+app.command("bench")(bench.bench)
+app.command("demo")(demo.demo)
+app.command("scan")(cloud.scan)
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"reachwise {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: bool = typer.Option(
+        False, "--version", callback=_version, is_eager=True, help="Print the version."
+    ),
+) -> None:
+    """reachwise: task-based manipulator design and real-time collision avoidance."""
+
+
+def main() -> None:
+    """Entry point: run the app, turning reachwise input errors into one clear line."""
+    from reachwise.errors import ReachwiseError
+
+    try:
+        app()
+    except ReachwiseError as exc:
+        typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
+        raise SystemExit(2) from None
