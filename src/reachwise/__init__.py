@@ -1,7 +1,7 @@
 """reachwise: design serial robotic manipulators from their task, move them without collisions.
 
-Public API (stable names, see DESIGN.md): ``load_robot``, ``Robot``, ``PointCloud``,
-``distance.closest_points``.
+Public API (stable names, see DESIGN.md): ``load_robot``, ``Robot``, ``Joint``,
+``PointCloud``; ``reachwise.distance.closest_points``.
 """
 
 from __future__ import annotations
@@ -9,5 +9,8 @@ from __future__ import annotations
 __version__ = "0.1.0"
 
 from reachwise.geometry.cloud import PointCloud  # noqa: E402
+from reachwise.io.robot_file import load_robot  # noqa: E402
+from reachwise.kinematics.ik import IKResult  # noqa: E402
+from reachwise.kinematics.robot import Joint, Robot  # noqa: E402
 
-__all__ = ["PointCloud", "__version__"]
+__all__ = ["IKResult", "Joint", "PointCloud", "Robot", "__version__", "load_robot"]

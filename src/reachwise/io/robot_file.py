@@ -1,0 +1,308 @@
+"""Robot files (YAML, schema in DESIGN.md): load with validation, save, built-in robots.
+
+Every mistake in a file is reported as ``RobotFileError`` naming the file, the field
+(``joints[2].limits``) and the reason. Degrees are accepted only where the field name
+says so (``alpha_deg``, ``theta_deg``, ``limits_deg``, ``vmax_deg``, ``rpy_deg``).
+"""
+
+from __future__ import annotations
+
+import math
+from importlib import resources
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from reachwise.errors import InputError, RobotFileError
+from reachwise.kinematics.robot import (
+    BASE_PARAMS,
+    DH_PARAMS,
+    DesignSpace,
+    Joint,
+    LinkGeometry,
+    Robot,
+)
+from reachwise.kinematics.transforms import pose_from_xyz_rpy, xyz_rpy_from_pose
+
+_STRICT = ConfigDict(extra="forbid", allow_inf_nan=False, strict=False)
+Pair = tuple[float, float]
+
+
+class FrameModel(BaseModel):
+    model_config = _STRICT
+    xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rpy: tuple[float, float, float] | None = None
+    rpy_deg: tuple[float, float, float] | None = None
+
+    @model_validator(mode="after")
+    def _one_rpy(self) -> FrameModel:
+        if self.rpy is not None and self.rpy_deg is not None:
+            raise ValueError("give rpy or rpy_deg, not both")
+        return self
+
+    def matrix(self) -> np.ndarray:
+        rpy = np.radians(self.rpy_deg) if self.rpy_deg is not None else (self.rpy or (0, 0, 0))
+        return pose_from_xyz_rpy(self.xyz, rpy)
+
+
+class JointModel(BaseModel):
+    model_config = _STRICT
+    type: Literal["revolute", "prismatic", "fixed", "passive"]
+    a: float = 0.0
+    alpha: float | None = None
+    alpha_deg: float | None = None
+    d: float = 0.0
+    theta: float | None = None
+    theta_deg: float | None = None
+    limits: Pair | None = None
+    limits_deg: Pair | None = None
+    vmax: float | None = Field(default=None, gt=0)
+    vmax_deg: float | None = Field(default=None, gt=0)
+    passive: bool = False
+    name: str = ""
+
+    @model_validator(mode="after")
+    def _check(self) -> JointModel:
+        for rad, deg in (("alpha", "alpha_deg"), ("theta", "theta_deg"), ("limits", "limits_deg"),
+                         ("vmax", "vmax_deg")):  # fmt: skip
+            if getattr(self, rad) is not None and getattr(self, deg) is not None:
+                raise ValueError(f"give {rad} or {deg}, not both")
+        if self.type == "prismatic" and self.limits is None and self.limits_deg is None:
+            raise ValueError("a prismatic joint needs limits [lower, upper] in metres")
+        if self.type == "prismatic" and (self.limits_deg is not None or self.vmax_deg is not None):
+            raise ValueError("a prismatic joint's limits and vmax are in metres, not degrees")
+        lim = self.limits if self.limits is not None else self.limits_deg
+        if lim is not None and lim[0] > lim[1]:
+            raise ValueError(f"limits: lower {lim[0]} > upper {lim[1]}")
+        return self
+
+    def joint(self) -> Joint:
+        def rad(v: float | None, v_deg: float | None) -> float | None:
+            return math.radians(v_deg) if v_deg is not None else v
+
+        lim = self.limits
+        if self.limits_deg is not None:
+            lim = (math.radians(self.limits_deg[0]), math.radians(self.limits_deg[1]))
+        vmax = rad(self.vmax, self.vmax_deg)
+        jtype = "revolute" if self.type == "passive" else self.type
+        return Joint(
+            type=jtype,
+            a=self.a,
+            alpha=rad(self.alpha, self.alpha_deg) or 0.0,
+            d=self.d,
+            theta=rad(self.theta, self.theta_deg) or 0.0,
+            limits=lim if lim is not None else (-math.pi, math.pi),
+            vmax=vmax if vmax is not None else math.inf,
+            passive=self.passive or self.type == "passive",
+            name=self.name,
+        )
+
+
+class GeometryModel(BaseModel):
+    model_config = _STRICT
+    mesh: str | None = None
+    box: tuple[float, float, float] | None = None
+    cylinder: tuple[float, float] | None = None  # radius, length (along z)
+    points: int = Field(default=1000, gt=0)
+    xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @model_validator(mode="after")
+    def _one_shape(self) -> GeometryModel:
+        given = [k for k in ("mesh", "box", "cylinder") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueError("give exactly one of mesh, box, cylinder")
+        if self.box is not None and min(self.box) <= 0:
+            raise ValueError("box sizes must be > 0")
+        if self.cylinder is not None and min(self.cylinder) <= 0:
+            raise ValueError("cylinder radius and length must be > 0")
+        return self
+
+    def geometry(self) -> LinkGeometry:
+        origin = tuple(
+            tuple(float(x) for x in row) for row in pose_from_xyz_rpy(self.xyz, self.rpy)
+        )
+        if self.mesh is not None:
+            return LinkGeometry("mesh", mesh=self.mesh, points=self.points, origin=origin)
+        if self.box is not None:
+            return LinkGeometry("box", size=self.box, points=self.points, origin=origin)
+        if self.cylinder is None:
+            raise ValueError("give exactly one of mesh, box, cylinder")
+        r, length = self.cylinder
+        return LinkGeometry("cylinder", radius=r, length=length, points=self.points, origin=origin)
+
+
+class DesignModel(BaseModel):
+    model_config = _STRICT
+    joints: dict[int, dict[Literal["a", "alpha", "d", "theta"], Pair]] = {}
+    base: dict[Literal["x", "y", "z", "roll", "pitch", "yaw"], Pair] = {}
+
+
+class RobotModel(BaseModel):
+    model_config = _STRICT
+    name: str
+    convention: Literal["modified", "classic"] = "modified"
+    description: str = ""
+    joints: list[JointModel] = Field(min_length=1)
+    base: FrameModel = FrameModel()
+    tool: FrameModel = FrameModel()
+    geometry: dict[str, GeometryModel] = {}
+    design: DesignModel = DesignModel()
+
+
+def _field_path(loc: tuple[Any, ...]) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out
+
+
+def robot_from_dict(data: Any, source: str = "robot") -> Robot:
+    """Build a Robot from parsed YAML, raising ``RobotFileError`` naming ``source``."""
+    if not isinstance(data, dict):
+        raise RobotFileError(source, "", "a robot file must be a mapping with name and joints")
+    try:
+        m = RobotModel.model_validate(data)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        # drop pydantic's model-name/union tags from the location
+        loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and p.startswith("function-")))
+        more = f" (and {len(exc.errors()) - 1} more)" if len(exc.errors()) > 1 else ""
+        msg = err["msg"].removeprefix("Value error, ")
+        raise RobotFileError(source, _field_path(loc), msg + more) from None
+    joints = []
+    for i, jm in enumerate(m.joints):
+        try:
+            joints.append(jm.joint())
+        except InputError as exc:
+            raise RobotFileError(source, f"joints[{i}].{exc.field}", exc.reason) from None
+    try:
+        design = DesignSpace(
+            joints={j: {p: tuple(b) for p, b in ps.items()} for j, ps in m.design.joints.items()},
+            base={p: tuple(b) for p, b in m.design.base.items()},
+        )
+        return Robot(
+            name=m.name,
+            joints=tuple(joints),
+            convention=m.convention,
+            base=m.base.matrix(),
+            tool=m.tool.matrix(),
+            geometry={k: g.geometry() for k, g in m.geometry.items()},
+            design=design,
+            source=source,
+        )
+    except InputError as exc:
+        raise RobotFileError(source, exc.field, exc.reason) from None
+
+
+def robot_to_dict(robot: Robot) -> dict[str, Any]:
+    """The YAML mapping of a robot (inverse of ``robot_from_dict``)."""
+
+    def frame(T: np.ndarray) -> dict[str, list[float]]:
+        xyz, rpy = xyz_rpy_from_pose(T)
+        return {"xyz": [float(v) for v in xyz], "rpy": [float(v) for v in rpy]}
+
+    joints = []
+    for j in robot.joints:
+        row: dict[str, Any] = {
+            "type": j.type,
+            "a": j.a,
+            "alpha": j.alpha,
+            "d": j.d,
+            "theta": j.theta,
+        }
+        if j.movable:
+            row["limits"] = [float(j.limits[0]), float(j.limits[1])]
+            if math.isfinite(j.vmax):
+                row["vmax"] = j.vmax
+        if j.passive:
+            row["passive"] = True
+        if j.name:
+            row["name"] = j.name
+        joints.append(row)
+    out: dict[str, Any] = {
+        "name": robot.name,
+        "convention": robot.convention,
+        "joints": joints,
+        "base": frame(robot.base),
+        "tool": frame(robot.tool),
+    }
+    if robot.geometry:
+        geo: dict[str, Any] = {}
+        for link, g in robot.geometry.items():
+            xyz, rpy = xyz_rpy_from_pose(g.origin_matrix)
+            entry: dict[str, Any] = {"points": g.points, "xyz": xyz.tolist(), "rpy": rpy.tolist()}
+            if g.shape == "mesh":
+                entry["mesh"] = g.mesh
+            elif g.shape == "box":
+                entry["box"] = list(g.size or ())
+            else:
+                entry["cylinder"] = [g.radius, g.length]
+            geo[link] = entry
+        out["geometry"] = geo
+    if robot.design.size:
+        out["design"] = {
+            "joints": {
+                j: {p: list(b) for p, b in ps.items()} for j, ps in robot.design.joints.items()
+            },
+            "base": {p: list(b) for p, b in robot.design.base.items()},
+        }
+    return out
+
+
+def save_robot(robot: Robot, path: str | Path) -> None:
+    """Write ``robot`` as a YAML robot file."""
+    Path(path).write_text(yaml.safe_dump(robot_to_dict(robot), sort_keys=False))
+
+
+def load_robot_file(path: str | Path) -> Robot:
+    """Load a YAML robot file (or a URDF, by extension)."""
+    p = Path(path)
+    if not p.is_file():
+        raise RobotFileError(str(p), "", "no such file")
+    if p.suffix.lower() == ".urdf":
+        from reachwise.io.urdf import load_urdf
+
+        return load_urdf(p)
+    try:
+        data = yaml.safe_load(p.read_text())
+    except yaml.YAMLError as exc:
+        raise RobotFileError(str(p), "", f"not valid YAML: {exc}") from None
+    return robot_from_dict(data, str(p))
+
+
+def builtin_robots() -> list[str]:
+    """Names of the robots shipped with reachwise."""
+    folder = resources.files("reachwise.data") / "robots"
+    return sorted(f.name[:-5] for f in folder.iterdir() if f.name.endswith(".yaml"))
+
+
+def load_robot(name_or_path: str | Path) -> Robot:
+    """A built-in robot by name (``panda``, ``sb60`` …) or a YAML/URDF robot file."""
+    s = str(name_or_path)
+    if s in builtin_robots():
+        res = resources.files("reachwise.data") / "robots" / f"{s}.yaml"
+        data = yaml.safe_load(res.read_text())
+        return robot_from_dict(data, f"built-in robot {s}")
+    p = Path(s)
+    if p.suffix.lower() in (".yaml", ".yml", ".urdf") or p.exists():
+        return load_robot_file(p)
+    raise RobotFileError(s, "", f"no such file or built-in robot; built-ins: {builtin_robots()}")
+
+
+__all__ = [
+    "BASE_PARAMS",
+    "DH_PARAMS",
+    "builtin_robots",
+    "load_robot",
+    "load_robot_file",
+    "robot_from_dict",
+    "robot_to_dict",
+    "save_robot",
+]

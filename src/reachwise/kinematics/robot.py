@@ -1,0 +1,350 @@
+"""The kinematic model every part of reachwise shares: ``Joint`` and ``Robot``.
+
+Frames follow the modified Denavit–Hartenberg convention of the thesis (P-I Eq. 2–3,
+Craig): joint ``i`` maps frame ``i-1`` to frame ``i`` by
+``Rx(alpha) Tx(a) Rz(theta) Tz(d)``; its axis is the z axis of frame ``i``. Classic DH
+(``Rz(theta) Tz(d) Tx(a) Rx(alpha)``, axis = z of frame ``i-1``) is computed natively:
+the tool pose is the same either way, link frames are those of the table as written.
+
+For a revolute joint ``theta`` is an offset added to ``q``; for a prismatic joint ``d``
+is. ``q`` holds one value per non-fixed joint (passive ones included), base to tool.
+
+Frames are numbered ``link_0`` (the base frame, ``world <- base``), ``link_1`` …
+``link_N`` (after joint ``1`` … ``N``, fixed joints included) and ``tool``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from reachwise.errors import InputError, RobotFileError
+from reachwise.kinematics.transforms import Pose, check_pose
+
+if TYPE_CHECKING:
+    from reachwise.kinematics.ik import IKResult
+
+JointType = Literal["revolute", "prismatic", "fixed"]
+Convention = Literal["modified", "classic"]
+DH_PARAMS: tuple[str, ...] = ("a", "alpha", "d", "theta")
+BASE_PARAMS: tuple[str, ...] = ("x", "y", "z", "roll", "pitch", "yaw")
+_KIND = {"revolute": 0, "prismatic": 1, "fixed": 2}
+
+
+@dataclass(frozen=True)
+class Joint:
+    """One DH row: the joint type, its four parameters (m, rad) and its actuator limits.
+
+    ``limits`` bound ``q`` (rad or m), ``vmax`` bounds ``|q̇|`` (rad/s or m/s). A passive
+    joint is moved by the plant (e.g. a freely hanging grabber), never commanded.
+    """
+
+    type: JointType
+    a: float = 0.0
+    alpha: float = 0.0
+    d: float = 0.0
+    theta: float = 0.0
+    limits: tuple[float, float] = (-np.pi, np.pi)
+    vmax: float = float("inf")
+    passive: bool = False
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        if self.type not in _KIND:
+            raise InputError("joint", "type", f"unknown joint type {self.type!r}")
+        for f in ("a", "alpha", "d", "theta"):
+            v = getattr(self, f)
+            if not np.isfinite(v):
+                raise InputError("joint", f, f"must be finite, got {v}")
+        lo, hi = self.limits
+        if np.isnan(lo) or np.isnan(hi):
+            raise InputError("joint", "limits", "NaN limit")
+        if self.type != "fixed" and not lo <= hi:
+            raise InputError("joint", "limits", f"lower {lo} > upper {hi}")
+        if not self.vmax > 0:
+            raise InputError("joint", "vmax", f"must be > 0, got {self.vmax}")
+        if self.passive and self.type == "fixed":
+            raise InputError("joint", "passive", "a fixed joint cannot be passive")
+
+    @property
+    def movable(self) -> bool:
+        return self.type != "fixed"
+
+
+@dataclass(frozen=True)
+class LinkGeometry:
+    """Collision geometry of one link, in the link frame: a mesh, a box or a cylinder.
+
+    ``mesh`` paths are as written in the robot file, relative to its folder. ``points``
+    is the number of surface samples for the link's point cloud (1000 in the thesis).
+    ``origin`` places the shape in the link frame.
+    """
+
+    shape: Literal["mesh", "box", "cylinder"]
+    mesh: str | None = None
+    size: tuple[float, float, float] | None = None
+    radius: float | None = None
+    length: float | None = None
+    points: int = 1000
+    origin: tuple[tuple[float, ...], ...] = ((1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1))
+
+    @property
+    def origin_matrix(self) -> Pose:
+        return np.array(self.origin, dtype=float)
+
+
+@dataclass(frozen=True)
+class DesignSpace:
+    """What a synthesis may change and within which bounds (P-I §3, P-II §4.1).
+
+    ``joints`` maps a 0-based joint index to ``{param: (lo, hi)}`` with params among
+    ``a, alpha, d, theta``; ``base`` maps ``x, y, z, roll, pitch, yaw`` to bounds.
+    """
+
+    joints: Mapping[int, Mapping[str, tuple[float, float]]] = field(default_factory=dict)
+    base: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        for j, params in self.joints.items():
+            for p, (lo, hi) in params.items():
+                if p not in DH_PARAMS:
+                    raise InputError("design", f"joints.{j}.{p}", "unknown DH parameter")
+                _check_bounds(f"joints.{j}.{p}", lo, hi)
+        for p, (lo, hi) in self.base.items():
+            if p not in BASE_PARAMS:
+                raise InputError("design", f"base.{p}", f"unknown base coordinate {p!r}")
+            _check_bounds(f"base.{p}", lo, hi)
+
+    @property
+    def free(self) -> list[tuple[str, int, str]]:
+        """Free parameters in decision order: ``("joint", j, p)`` then ``("base", -1, p)``."""
+        out = [
+            ("joint", j, p) for j in sorted(self.joints) for p in DH_PARAMS if p in self.joints[j]
+        ]
+        out += [("base", -1, p) for p in BASE_PARAMS if p in self.base]
+        return out
+
+    @property
+    def size(self) -> int:
+        return len(self.free)
+
+
+def _check_bounds(where: str, lo: float, hi: float) -> None:
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        raise InputError("design", where, f"bounds must be finite, got [{lo}, {hi}]")
+    if lo > hi:
+        raise InputError("design", where, f"lower bound {lo} > upper bound {hi}")
+
+
+@dataclass(frozen=True)
+class ChainArrays:
+    """The chain packed as arrays for the compiled kernels (see ``_kernels``)."""
+
+    kind: NDArray[np.int64]  # (N,) 0 revolute, 1 prismatic, 2 fixed
+    qidx: NDArray[np.int64]  # (N,) index into q, -1 for fixed joints
+    dh: NDArray[np.float64]  # (N, 4) a, alpha, d, theta
+    classic: bool
+    base: NDArray[np.float64]  # (4, 4)
+    tool: NDArray[np.float64]  # (4, 4)
+
+
+@dataclass(frozen=True, eq=False)
+class Robot:
+    """A serial chain with base and tool frames, limits, geometry and design bounds.
+
+    Immutable: ``with_parameters`` returns a new robot. Methods take ``q`` of shape
+    ``(n,)`` or a batch ``(m, n)`` and return poses ``(4, 4)`` / ``(m, 4, 4)`` and
+    geometric Jacobians in the world frame, linear rows first.
+    """
+
+    name: str
+    joints: tuple[Joint, ...]
+    convention: Convention = "modified"
+    base: Pose = field(default_factory=lambda: np.eye(4))
+    tool: Pose = field(default_factory=lambda: np.eye(4))
+    geometry: Mapping[str, LinkGeometry] = field(default_factory=dict)
+    design: DesignSpace = field(default_factory=DesignSpace)
+    source: str | None = None
+
+    def __post_init__(self) -> None:
+        if not self.joints:
+            raise RobotFileError(self.source or self.name, "joints", "a robot needs joints")
+        if self.convention not in ("modified", "classic"):
+            raise RobotFileError(self.source or self.name, "convention", "modified or classic")
+        object.__setattr__(self, "joints", tuple(self.joints))
+        for f in ("base", "tool"):
+            M = check_pose(getattr(self, f), f"{self.source or self.name}: {f}")
+            M = M.copy()
+            M.setflags(write=False)
+            object.__setattr__(self, f, M)
+        names = set(self.link_names)
+        for link in self.geometry:
+            if link not in names:
+                raise RobotFileError(self.source or self.name, f"geometry.{link}", "no such link")
+        for j in self.design.joints:
+            if not 0 <= j < len(self.joints):
+                raise RobotFileError(
+                    self.source or self.name, f"design.joints.{j}", "no such joint"
+                )
+
+    # ---- sizes and per-joint arrays -------------------------------------------------
+    @property
+    def n(self) -> int:
+        """Number of joint variables: every non-fixed joint, passive ones included."""
+        return sum(j.movable for j in self.joints)
+
+    @cached_property
+    def movable_joints(self) -> tuple[int, ...]:
+        """Index (into ``joints``) of the joint behind each entry of ``q``."""
+        return tuple(i for i, j in enumerate(self.joints) if j.movable)
+
+    @cached_property
+    def link_names(self) -> tuple[str, ...]:
+        """``link_0`` (base), ``link_1`` … ``link_N`` and ``tool``: the rows of ``fk_all``."""
+        return (*(f"link_{i}" for i in range(len(self.joints) + 1)), "tool")
+
+    @cached_property
+    def lower(self) -> NDArray[np.float64]:
+        return _ro(np.array([self.joints[i].limits[0] for i in self.movable_joints], float))
+
+    @cached_property
+    def upper(self) -> NDArray[np.float64]:
+        return _ro(np.array([self.joints[i].limits[1] for i in self.movable_joints], float))
+
+    @cached_property
+    def vmax(self) -> NDArray[np.float64]:
+        return _ro(np.array([self.joints[i].vmax for i in self.movable_joints], float))
+
+    @cached_property
+    def actuated(self) -> NDArray[np.bool_]:
+        """True for each entry of ``q`` the controller may command (not passive)."""
+        return _ro(np.array([not self.joints[i].passive for i in self.movable_joints]))
+
+    @cached_property
+    def prismatic(self) -> NDArray[np.bool_]:
+        return _ro(np.array([self.joints[i].type == "prismatic" for i in self.movable_joints]))
+
+    @cached_property
+    def dh(self) -> NDArray[np.float64]:
+        """``(N, 4)`` table of a, alpha, d, theta (offsets) for every joint."""
+        return _ro(np.array([[j.a, j.alpha, j.d, j.theta] for j in self.joints], float))
+
+    @cached_property
+    def arrays(self) -> ChainArrays:
+        qidx = np.full(len(self.joints), -1, dtype=np.int64)
+        for k, i in enumerate(self.movable_joints):
+            qidx[i] = k
+        return ChainArrays(
+            kind=np.array([_KIND[j.type] for j in self.joints], dtype=np.int64),
+            qidx=qidx,
+            dh=np.ascontiguousarray(self.dh),
+            classic=self.convention == "classic",
+            base=np.ascontiguousarray(self.base),
+            tool=np.ascontiguousarray(self.tool),
+        )
+
+    def link_index(self, link: int | str) -> int:
+        """Row of ``fk_all`` for a link given by index or by name."""
+        if isinstance(link, str):
+            try:
+                return self.link_names.index(link)
+            except ValueError:
+                raise InputError(self.name, "link", f"unknown link {link!r}") from None
+        k = int(link)
+        if not 0 <= k < len(self.link_names):
+            raise InputError(self.name, "link", f"link index {k} outside 0..{len(self.joints) + 1}")
+        return k
+
+    def within_limits(self, q: ArrayLike, tol: float = 0.0) -> NDArray[np.bool_] | bool:
+        """True where ``q`` (``(n,)`` or ``(m, n)``) is inside the joint limits."""
+        Q = np.asarray(q, dtype=float)
+        ok = np.all((Q >= self.lower - tol) & (Q <= self.upper + tol), axis=-1)
+        return bool(ok) if ok.ndim == 0 else ok
+
+    # ---- kinematics (implemented in fk.py / jacobian.py / ik.py) -------------------
+    def fk(self, q: ArrayLike) -> Pose:
+        """Tool pose in world, ``(4, 4)`` or ``(m, 4, 4)``."""
+        from reachwise.kinematics.fk import fk
+
+        return fk(self, q)
+
+    def fk_all(self, q: ArrayLike) -> Pose:
+        """World pose of every frame (``link_names`` order): ``(N+2, 4, 4)`` or batched."""
+        from reachwise.kinematics.fk import fk_all
+
+        return fk_all(self, q)
+
+    def jacobian(self, q: ArrayLike) -> NDArray[np.float64]:
+        """Geometric tool Jacobian in world, linear rows first: ``(6, n)`` or ``(m, 6, n)``."""
+        from reachwise.kinematics.jacobian import jacobian
+
+        return jacobian(self, q)
+
+    def point_jacobian(
+        self, q: ArrayLike, link: int | str, point: ArrayLike, frame: str = "link"
+    ) -> NDArray[np.float64]:
+        """``(3, n)`` Jacobian of a point fixed to ``link`` (given in the link frame, or
+        in world coordinates when ``frame="world"``)."""
+        from reachwise.kinematics.jacobian import point_jacobian
+
+        return point_jacobian(self, q, link, point, frame)
+
+    def param_jacobian(self, q: ArrayLike) -> NDArray[np.float64]:
+        """``(6, 4N + 6)`` Jacobian of the tool pose w.r.t. every DH parameter and the base."""
+        from reachwise.kinematics.jacobian import param_jacobian
+
+        return param_jacobian(self, q)
+
+    def ik(
+        self,
+        T: ArrayLike,
+        q0: ArrayLike | None = None,
+        mask: Any = None,
+        rng: np.random.Generator | int | None = None,
+        **options: Any,
+    ) -> IKResult:
+        """Inverse kinematics by damped least squares (see ``reachwise.kinematics.ik``)."""
+        from reachwise.kinematics.ik import solve_ik
+
+        return solve_ik(self, T, q0=q0, mask=mask, rng=rng, **options)
+
+    # ---- derived robots and files --------------------------------------------------
+    def with_parameters(
+        self, dh: ArrayLike | None = None, base: ArrayLike | None = None, name: str | None = None
+    ) -> Robot:
+        """A copy with a new ``(N, 4)`` DH table and/or a new 4x4 base pose."""
+        from dataclasses import replace
+
+        joints = self.joints
+        if dh is not None:
+            table = np.asarray(dh, dtype=float)
+            if table.shape != (len(self.joints), 4):
+                raise InputError(
+                    self.name, "dh", f"expected {(len(self.joints), 4)}, got {table.shape}"
+                )
+            joints = tuple(
+                replace(j, a=float(r[0]), alpha=float(r[1]), d=float(r[2]), theta=float(r[3]))
+                for j, r in zip(self.joints, table, strict=True)
+            )
+        return replace(
+            self,
+            joints=joints,
+            base=self.base if base is None else np.asarray(base, dtype=float),
+            name=self.name if name is None else name,
+        )
+
+    def save(self, path: str) -> None:
+        """Write the robot as a YAML robot file (schema in DESIGN.md); round-trips."""
+        from reachwise.io.robot_file import save_robot
+
+        save_robot(self, path)
+
+
+def _ro(a: NDArray[Any]) -> NDArray[Any]:
+    a.setflags(write=False)
+    return a

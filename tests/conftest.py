@@ -1,0 +1,34 @@
+"""Shared fixtures: random serial chains of both DH conventions, seeded."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from reachwise.kinematics.robot import Joint, Robot
+from reachwise.kinematics.transforms import pose_from_xyz_rpy
+
+
+def random_chain(rng: np.random.Generator, n_joints: int = 7, classic: bool = False) -> Robot:
+    """A random chain mixing revolute, prismatic and fixed joints, random base and tool."""
+    joints = []
+    for i in range(n_joints):
+        kind = rng.choice(["revolute", "revolute", "prismatic", "fixed"]) if i else "revolute"
+        a, d = rng.uniform(-0.8, 0.8, 2)
+        alpha, theta = rng.uniform(-np.pi, np.pi, 2)
+        lim = (-0.5, 1.5) if kind == "prismatic" else (-np.pi, np.pi)
+        joints.append(Joint(kind, a=a, alpha=alpha, d=d, theta=theta, limits=lim))
+    base = pose_from_xyz_rpy(rng.uniform(-1, 1, 3), rng.uniform(-np.pi, np.pi, 3))
+    tool = pose_from_xyz_rpy(rng.uniform(-0.3, 0.3, 3), rng.uniform(-np.pi, np.pi, 3))
+    return Robot(
+        "random",
+        tuple(joints),
+        convention="classic" if classic else "modified",
+        base=base,
+        tool=tool,
+    )
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(20171208)
