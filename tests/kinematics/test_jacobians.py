@@ -74,15 +74,14 @@ def test_point_jacobian_matches_fd(rng: np.random.Generator, classic: bool) -> N
         for link in range(len(robot.link_names)):
             p_local = rng.uniform(-0.5, 0.5, 3)
 
-            def world(qq: np.ndarray, link: int = link, p: np.ndarray = p_local) -> np.ndarray:
+            def world(
+                qq: np.ndarray, link: int = link, p: np.ndarray = p_local, robot: Robot = robot
+            ) -> np.ndarray:
                 F = robot.fk_all(qq)[link]
                 return F[:3, :3] @ p + F[:3, 3]
 
             fd = np.stack(
-                [
-                    (world(q + H * e) - world(q - H * e)) / (2 * H)
-                    for e in np.eye(robot.n)
-                ],
+                [(world(q + H * e) - world(q - H * e)) / (2 * H) for e in np.eye(robot.n)],
                 axis=1,
             )
             Jp = robot.point_jacobian(q, link, p_local)
@@ -117,7 +116,9 @@ def fd_param_jacobian(robot: Robot, q: np.ndarray) -> np.ndarray:
         e[k] = H
         bp = pose_from_xyz_rpy((x6 + e)[:3], (x6 + e)[3:])
         bm = pose_from_xyz_rpy((x6 - e)[:3], (x6 - e)[3:])
-        cols.append(twist_fd(robot.with_parameters(base=bp).fk(q), robot.with_parameters(base=bm).fk(q), H))
+        cols.append(
+            twist_fd(robot.with_parameters(base=bp).fk(q), robot.with_parameters(base=bm).fk(q), H)
+        )
     return np.stack(cols, axis=1)
 
 

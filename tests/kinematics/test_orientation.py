@@ -44,7 +44,9 @@ def test_eq_3_9_written_out() -> None:
             xd, yd, zd, wd = -xd, -yd, -zd, -wd
         eps, epsd = np.array([x, y, z]), np.array([xd, yd, zd])
         expect = w * epsd - wd * eps - skew(epsd) @ eps
-        np.testing.assert_allclose(quaternion_error(q.as_matrix(), qd.as_matrix()), expect, atol=1e-12)
+        np.testing.assert_allclose(
+            quaternion_error(q.as_matrix(), qd.as_matrix()), expect, atol=1e-12
+        )
 
 
 def test_zero_error_and_batch() -> None:

@@ -221,7 +221,7 @@ def ik_loop(  # type: ignore[no-untyped-def]
         # Near the solution the damping fades with the error (Levenberg–Marquardt
         # style) so the last steps converge quadratically even inside the singular
         # region; far from it, λ_max applies as in P-I Eq. 14.
-        lam = lam_max * min(1.0, math.sqrt(score / err_ref))
+        lam = lam_max * min(1.0, score / err_ref)
         for k in range(n):
             if math.isfinite(span[k]) and span[k] > 0.0:
                 znull[k] = -k_null * (q[k] - mid[k]) / (span[k] * span[k])

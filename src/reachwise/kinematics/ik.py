@@ -11,7 +11,7 @@ vector or the 5-D tool-axis error) with
 - a secondary goal in the null space (Eq. 3.7): ``z = −k ∇H`` with
   ``H = ½ Σ ((q_i − mid_i)/span_i)²`` keeps redundant joints near mid-range;
 - a step-length cap per joint, and projection onto the limits;
-- λ_max scaled by ``min(1, sqrt(‖e‖/err_ref))`` so the damping fades as the error
+- λ_max scaled by ``min(1, ‖e‖/err_ref)`` so the damping fades as the error
   vanishes (Levenberg–Marquardt style): convergence stays quadratic near singular
   solutions, where the plain schedule would crawl.
 
