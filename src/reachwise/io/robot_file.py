@@ -184,8 +184,8 @@ def robot_from_dict(data: Any, source: str = "robot") -> Robot:
             raise RobotFileError(source, f"joints[{i}].{exc.field}", exc.reason) from None
     try:
         design = DesignSpace(
-            joints={j: dict(ps) for j, ps in m.design.joints.items()},
-            base=dict(m.design.base),
+            joints={j: {str(p): b for p, b in ps.items()} for j, ps in m.design.joints.items()},
+            base={str(p): b for p, b in m.design.base.items()},
         )
         return Robot(
             name=m.name,
