@@ -1,0 +1,557 @@
+"""URDF export and import of serial chains, exact to floating-point rounding.
+
+Export (``export_urdf``)
+------------------------
+One URDF link per reachwise frame: ``world`` (the root), ``link_0`` (the base frame,
+a fixed joint ``world -> link_0`` carrying ``Robot.base``), ``link_1`` … ``link_N``
+(the frame after DH row ``i``, fixed rows included) and ``tool`` (a fixed joint carrying
+``Robot.tool``). Every URDF link frame therefore equals the matching row of
+``Robot.fk_all`` (P-I Eq. 2–6). Each DH row becomes
+
+* **modified DH** (Craig, P-I Eq. 2–3), ``A = Rx(alpha) Tx(a) Rz(theta + q) Tz(d + q)``:
+  one URDF joint ``link_{i-1} -> link_i`` whose origin is the constant part
+  ``Rx(alpha) Tx(a) Rz(theta) Tz(d)`` and whose axis is ``z`` — exact, because
+  ``Rz`` and ``Tz`` commute, so ``Rz(theta + q) Tz(d) = Rz(theta) Tz(d) Rz(q)`` and
+  ``Rz(theta) Tz(d + q) = Rz(theta) Tz(d) Tz(q)``;
+* **classic DH**, ``A = Rz(theta + q) Tz(d + q) Tx(a) Rx(alpha)``: the moving joint
+  (origin ``Rz(theta) Tz(d)``, axis ``z``) into an intermediate link
+  ``link_i_axis``, then a fixed joint ``<name>_dh`` carrying ``Tx(a) Rx(alpha)`` to
+  ``link_i``; a fixed classic row is one fixed joint with the whole ``A``.
+
+Joint types map revolute → ``revolute``, prismatic → ``prismatic``, fixed → ``fixed``
+and passive → ``revolute`` marked by the comment ``<!-- reachwise: passive -->``
+inside the ``<joint>`` element (the grabber of P-V hangs on two such joints).
+``<limit lower upper velocity effort>``: ``velocity`` is ``vmax``; reachwise has no
+force model, so ``effort="0"`` means "not specified", and an unbounded ``vmax`` is
+written as ``velocity="0"`` (read back as unbounded). Collision geometry is written as
+``<collision>`` and an identical ``<visual>`` (box, cylinder, or mesh by filename).
+Design bounds and point-cloud sample counts have no URDF counterpart and are not
+written.
+
+Import (``load_urdf``)
+----------------------
+A URDF joint is ``T(q) = O · M(u, q)`` with a general rigid origin ``O`` and a motion
+``M`` about/along a unit axis ``u`` (any direction). With a rotation ``A`` taking ``z``
+onto ``u``, ``M(u, q) = A · M(z, q) · Aᵀ``. Walking the chain, the constant transform
+between two consecutive moving joints is ``G = Aᵀ_prev · O_fixed… · O · A`` and is
+decomposed (``decompose_transform``) as
+
+    G = Rz(θ₁) Tz(d₁) · Rx(α) Tx(a) Rz(θ₂) Tz(d₂)                          (★)
+
+(the common normal of the two joint axes, Craig §3.4). ``Rz(θ₁) Tz(d₁)`` commutes
+with the previous row's motion ``Rz(q)`` or ``Tz(q)`` and is added to that row's
+``theta``/``d`` offsets; ``Rx(α) Tx(a) Rz(θ₂) Tz(d₂)`` is the moving row's constant
+part. So every moving URDF joint becomes exactly one modified-DH row. Where (★) is
+ill-conditioned (axes parallel but not coincident up to rounding, common normal far
+away) the exact fallback ``G = Rz(φ) Tz(p_z) · [fixed row Tx(ρ) Rz(θa)] ·
+[Rx(α) Rz(θb)]`` is used (polar translation, then ZXZ Euler angles), which adds one
+fixed row. Fixed URDF joints before the first and after the last moving joint go into
+``Robot.base`` and ``Robot.tool``. Geometry is re-expressed in the reachwise link
+frame it is rigidly attached to. ``continuous`` joints become revolute joints limited
+to ``[-π, π]`` (every orientation; no wrap-around motion).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+import xml.etree.ElementTree as ET
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from reachwise.errors import RobotFileError
+from reachwise.kinematics.robot import Joint, JointType, LinkGeometry, Robot
+from reachwise.kinematics.transforms import matrix_from_rpy, rpy_from_matrix
+from reachwise.kinematics.transforms import rot_x as _rx
+from reachwise.kinematics.transforms import rot_z as _rz
+from reachwise.kinematics.transforms import translation as _tr
+
+PASSIVE_MARK = "reachwise: passive"
+_SUPPORTED = ("revolute", "continuous", "prismatic", "fixed")
+_EPS_LEN = 1e-12  # m: a translation this small is dropped (error far below 1e-10)
+
+Mat = NDArray[np.float64]
+
+
+# ---- elementary transforms ---------------------------------------------------------
+def _inv(T: Mat) -> Mat:
+    out = np.eye(4)
+    out[:3, :3] = T[:3, :3].T
+    out[:3, 3] = -T[:3, :3].T @ T[:3, 3]
+    return out
+
+
+def mdh_transform(alpha: float, a: float, theta: float, d: float) -> Mat:
+    """``Rx(alpha) Tx(a) Rz(theta) Tz(d)``: one modified-DH row (P-I Eq. 2)."""
+    return _rx(alpha) @ _tr(x=a) @ _rz(theta) @ _tr(z=d)
+
+
+def rotation_z_to(u: ArrayLike) -> Mat:
+    """A 4x4 rotation ``A`` with ``A @ [0, 0, 1] = u`` (``u`` a unit vector)."""
+    v = np.asarray(u, dtype=float)
+    flip = v[2] < -0.5
+    if flip:  # work with Rx(π)ᵀ u, whose z is positive, then put Rx(π) back in front
+        v = np.array([v[0], -v[1], -v[2]])
+    k = np.array([-v[1], v[0], 0.0])  # z × v
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    R = np.eye(3) + K + K @ K / (1.0 + v[2])
+    A = np.eye(4)
+    A[:3, :3] = R
+    if flip:
+        A = _rx(math.pi) @ A
+    return A
+
+
+# ---- decomposition of a rigid transform into DH rows -------------------------------
+def decompose_transform(G: ArrayLike) -> tuple[float, float, float, float, float, float]:
+    """``(θ₁, d₁, α, a, θ₂, d₂)`` with ``G = Rz(θ₁) Tz(d₁) Rx(α) Tx(a) Rz(θ₂) Tz(d₂)``.
+
+    The first factor slides and turns along the ``z`` axis of the start frame to the
+    common normal of the two ``z`` axes; the rest is a modified-DH row (P-I Eq. 2) from
+    there to the frame of ``G``. When the axes are parallel the normal is taken through
+    the start origin (``d₁ = 0``). The sign of the normal is chosen so that
+    ``|θ₁| ≤ π/2``, so a transform that already is one DH row returns ``θ₁ = d₁ = 0``
+    and its own parameters. Raises ``ValueError`` when the common normal is so far
+    away (nearly parallel axes) that the result would lose precision; callers then
+    use ``decompose_transform_fallback``.
+    """
+    T = np.asarray(G, dtype=float)
+    zg, xg, p = T[:3, 2], T[:3, 0], T[:3, 3]
+    c = float(zg[2])
+    n = np.array([-zg[1], zg[0], 0.0])  # e_z × zg
+    s = float(np.hypot(n[0], n[1]))
+    scale = 1.0 + float(np.linalg.norm(p))
+    if s > 1e-14:
+        xf = n / s
+        sc = (float(p[2]) - c * float(p @ zg)) / s**2  # foot on the start z axis
+        tc = (c * float(p[2]) - float(p @ zg)) / s**2  # foot on the end z axis
+        if max(abs(sc), abs(tc)) > 1e4 * scale:
+            raise ValueError("common normal too far away (axes nearly parallel)")
+        d1 = sc
+        d2 = -tc
+    else:
+        xf = np.array([p[0], p[1], 0.0])
+        rho = float(np.hypot(p[0], p[1]))
+        xf = xf / rho if rho > _EPS_LEN else np.array([1.0, 0.0, 0.0])
+        d1 = 0.0
+        d2 = float(p[2]) * (1.0 if c > 0 else -1.0)
+    if xf[0] < 0 or (xf[0] == 0 and xf[1] < 0):
+        xf = -xf
+    theta1 = math.atan2(xf[1], xf[0])
+    alpha = math.atan2(float(np.cross([0.0, 0.0, 1.0], zg) @ xf), c)
+    a = float((p - d1 * np.array([0.0, 0.0, 1.0]) - d2 * zg) @ xf)
+    theta2 = math.atan2(float(np.cross(xf, xg) @ zg), float(xf @ xg))
+    return theta1, d1, alpha, a, theta2, d2
+
+
+def decompose_transform_fallback(
+    G: ArrayLike,
+) -> tuple[float, float, float, float, float, float]:
+    """``(φ, p_z, ρ, θa, α, θb)`` with ``G = Rz(φ) Tz(p_z) · Tx(ρ) Rz(θa) · Rx(α) Rz(θb)``.
+
+    Always exact and well conditioned: the translation in cylindrical coordinates
+    ``(ρ, φ, p_z)``, then the remaining rotation ``Rz(-φ) R`` as ZXZ Euler angles.
+    In DH rows: ``Rz(φ) Tz(p_z)`` joins the previous row's offsets, ``Tx(ρ) Rz(θa)`` is a
+    fixed row ``(α=0, a=ρ, θ=θa, d=0)`` and ``Rx(α) Rz(θb)`` the moving row's constant part.
+    """
+    T = np.asarray(G, dtype=float)
+    p = T[:3, 3]
+    rho = float(np.hypot(p[0], p[1]))
+    phi = math.atan2(float(p[1]), float(p[0])) if rho > _EPS_LEN else 0.0
+    Rr = _rz(-phi)[:3, :3] @ T[:3, :3]
+    # ZXZ: Rr = Rz(ta) Rx(al) Rz(tb); Rr[2] = (sin al sin tb, sin al cos tb, cos al)
+    al = math.atan2(math.hypot(Rr[2, 0], Rr[2, 1]), Rr[2, 2])
+    if math.hypot(Rr[2, 0], Rr[2, 1]) > 1e-300:
+        tb = math.atan2(Rr[2, 0], Rr[2, 1])
+    else:
+        tb = 0.0
+    # the rest is an exact z-rotation: Rz(ta) = Rr Rz(tb)ᵀ Rx(al)ᵀ
+    Z = Rr @ _rz(tb)[:3, :3].T @ _rx(al)[:3, :3].T
+    ta = math.atan2(Z[1, 0], Z[0, 0])
+    return phi, float(p[2]), rho, ta, al, tb
+
+
+# ---- export ------------------------------------------------------------------------
+def _f(v: float) -> str:
+    x = float(v)
+    if abs(x) < 1e-15:
+        x = 0.0
+    return repr(x)
+
+
+def _origin(parent: ET.Element, T: Mat) -> None:
+    rpy = rpy_from_matrix(T)
+    ET.SubElement(
+        parent,
+        "origin",
+        xyz=" ".join(_f(v) for v in T[:3, 3]),
+        rpy=" ".join(_f(v) for v in rpy),
+    )
+
+
+def _unique(name: str, used: set[str]) -> str:
+    out, k = name, 2
+    while out in used:
+        out, k = f"{name}_{k}", k + 1
+    used.add(out)
+    return out
+
+
+def _geometry_elements(link: ET.Element, g: LinkGeometry) -> None:
+    for tag in ("visual", "collision"):
+        el = ET.SubElement(link, tag)
+        _origin(el, g.origin_matrix)
+        geo = ET.SubElement(el, "geometry")
+        if g.shape == "box":
+            ET.SubElement(geo, "box", size=" ".join(_f(v) for v in (g.size or ())))
+        elif g.shape == "cylinder":
+            ET.SubElement(geo, "cylinder", radius=_f(g.radius or 0.0), length=_f(g.length or 0.0))
+        else:
+            ET.SubElement(geo, "mesh", filename=str(g.mesh))
+
+
+def export_urdf(robot: Robot, path: str | Path | None = None) -> str:
+    """The robot as a URDF XML string (written to ``path`` when given).
+
+    yourdfpy's forward kinematics of link ``link_i`` / ``tool`` relative to ``world``
+    equals ``robot.fk_all(q)`` / ``robot.fk(q)`` to rounding for every ``q`` (the joint
+    values are keyed by the URDF joint names, in ``robot.movable_joints`` order).
+    See the module docstring for the construction.
+    """
+    root = ET.Element("robot", name=robot.name)
+    root.append(
+        ET.Comment(
+            f" Generated by reachwise from robot {robot.name!r} ({robot.convention} DH, "
+            f"{len(robot.joints)} rows). Link frames link_0..link_{len(robot.joints)} and "
+            "tool equal Robot.fk_all. effort='0' = not specified; velocity='0' = unbounded. "
+        )
+    )
+    links: dict[str, ET.Element] = {}
+
+    def add_link(name: str) -> None:
+        links[name] = ET.SubElement(root, "link", name=name)
+
+    used: set[str] = set()
+    names = [_unique(j.name or f"joint_{i + 1}", used) for i, j in enumerate(robot.joints)]
+    base_name = _unique("base_joint", used)
+    tool_name = _unique("tool_joint", used)
+
+    def add_joint(
+        name: str, jtype: str, parent: str, child: str, origin: Mat, j: Joint | None = None
+    ) -> None:
+        el = ET.SubElement(root, "joint", name=name, type=jtype)
+        if j is not None and j.passive:
+            el.append(ET.Comment(f" {PASSIVE_MARK} "))
+        _origin(el, origin)
+        ET.SubElement(el, "parent", link=parent)
+        ET.SubElement(el, "child", link=child)
+        if j is not None and jtype != "fixed":
+            ET.SubElement(el, "axis", xyz="0 0 1")
+            vel = j.vmax if math.isfinite(j.vmax) else 0.0
+            ET.SubElement(
+                el,
+                "limit",
+                lower=_f(j.limits[0]),
+                upper=_f(j.limits[1]),
+                effort="0",
+                velocity=_f(vel),
+            )
+
+    add_link("world")
+    add_link("link_0")
+    add_joint(base_name, "fixed", "world", "link_0", np.asarray(robot.base, dtype=float))
+    for i, j in enumerate(robot.joints):
+        parent, child = f"link_{i}", f"link_{i + 1}"
+        jtype = j.type  # a passive joint is a revolute Joint with passive=True
+        if robot.convention == "modified":
+            add_link(child)
+            add_joint(names[i], jtype, parent, child, mdh_transform(j.alpha, j.a, j.theta, j.d), j)
+        elif j.type == "fixed":
+            add_link(child)
+            A = _rz(j.theta) @ _tr(z=j.d) @ _tr(x=j.a) @ _rx(j.alpha)
+            add_joint(names[i], "fixed", parent, child, A, j)
+        else:
+            mid = f"{child}_axis"
+            add_link(mid)
+            add_joint(names[i], jtype, parent, mid, _rz(j.theta) @ _tr(z=j.d), j)
+            add_link(child)
+            add_joint(
+                _unique(f"{names[i]}_dh", used), "fixed", mid, child, _tr(x=j.a) @ _rx(j.alpha)
+            )
+    add_link("tool")
+    add_joint(
+        tool_name, "fixed", f"link_{len(robot.joints)}", "tool", np.asarray(robot.tool, dtype=float)
+    )
+    for link, g in robot.geometry.items():
+        _geometry_elements(links[link], g)
+    ET.indent(root, space="  ")
+    xml = '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+    if path is not None:
+        Path(path).write_text(xml)
+    return xml
+
+
+# ---- import ------------------------------------------------------------------------
+def _passive_joints(path: Path) -> set[str]:
+    """Names of joints carrying the ``<!-- reachwise: passive -->`` marker."""
+    parser = ET.XMLParser(target=ET.TreeBuilder(insert_comments=True))
+    tree = ET.parse(path, parser=parser)
+    out: set[str] = set()
+    for el in tree.getroot().iter("joint"):
+        for child in el:
+            if child.tag is ET.Comment and PASSIVE_MARK in (child.text or ""):
+                out.add(str(el.get("name")))
+    return out
+
+
+def _chain(source: str, joints: list[Any], links: list[str], tip: str | None) -> list[Any]:
+    """The joints from the root link to ``tip`` (or to the single leaf), in order."""
+    by_parent: dict[str, list[Any]] = {}
+    parent_of: dict[str, Any] = {}
+    names = set(links)
+    for j in joints:
+        for end in (j.parent, j.child):
+            if end not in names:
+                raise RobotFileError(source, f"joint {j.name!r}", f"no such link {end!r}")
+        if j.child in parent_of:
+            raise RobotFileError(
+                source, f"link {j.child!r}", "has several parent joints (not a tree)"
+            )
+        parent_of[j.child] = j
+        by_parent.setdefault(j.parent, []).append(j)
+    roots = [lk for lk in links if lk not in parent_of]
+    if len(roots) != 1:
+        raise RobotFileError(
+            source, "links", f"expected one root link, found {len(roots)}: {roots[:5]}"
+        )
+    if tip is not None:
+        if tip not in names:
+            raise RobotFileError(source, "tip", f"no such link {tip!r}")
+        out = []
+        link = tip
+        while link in parent_of:
+            out.append(parent_of[link])
+            link = parent_of[link].parent
+        return out[::-1]
+    out = []
+    link = roots[0]
+    while link in by_parent:
+        kids = by_parent[link]
+        if len(kids) > 1:
+            raise RobotFileError(
+                source,
+                f"link {link!r}",
+                f"branches into joints {[k.name for k in kids]}; reachwise handles serial "
+                "chains only (pass tip=LINK to take the chain from the root to LINK)",
+            )
+        out.append(kids[0])
+        link = kids[0].child
+    return out
+
+
+def _joint_row(source: str, uj: Any, passive: bool) -> Joint:
+    """Type, limits and vmax of one moving URDF joint (DH parameters set later)."""
+    field = f"joint {uj.name!r}"
+    if uj.mimic is not None:
+        raise RobotFileError(source, field, "mimic joints are not supported")
+    if uj.type == "continuous":
+        limits = (-math.pi, math.pi)
+    else:
+        lim = uj.limit
+        if lim is None or lim.lower is None or lim.upper is None:
+            raise RobotFileError(
+                source, f"{field}.limit", f"a {uj.type} joint needs <limit lower=… upper=…>"
+            )
+        limits = (float(lim.lower), float(lim.upper))
+        if not (math.isfinite(limits[0]) and math.isfinite(limits[1])):
+            raise RobotFileError(source, f"{field}.limit", f"limits must be finite: {limits}")
+        if limits[0] > limits[1]:
+            raise RobotFileError(source, f"{field}.limit", f"lower {limits[0]} > upper {limits[1]}")
+    vel = None if uj.limit is None else uj.limit.velocity
+    vmax = float(vel) if vel is not None and math.isfinite(vel) and vel > 0 else math.inf
+    kind: JointType = "prismatic" if uj.type == "prismatic" else "revolute"
+    return Joint(kind, limits=limits, vmax=vmax, passive=passive, name=str(uj.name))
+
+
+def _link_geometry(source: str, lname: str, ulink: Any, C: Mat) -> list[LinkGeometry]:
+    """The URDF link's shapes (collision, else visual) in the reachwise frame ``C``."""
+    out: list[LinkGeometry] = []
+    items = list(ulink.collisions) or list(ulink.visuals)
+    for item in items:
+        geo = item.geometry
+        if geo is None:
+            continue
+        O = C @ (np.eye(4) if item.origin is None else np.asarray(item.origin, float))
+        origin = tuple(tuple(float(x) for x in row) for row in O)
+        if geo.box is not None:
+            size = np.asarray(geo.box.size, dtype=float).ravel()
+            if size.shape != (3,):
+                raise RobotFileError(source, f"link {lname!r}.box", f"size needs 3 values: {size}")
+            sx, sy, sz = (float(v) for v in size)
+            out.append(LinkGeometry("box", size=(sx, sy, sz), origin=origin))
+        elif geo.cylinder is not None:
+            out.append(
+                LinkGeometry(
+                    "cylinder",
+                    radius=float(geo.cylinder.radius),
+                    length=float(geo.cylinder.length),
+                    origin=origin,
+                )
+            )
+        elif geo.mesh is not None:
+            scale = geo.mesh.scale
+            if scale is not None and not np.allclose(scale, 1.0):
+                warnings.warn(
+                    f"{source}: link {lname!r}: scaled mesh {geo.mesh.filename!r} skipped "
+                    "(robot geometry has no mesh scale)",
+                    stacklevel=3,
+                )
+                continue
+            out.append(LinkGeometry("mesh", mesh=str(geo.mesh.filename), origin=origin))
+        else:
+            warnings.warn(
+                f"{source}: link {lname!r}: sphere geometry skipped (not supported)",
+                stacklevel=3,
+            )
+    return out
+
+
+def load_urdf(path: str | Path, tip: str | None = None) -> Robot:
+    """A ``Robot`` (modified DH) from a URDF serial chain, read with yourdfpy.
+
+    ``tip``: take the chain from the root link to this link and ignore other branches;
+    by default the URDF must be a single unbranched chain. The tool frame is the last
+    link of the chain. The forward kinematics of the result equals yourdfpy's for that
+    link (to rounding) at every ``q``; ``q`` follows the chain's moving joints, root
+    to tip. Joints marked ``<!-- reachwise: passive -->`` become passive. Raises
+    ``RobotFileError`` for unreadable files, trees, floating/planar/mimic joints and
+    missing or impossible limits. See the module docstring for the decomposition.
+    """
+    import yourdfpy
+
+    p = Path(path)
+    source = str(p)
+    if not p.is_file():
+        raise RobotFileError(source, "", "no such file")
+    try:
+        model = yourdfpy.URDF.load(
+            str(p), build_scene_graph=False, load_meshes=False, load_collision_meshes=False
+        )
+        passive = _passive_joints(p)
+    except Exception as exc:  # yourdfpy/lxml raise many kinds; report them uniformly
+        raise RobotFileError(source, "", f"cannot read URDF: {exc}") from None
+    urobot = model.robot
+    link_map = {lk.name: lk for lk in urobot.links}
+    chain = _chain(source, list(urobot.joints), list(link_map), tip)
+    for uj in chain:
+        if uj.type not in _SUPPORTED:
+            raise RobotFileError(
+                source,
+                f"joint {uj.name!r}.type",
+                f"unsupported joint type {uj.type!r} (revolute, continuous, prismatic, fixed)",
+            )
+    if not any(uj.type != "fixed" for uj in chain):
+        raise RobotFileError(source, "joints", "the chain has no revolute or prismatic joint")
+
+    rows: list[dict[str, Any]] = []  # DH rows: joint template + a, alpha, d, theta
+    base = np.eye(4)
+    acc = np.eye(4)  # constant transform from the last reachwise frame (or the root)
+    first = True
+    for uj in chain:
+        O = np.eye(4) if uj.origin is None else np.asarray(uj.origin, dtype=float)
+        acc = acc @ O
+        if uj.type == "fixed":
+            continue
+        u = np.asarray(uj.axis if uj.axis is not None else (1.0, 0.0, 0.0), dtype=float)
+        nu = float(np.linalg.norm(u))
+        if not nu > 0 or not math.isfinite(nu):
+            raise RobotFileError(source, f"joint {uj.name!r}.axis", f"invalid axis {u}")
+        A = rotation_z_to(u / nu)
+        G = acc @ A
+        row: dict[str, Any] = {
+            "joint": _joint_row(source, uj, str(uj.name) in passive),
+            "a": 0.0,
+            "alpha": 0.0,
+            "d": 0.0,
+            "theta": 0.0,
+        }
+        if first:
+            base = G
+            first = False
+        else:
+            try:
+                t1, d1, al, a, t2, d2 = decompose_transform(G)
+                rows[-1]["theta"] += t1
+                rows[-1]["d"] += d1
+                row.update(alpha=al, a=a, theta=t2, d=d2)
+            except ValueError:
+                phi, pz, rho, ta, al, tb = decompose_transform_fallback(G)
+                rows[-1]["theta"] += phi
+                rows[-1]["d"] += pz
+                fixed = Joint("fixed", name=f"{uj.name}_offset")
+                rows.append({"joint": fixed, "a": rho, "alpha": 0.0, "d": 0.0, "theta": ta})
+                row.update(alpha=al, a=0.0, theta=tb, d=0.0)
+        rows.append(row)
+        acc = A.T.copy()
+
+    def clean(v: float) -> float:  # drop rounding dust (|v| < 1e-15) for readable tables
+        return 0.0 if abs(v) < 1e-15 else float(v)
+
+    joints = tuple(
+        replace(
+            r["joint"],
+            a=clean(r["a"]),
+            alpha=clean(r["alpha"]),
+            d=clean(r["d"]),
+            theta=clean(r["theta"]),
+        )
+        for r in rows
+    )
+    name = str(urobot.name or p.stem)
+    robot = Robot(name, joints, base=base, tool=acc, source=source)
+
+    # geometry: every chain link rigidly follows one reachwise frame; express it there
+    F = robot.fk_all(np.zeros(robot.n))
+    root = chain[0].parent
+    P = {root: np.eye(4)}  # URDF link poses at q = 0
+    frame_of = {root: 0}
+    k = 0
+    for uj in chain:
+        O = np.eye(4) if uj.origin is None else np.asarray(uj.origin, dtype=float)
+        P[uj.child] = P[uj.parent] @ O
+        if uj.type != "fixed":
+            k += 1
+        frame_of[uj.child] = 0 if k == 0 else robot.movable_joints[k - 1] + 1
+    geometry: dict[str, LinkGeometry] = {}
+    tip_link = chain[-1].child
+    for lname, fi in frame_of.items():
+        target = "tool" if lname == tip_link else f"link_{fi}"
+        C = _inv(F[-1] if target == "tool" else F[fi]) @ P[lname]
+        for g in _link_geometry(source, lname, link_map[lname], C):
+            if target in geometry:
+                warnings.warn(
+                    f"{source}: link {lname!r}: more than one shape on reachwise frame "
+                    f"{target!r}; only the first is kept",
+                    stacklevel=2,
+                )
+                continue
+            geometry[target] = g
+    if geometry:
+        robot = replace(robot, geometry=geometry)
+    return robot
+
+
+__all__ = [
+    "PASSIVE_MARK",
+    "decompose_transform",
+    "decompose_transform_fallback",
+    "export_urdf",
+    "load_urdf",
+    "matrix_from_rpy",
+    "rotation_z_to",
+    "rpy_from_matrix",
+]
