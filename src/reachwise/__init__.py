@@ -8,9 +8,9 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
-from reachwise.geometry.cloud import PointCloud  # noqa: E402
-from reachwise.io.robot_file import load_robot  # noqa: E402
-from reachwise.kinematics.ik import IKResult  # noqa: E402
-from reachwise.kinematics.robot import Joint, Robot  # noqa: E402
+from reachwise.geometry.cloud import PointCloud
+from reachwise.io.robot_file import load_robot
+from reachwise.kinematics.ik import IKResult
+from reachwise.kinematics.robot import Joint, Robot
 
 __all__ = ["IKResult", "Joint", "PointCloud", "Robot", "__version__", "load_robot"]

@@ -8,23 +8,10 @@ import pytest
 from reachwise import load_robot
 from reachwise.errors import InputError
 from reachwise.kinematics.robot import Joint, Robot
+from reachwise.kinematics.transforms import rot_x as rx
+from reachwise.kinematics.transforms import rot_z as rz
+from reachwise.kinematics.transforms import translation as tr
 from tests.conftest import random_chain
-
-
-def rx(a: float) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[1, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1.0]])
-
-
-def rz(a: float) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
-
-
-def tr(x: float = 0, y: float = 0, z: float = 0) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, 3] = (x, y, z)
-    return T
 
 
 def naive_frames(robot: Robot, q: np.ndarray) -> list[np.ndarray]:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from importlib import resources
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import yaml
@@ -29,6 +29,9 @@ from reachwise.kinematics.transforms import pose_from_xyz_rpy, xyz_rpy_from_pose
 
 _STRICT = ConfigDict(extra="forbid", allow_inf_nan=False, strict=False)
 Pair = tuple[float, float]
+# Joint limits may be unbounded (.inf in YAML); NaN is rejected by the validator.
+InfFloat = Annotated[float, Field(allow_inf_nan=True)]
+LimitPair = tuple[InfFloat, InfFloat]
 
 
 class FrameModel(BaseModel):
@@ -57,8 +60,8 @@ class JointModel(BaseModel):
     d: float = 0.0
     theta: float | None = None
     theta_deg: float | None = None
-    limits: Pair | None = None
-    limits_deg: Pair | None = None
+    limits: LimitPair | None = None
+    limits_deg: LimitPair | None = None
     vmax: float | None = Field(default=None, gt=0)
     vmax_deg: float | None = Field(default=None, gt=0)
     passive: bool = False
@@ -75,6 +78,8 @@ class JointModel(BaseModel):
         if self.type == "prismatic" and (self.limits_deg is not None or self.vmax_deg is not None):
             raise ValueError("a prismatic joint's limits and vmax are in metres, not degrees")
         lim = self.limits if self.limits is not None else self.limits_deg
+        if lim is not None and (math.isnan(lim[0]) or math.isnan(lim[1])):
+            raise ValueError("limits: NaN is not a limit; use .inf for an unbounded joint")
         if lim is not None and lim[0] > lim[1]:
             raise ValueError(f"limits: lower {lim[0]} > upper {lim[1]}")
         return self

@@ -40,7 +40,8 @@ _KIND = {"revolute": 0, "prismatic": 1, "fixed": 2}
 class Joint:
     """One DH row: the joint type, its four parameters (m, rad) and its actuator limits.
 
-    ``limits`` bound ``q`` (rad or m), ``vmax`` bounds ``|q̇|`` (rad/s or m/s). A passive
+    ``limits`` bound ``q`` (rad or m; default ``(−π, π)`` for a revolute joint and
+    unbounded for a prismatic one), ``vmax`` bounds ``|q̇|`` (rad/s or m/s). A passive
     joint is moved by the plant (e.g. a freely hanging grabber), never commanded.
     """
 
@@ -49,7 +50,7 @@ class Joint:
     alpha: float = 0.0
     d: float = 0.0
     theta: float = 0.0
-    limits: tuple[float, float] = (-np.pi, np.pi)
+    limits: tuple[float, float] = None  # type: ignore[assignment]  # set by type below
     vmax: float = float("inf")
     passive: bool = False
     name: str = ""
@@ -57,6 +58,10 @@ class Joint:
     def __post_init__(self) -> None:
         if self.type not in _KIND:
             raise InputError("joint", "type", f"unknown joint type {self.type!r}")
+        if self.limits is None:
+            default = {"revolute": (-np.pi, np.pi), "prismatic": (-np.inf, np.inf)}
+            object.__setattr__(self, "limits", default.get(self.type, (0.0, 0.0)))
+        object.__setattr__(self, "limits", (float(self.limits[0]), float(self.limits[1])))
         for f in ("a", "alpha", "d", "theta"):
             v = getattr(self, f)
             if not np.isfinite(v):

@@ -5,6 +5,9 @@
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
@@ -12,6 +15,52 @@ from scipy.spatial.transform import Rotation
 from reachwise.errors import InputError
 
 Pose = NDArray[np.float64]
+
+
+def rot_x(a: float) -> Pose:
+    """4x4 rotation about x by ``a`` (rad)."""
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1.0, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1]])
+
+
+def rot_y(a: float) -> Pose:
+    """4x4 rotation about y by ``a`` (rad)."""
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, 0, s, 0], [0, 1.0, 0, 0], [-s, 0, c, 0], [0, 0, 0, 1]])
+
+
+def rot_z(a: float) -> Pose:
+    """4x4 rotation about z by ``a`` (rad)."""
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1.0, 0], [0, 0, 0, 1]])
+
+
+def translation(x: float = 0.0, y: float = 0.0, z: float = 0.0) -> Pose:
+    """4x4 translation by (x, y, z) m."""
+    T = np.eye(4)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+def rpy_from_matrix(R: ArrayLike) -> tuple[float, float, float]:
+    """URDF roll, pitch, yaw (``R = Rz(yaw) Ry(pitch) Rx(roll)``) of a rotation matrix.
+
+    Accurate to rounding also at and near gimbal lock (pitch = ±π/2): pitch from
+    ``atan2``, yaw from the first column, then roll from the remaining pure x-rotation
+    ``Ry(pitch)ᵀ Rz(yaw)ᵀ R``, so an inaccurate yaw near the lock is compensated by roll.
+    """
+    M = np.asarray(R, dtype=float)[:3, :3]
+    pitch = math.atan2(-M[2, 0], math.hypot(M[0, 0], M[1, 0]))
+    yaw = math.atan2(M[1, 0], M[0, 0])
+    X = rot_y(pitch)[:3, :3].T @ rot_z(yaw)[:3, :3].T @ M
+    roll = math.atan2(X[2, 1], X[1, 1])
+    return roll, pitch, yaw
+
+
+def matrix_from_rpy(rpy: Sequence[float]) -> Pose:
+    """4x4 rotation ``Rz(yaw) Ry(pitch) Rx(roll)`` (URDF fixed-axis convention)."""
+    r, p, y = (float(v) for v in rpy)
+    return rot_z(y) @ rot_y(p) @ rot_x(r)
 
 
 def pose_from_xyz_rpy(xyz: ArrayLike = (0, 0, 0), rpy: ArrayLike = (0, 0, 0)) -> Pose:
@@ -23,10 +72,10 @@ def pose_from_xyz_rpy(xyz: ArrayLike = (0, 0, 0), rpy: ArrayLike = (0, 0, 0)) ->
 
 
 def xyz_rpy_from_pose(T: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Translation and URDF roll-pitch-yaw of a 4x4 pose (pitch in [-π/2, π/2])."""
+    """Translation and URDF roll-pitch-yaw of a 4x4 pose (pitch in [-π/2, π/2]),
+    exact also at gimbal lock (see ``rpy_from_matrix``)."""
     M = np.asarray(T, dtype=float)
-    rpy = Rotation.from_matrix(M[:3, :3]).as_euler("xyz")
-    return M[:3, 3].copy(), np.asarray(rpy, dtype=float)
+    return M[:3, 3].copy(), np.array(rpy_from_matrix(M), dtype=float)
 
 
 def check_pose(T: ArrayLike, source: str = "pose", tol: float = 1e-6) -> Pose:
