@@ -1,0 +1,424 @@
+"""The distance scene: named clouds, where their poses come from, and the pairs to watch.
+
+This is the collision server's state of P-IV/P-V (thesis §3.1, P-V §II): point clouds
+of robot parts, other robots, obstacles and the scanned environment; part poses kept
+up to date from joint states through forward kinematics; rules saying which pairs to
+watch with which margin (self-collision pairs of a robot's links except adjacent ones
+and listed exclusions, robot–environment, robot–robot); and one call,
+:meth:`Scene.query_all`, answering every watched pair with the exact distance
+(:mod:`reachwise.distance.engine`). Each pair keeps a warm-started
+:class:`~reachwise.distance.engine.PairQuery`, so at 100 Hz successive answers start
+from the previous closest pair.
+
+Pose sources of an object: fixed in world, attached to a robot link (the link's world
+pose from ``robot.fk_all(q)`` times a fixed offset), or set at run time
+(:meth:`Scene.set_pose`). The environment cloud can be replaced at run time
+(:meth:`Scene.replace_cloud`, e.g. after a new scan); its index is rebuilt at once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from reachwise.distance._common import (
+    DistanceResult,
+    as_cloud,
+    check_margin,
+    check_pose,
+    cloud_tree,
+)
+from reachwise.distance.engine import STRATEGIES, PairQuery
+from reachwise.errors import InputError
+from reachwise.geometry.cloud import PointCloud
+
+
+@runtime_checkable
+class RobotLike(Protocol):
+    """What the scene needs of a robot (``reachwise.kinematics.robot.Robot`` has it).
+
+    ``link_names``: ``"link_0"`` (the base link), ``"link_1"`` … ``"link_n"`` (the link
+    moved by joint i), then ``"tool"``. ``fk_all(q)`` returns the world poses of those
+    frames, shape ``(len(link_names), 4, 4)``, in that order.
+    """
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def link_names(self) -> tuple[str, ...]: ...
+
+    def fk_all(self, q: ArrayLike) -> NDArray[np.float64]: ...
+
+
+@dataclass(frozen=True, eq=False)
+class Fixed:
+    """A pose fixed in world (4x4)."""
+
+    pose: NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class OnLink:
+    """Attached to ``link`` of ``robot``: world pose = link pose @ ``offset``."""
+
+    robot: str
+    link: str
+    offset: NDArray[np.float64]
+
+    @property
+    def identity(self) -> bool:
+        return bool(np.array_equal(self.offset, np.eye(4)))
+
+
+@dataclass(frozen=True)
+class Runtime:
+    """Set at run time with :meth:`Scene.set_pose` (identity until then)."""
+
+
+PoseSource = Fixed | OnLink | Runtime
+
+
+@dataclass(frozen=True, eq=False)
+class SceneObject:
+    """A named cloud and where its pose comes from."""
+
+    name: str
+    cloud: PointCloud
+    source: PoseSource
+
+
+@dataclass(frozen=True)
+class WatchedPair:
+    """A pair of objects to watch: ``kind`` is ``"self"``, ``"robot-environment"``,
+    ``"robot-robot"`` or ``"custom"``; ``margin`` in metres."""
+
+    a: str
+    b: str
+    margin: float
+    kind: str
+
+
+@dataclass(frozen=True)
+class PairResult:
+    """One watched pair's answer: object names, margin, kind and the distance result
+    (``point_a`` on ``a``; ``direction`` from ``b`` to ``a``)."""
+
+    a: str
+    b: str
+    margin: float
+    kind: str
+    result: DistanceResult
+
+
+@dataclass(frozen=True)
+class SceneResult:
+    """Every watched pair's answer from one :meth:`Scene.query_all` call;
+    ``sequence`` counts the calls (1, 2, …)."""
+
+    sequence: int
+    pairs: tuple[PairResult, ...]
+
+    def at_risk(self) -> tuple[PairResult, ...]:
+        """Pairs within their margin, nearest first."""
+        return tuple(
+            sorted((p for p in self.pairs if not p.result.no_risk), key=lambda p: p.result.distance)
+        )
+
+    def get(self, a: str, b: str) -> PairResult:
+        """The answer of pair (a, b) (or (b, a), seen from a)."""
+        for p in self.pairs:
+            if (p.a, p.b) == (a, b):
+                return p
+            if (p.a, p.b) == (b, a):
+                return PairResult(a, b, p.margin, p.kind, p.result.swapped())
+        raise KeyError(f"pair ({a!r}, {b!r}) is not watched")
+
+
+class Scene:
+    """Objects, robots and watched pairs; :meth:`query_all` answers every pair."""
+
+    def __init__(self, strategy: str = "default") -> None:
+        if strategy not in STRATEGIES:
+            raise InputError(
+                "strategy", "", f"unknown strategy {strategy!r}; choose one of {list(STRATEGIES)}"
+            )
+        self.strategy = strategy
+        self._objects: dict[str, SceneObject] = {}
+        self._robots: dict[str, RobotLike] = {}
+        self._q: dict[str, NDArray[np.float64] | None] = {}
+        self._runtime: dict[str, NDArray[np.float64]] = {}
+        self._pairs: dict[tuple[str, str], WatchedPair] = {}
+        self._queries: dict[tuple[str, str], PairQuery] = {}
+        self._sequence = 0
+
+    # ------------------------------------------------------------------ contents
+    @property
+    def objects(self) -> dict[str, SceneObject]:
+        return dict(self._objects)
+
+    @property
+    def robots(self) -> dict[str, RobotLike]:
+        return dict(self._robots)
+
+    @property
+    def pairs(self) -> tuple[WatchedPair, ...]:
+        return tuple(self._pairs.values())
+
+    @property
+    def sequence(self) -> int:
+        """How many times :meth:`query_all` has answered."""
+        return self._sequence
+
+    def add_robot(self, robot: RobotLike, q: ArrayLike | None = None) -> None:
+        """Register ``robot`` under ``robot.name``, optionally with its joint state."""
+        if not isinstance(robot, RobotLike):
+            raise InputError("robot", "", "needs name, link_names and fk_all(q)")
+        if robot.name in self._robots:
+            raise InputError("scene", f"robot {robot.name!r}", "already registered")
+        self._robots[robot.name] = robot
+        self._q[robot.name] = None
+        if q is not None:
+            self.set_joints(robot.name, q)
+
+    def set_joints(self, robot: str, q: ArrayLike) -> None:
+        """The joint state of ``robot`` (one value per non-fixed joint)."""
+        self._robot(robot)
+        arr = np.array(q, dtype=np.float64, copy=True).reshape(-1)
+        if not np.isfinite(arr).all():
+            raise InputError(f"robot {robot!r}", "q", "contains NaN or inf")
+        self._q[robot] = arr
+
+    def add_object(
+        self,
+        name: str,
+        cloud: PointCloud | ArrayLike,
+        pose: ArrayLike | None = None,
+        *,
+        robot: str | None = None,
+        link: str | None = None,
+        dynamic: bool = False,
+    ) -> SceneObject:
+        """Add a cloud. With ``robot`` and ``link`` it is attached to that link and
+        ``pose`` is its fixed offset from the link frame; with ``dynamic=True`` its
+        world pose is set at run time (``pose`` is the initial one); else ``pose`` is a
+        fixed world pose. ``None`` means identity. The cloud's index is built now."""
+        if not isinstance(name, str) or not name:
+            raise InputError("scene", "object name", "must be a non-empty string")
+        if name in self._objects:
+            raise InputError("scene", f"object {name!r}", "already exists")
+        c = as_cloud(cloud, name)
+        P = check_pose(pose, f"pose of {name!r}").copy()
+        source: PoseSource
+        if robot is not None or link is not None:
+            if robot is None or link is None:
+                raise InputError("scene", f"object {name!r}", "give both robot and link")
+            r = self._robot(robot)
+            if link not in r.link_names:
+                raise InputError(
+                    "scene",
+                    f"object {name!r}",
+                    f"robot {robot!r} has no link {link!r}; links are {list(r.link_names)}",
+                )
+            if dynamic:
+                raise InputError("scene", f"object {name!r}", "a link object cannot be dynamic")
+            source = OnLink(robot, link, P)
+        elif dynamic:
+            source = Runtime()
+            self._runtime[name] = P
+        else:
+            source = Fixed(P)
+        cloud_tree(c)
+        obj = SceneObject(name, c, source)
+        self._objects[name] = obj
+        return obj
+
+    def set_pose(self, name: str, pose: ArrayLike) -> None:
+        """The world pose of a run-time (``dynamic``) object."""
+        obj = self._object(name)
+        if not isinstance(obj.source, Runtime):
+            raise InputError("scene", f"object {name!r}", "its pose is not set at run time")
+        self._runtime[name] = check_pose(pose, f"pose of {name!r}").copy()
+
+    def replace_cloud(self, name: str, cloud: PointCloud | ArrayLike) -> None:
+        """Swap object ``name``'s cloud (e.g. a new scan); its index is rebuilt now and
+        the warm starts of its pairs are dropped."""
+        obj = self._object(name)
+        c = as_cloud(cloud, name)
+        cloud_tree(c)
+        self._objects[name] = SceneObject(name, c, obj.source)
+        for key in list(self._queries):
+            if name in key:
+                pair = self._pairs[key]
+                self._queries[key] = self._make_query(pair)
+
+    # ------------------------------------------------------------------ rules
+    def watch(self, a: str, b: str, margin: float, kind: str = "custom") -> WatchedPair:
+        """Watch objects ``a`` and ``b`` with ``margin`` metres (replaces an earlier rule
+        for the same pair)."""
+        self._object(a)
+        self._object(b)
+        if a == b:
+            raise InputError(
+                "scene", f"pair ({a!r}, {b!r})", "an object cannot be paired with itself"
+            )
+        m = check_margin(margin)
+        key = (a, b) if (b, a) not in self._pairs else (b, a)
+        pair = WatchedPair(key[0], key[1], m, kind)
+        self._pairs[key] = pair
+        self._queries[key] = self._make_query(pair)
+        return pair
+
+    def unwatch(self, a: str, b: str) -> None:
+        for key in ((a, b), (b, a)):
+            self._pairs.pop(key, None)
+            self._queries.pop(key, None)
+
+    def robot_objects(self, robot: str) -> tuple[SceneObject, ...]:
+        """Objects attached to ``robot``'s links, base to tool."""
+        r = self._robot(robot)
+        order = {n: i for i, n in enumerate(r.link_names)}
+        objs = [
+            o
+            for o in self._objects.values()
+            if isinstance(o.source, OnLink) and o.source.robot == robot
+        ]
+        return tuple(sorted(objs, key=lambda o: order[o.source.link]))  # type: ignore[union-attr]
+
+    def watch_self(
+        self,
+        robot: str,
+        margin: float,
+        exclude: Iterable[tuple[str, str]] = (),
+    ) -> tuple[WatchedPair, ...]:
+        """Self-collision pairs of ``robot``: every two of its objects except those on
+        the same link, on adjacent links (neighbours in ``link_names``: joint i joins
+        link_{i-1} and link_i; the tool is adjacent to the last link) and the pairs in
+        ``exclude`` (each a pair of link names or object names, either order)."""
+        r = self._robot(robot)
+        index = {n: i for i, n in enumerate(r.link_names)}
+        excl = {frozenset(e) for e in exclude}
+        objs = self.robot_objects(robot)
+        out = []
+        for i, oa in enumerate(objs):
+            for ob in objs[i + 1 :]:
+                la = oa.source.link  # type: ignore[union-attr]
+                lb = ob.source.link  # type: ignore[union-attr]
+                if abs(index[la] - index[lb]) <= 1:
+                    continue
+                if frozenset((la, lb)) in excl or frozenset((oa.name, ob.name)) in excl:
+                    continue
+                out.append(self.watch(oa.name, ob.name, margin, "self"))
+        return tuple(out)
+
+    def watch_environment(
+        self, robot: str, margin: float, objects: Iterable[str] | None = None
+    ) -> tuple[WatchedPair, ...]:
+        """Pairs of every object of ``robot`` with every object not on a robot (or with
+        the named ``objects``)."""
+        mine = self.robot_objects(robot)
+        if objects is None:
+            others = [o.name for o in self._objects.values() if not isinstance(o.source, OnLink)]
+        else:
+            others = [self._object(n).name for n in objects]
+        return tuple(
+            self.watch(o.name, e, margin, "robot-environment") for o in mine for e in others
+        )
+
+    def watch_robots(self, robot_a: str, robot_b: str, margin: float) -> tuple[WatchedPair, ...]:
+        """Pairs of every object of ``robot_a`` with every object of ``robot_b``."""
+        if robot_a == robot_b:
+            raise InputError("scene", "watch_robots", "use watch_self for one robot")
+        oa = self.robot_objects(robot_a)
+        ob = self.robot_objects(robot_b)
+        return tuple(self.watch(x.name, y.name, margin, "robot-robot") for x in oa for y in ob)
+
+    # ------------------------------------------------------------------ queries
+    def poses(self) -> dict[str, NDArray[np.float64]]:
+        """Current world pose of every object (forward kinematics of each robot once)."""
+        fk: dict[str, NDArray[np.float64]] = {}
+        return {name: self._pose(obj, fk) for name, obj in self._objects.items()}
+
+    def query_all(self) -> SceneResult:
+        """Answer every watched pair at the current joint states and poses."""
+        fk: dict[str, NDArray[np.float64]] = {}
+        cache: dict[str, NDArray[np.float64]] = {}
+        out = []
+        for key, pair in self._pairs.items():
+            for n in key:
+                if n not in cache:
+                    cache[n] = self._pose(self._objects[n], fk)
+            res = self._queries[key](cache[pair.a], cache[pair.b])
+            out.append(PairResult(pair.a, pair.b, pair.margin, pair.kind, res))
+        self._sequence += 1
+        return SceneResult(self._sequence, tuple(out))
+
+    # ------------------------------------------------------------------ helpers
+    def _make_query(self, pair: WatchedPair) -> PairQuery:
+        return PairQuery(
+            self._objects[pair.a].cloud,
+            self._objects[pair.b].cloud,
+            margin=pair.margin,
+            strategy=self.strategy,
+        )
+
+    def _robot(self, name: str) -> RobotLike:
+        r = self._robots.get(name)
+        if r is None:
+            raise InputError(
+                "scene", f"robot {name!r}", f"not registered; robots: {list(self._robots)}"
+            )
+        return r
+
+    def _object(self, name: str) -> SceneObject:
+        o = self._objects.get(name)
+        if o is None:
+            raise InputError(
+                "scene", f"object {name!r}", f"not in the scene; objects: {list(self._objects)}"
+            )
+        return o
+
+    def _pose(self, obj: SceneObject, fk: dict[str, NDArray[np.float64]]) -> NDArray[np.float64]:
+        src = obj.source
+        if isinstance(src, Fixed):
+            return src.pose
+        if isinstance(src, Runtime):
+            return self._runtime[obj.name]
+        frames = fk.get(src.robot)
+        if frames is None:
+            robot = self._robots[src.robot]
+            q = self._q[src.robot]
+            if q is None:
+                raise InputError(
+                    "scene", f"robot {src.robot!r}", "has no joint state; call set_joints first"
+                )
+            frames = np.asarray(robot.fk_all(q), dtype=np.float64)
+            n = len(robot.link_names)
+            if frames.shape != (n, 4, 4):
+                raise InputError(
+                    f"robot {src.robot!r}",
+                    "fk_all",
+                    f"expected shape ({n}, 4, 4), got {frames.shape}",
+                )
+            fk[src.robot] = frames
+        link_pose = frames[self._robots[src.robot].link_names.index(src.link)]
+        if src.identity:
+            return np.ascontiguousarray(link_pose)
+        return np.ascontiguousarray(link_pose @ src.offset)
+
+
+__all__ = [
+    "Fixed",
+    "OnLink",
+    "PairResult",
+    "RobotLike",
+    "Runtime",
+    "Scene",
+    "SceneObject",
+    "SceneResult",
+    "WatchedPair",
+]
