@@ -10,7 +10,22 @@ __version__ = "0.1.0"
 
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_file import load_robot
+from reachwise.io.task_file import load_task
 from reachwise.kinematics.ik import IKResult
 from reachwise.kinematics.robot import Joint, Robot
+from reachwise.synthesis.synthesize import SynthesisResult, synthesize
+from reachwise.tasks.task import Task, TaskPoint
 
-__all__ = ["IKResult", "Joint", "PointCloud", "Robot", "__version__", "load_robot"]
+__all__ = [
+    "IKResult",
+    "Joint",
+    "PointCloud",
+    "Robot",
+    "SynthesisResult",
+    "Task",
+    "TaskPoint",
+    "__version__",
+    "load_robot",
+    "load_task",
+    "synthesize",
+]

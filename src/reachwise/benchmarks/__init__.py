@@ -10,4 +10,5 @@ from __future__ import annotations
 REGISTRY: dict[str, str] = {
     "kinematics": "reachwise.benchmarks.kinematics",
     "distance": "reachwise.benchmarks.distance",
+    "synthesis": "reachwise.benchmarks.synthesis",
 }

@@ -5,7 +5,7 @@ from __future__ import annotations
 import typer
 
 from reachwise import __version__
-from reachwise.cli import bench, cloud, demo, robot
+from reachwise.cli import bench, cloud, demo, robot, synth, task
 
 app = typer.Typer(
     name="reachwise",
@@ -16,6 +16,8 @@ app = typer.Typer(
 )
 app.add_typer(robot.app, name="robot")
 app.add_typer(cloud.app, name="cloud")
+app.add_typer(task.app, name="task")
+app.command("synth")(synth.synth)
 app.command("bench")(bench.bench)
 app.command("demo")(demo.demo)
 app.command("scan")(cloud.scan)

@@ -72,9 +72,7 @@ def show(
         f"LCI mean {s['lci_mean']:.3f}, min {s['lci_min']:.2e}"
     )
     if r.design.size:
-        free = ", ".join(
-            f"{p}{j}" if kind == "joint" else f"base.{p}" for kind, j, p in r.design.free
-        )
+        free = ", ".join(r.design_names)
         console.print(f"design parameters ({r.design.size}): {free}")
 
 

@@ -253,6 +253,21 @@ class Robot:
             tool=np.ascontiguousarray(self.tool),
         )
 
+    @cached_property
+    def design_names(self) -> tuple[str, ...]:
+        """Names of the free design parameters in the thesis's DH notation (P-I Table 1):
+        modified DH row ``i`` (1-based) holds ``a_{i-1}, alpha_{i-1}, d_i, theta_i``, so
+        SB60's free parameters read ``a1 a2 d3 d4 a4 d6 d7``; classic row ``i`` holds
+        ``a_i, alpha_i, d_i, theta_i``. Base coordinates read ``base.x`` etc."""
+        classic = self.convention == "classic"
+
+        def name(kind: str, j: int, p: str) -> str:
+            if kind != "joint":
+                return f"base.{p}"
+            return f"{p}{j + 1 if classic or p in ('d', 'theta') else j}"
+
+        return tuple(name(kind, j, p) for kind, j, p in self.design.free)
+
     def link_index(self, link: int | str) -> int:
         """Row of ``fk_all`` for a link given by index or by name."""
         if isinstance(link, str):

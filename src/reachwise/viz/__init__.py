@@ -1,1 +1,1 @@
-"""reachwise.viz."""
+"""Figures (matplotlib), the browser viewer and reports."""

@@ -1,0 +1,99 @@
+"""Initial values of the synthesis (P-I §3.3, P-II §4.4).
+
+Design sets are drawn from a Beta distribution scaled to each parameter's bounds;
+for every set the joint values of every task point are solved by inverse kinematics
+on that design, and the set that comes closest to the task (smallest summed,
+row-weighted error) is kept.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from reachwise.kinematics.ik import solve_ik
+from reachwise.kinematics.robot import Robot
+from reachwise.synthesis.problem import SynthesisProblem
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class InitialGuess:
+    """The chosen start: decision vector, its score and the scores of every set."""
+
+    z: Array
+    score: float
+    scores: Array
+    designs: Array
+
+
+def beta_designs(
+    problem: SynthesisProblem, rng: np.random.Generator, count: int, a: float = 2.0, b: float = 2.0
+) -> Array:
+    """``count`` design vectors, each coordinate ``lo + (hi − lo) · Beta(a, b)``."""
+    lo, hi = problem.bounds
+    u = rng.beta(a, b, size=(count, problem.p))
+    return np.asarray(lo[: problem.p] + (hi[: problem.p] - lo[: problem.p]) * u)
+
+
+def locked_robot(problem: SynthesisProblem, robot: Robot) -> Robot:
+    """``robot`` with each locked joint's limits collapsed onto its locked value."""
+    if not problem.locked:
+        return robot
+    joints = list(robot.joints)
+    for k, v in problem.locked.items():
+        j = robot.movable_joints[k]
+        joints[j] = replace(joints[j], limits=(v, v))
+    return replace(robot, joints=tuple(joints))
+
+
+def seed_joints(
+    problem: SynthesisProblem,
+    design: Array,
+    rng: np.random.Generator,
+    restarts: int = 2,
+    max_iter: int = 60,
+) -> tuple[Array, float]:
+    """IK of every task point on ``design``; returns ``(K, n)`` joints and the score
+    ``Σ (e_p + (tol_p/tol_o) e_o)`` of the closest solutions found."""
+    robot = locked_robot(problem, problem.robot_at(design))
+    task = problem.task
+    Q = np.empty((problem.K, robot.n))
+    score = 0.0
+    mid = 0.5 * (robot.lower + robot.upper)
+    for k in range(problem.K):
+        res = solve_ik(
+            robot,
+            task.poses[k],
+            q0=mid,
+            mask=int(task.dims[k]),
+            rng=rng,
+            tol_position=float(task.tol_position[k]),
+            tol_orientation=float(task.tol_orientation[k]),
+            max_iter=max_iter,
+            restarts=restarts,
+        )
+        Q[k] = res.q
+        w = task.tol_position[k] / task.tol_orientation[k]
+        score += res.position_error + w * res.orientation_error
+    return Q, float(score)
+
+
+def initial_guess(
+    problem: SynthesisProblem, rng: np.random.Generator, sets: int = 8
+) -> InitialGuess:
+    """Best of ``sets`` Beta-distributed designs, each seeded by IK (P-I §3.3)."""
+    designs = beta_designs(problem, rng, sets)
+    best: tuple[float, Array] | None = None
+    scores = np.empty(sets)
+    for i, d in enumerate(designs):
+        Q, score = seed_joints(problem, d, rng)
+        scores[i] = score
+        if best is None or score < best[0]:
+            best = (score, problem.pack(d, Q))
+    if best is None:  # sets == 0
+        raise ValueError("initial_guess needs at least one design set")
+    return InitialGuess(best[1], best[0], scores, designs)

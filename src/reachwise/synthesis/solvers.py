@@ -1,0 +1,354 @@
+"""Solvers of the synthesis problem: ``dls`` (the thesis method) and ``trf`` (scipy).
+
+``dls`` — P-I Eq. 22 and P-II Eq. 24–33: damped least squares on the stacked,
+block-structured Jacobian (``linalg``) with
+
+- row weights ``W_x``: position rows 1, orientation rows ``tol_p / tol_o`` (m/rad), so a
+  pose that is exactly at its position and orientation tolerance weighs the same;
+- the σ_min damping schedule of P-I Eq. 14 on the stacked matrix, faded with the
+  residual like the IK (quadratic final convergence), plus a Levenberg–Marquardt boost
+  when a step fails to lower the cost;
+- dynamic weighting of the columns (P-II Eq. 25–28): a variable at a bound that the
+  step drives outward gets weight 0 and the step is solved again; the iterate is then
+  projected into the bounds, so every design parameter, base coordinate and joint
+  value always lies within its range;
+- workspace avoidance (P-II Eq. 29–33, P-I Eq. 27–31): link points closer than a margin
+  to the workspace boundary (e.g. the tunnel envelope) are pushed back by the Khatib-
+  style velocity ``k (margin − distance)`` along the boundary normal, mapped through the
+  transposed point Jacobians and projected into the null space of the task (where P-I
+  writes ``Jᵀ`` inside the projector, the pseudo-inverse is used).
+
+``trf`` — ``scipy.optimize.least_squares`` (trust-region reflective) with bounds, the
+exact sparse Jacobian and the same workspace penalty as extra residuals: the baseline.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from reachwise.synthesis.linalg import (
+    BlockSystem,
+    dls_step,
+    null_space_project,
+    smallest_singular_value,
+    weighted,
+)
+from reachwise.synthesis.problem import Evaluation, SynthesisProblem
+from reachwise.synthesis.workspace_points import link_points
+
+Array = NDArray[np.float64]
+
+
+class Workspace(Protocol):
+    """Constraint geometry: signed distance (> 0 inside the free space) and its gradient."""
+
+    def signed_distance(self, points: Array) -> Array: ...
+
+    def gradient(self, points: Array) -> Array: ...
+
+
+@dataclass(frozen=True)
+class SolverOptions:
+    """Tuning of the ``dls`` solver (lengths in m, angles in rad)."""
+
+    max_iter: int = 400
+    lam_max: float = 0.05
+    eps: float = 0.02
+    err_ref: float = 0.05
+    max_step_angle: float = 0.3
+    max_step_length: float = 0.5
+    workspace_margin: float = 0.1
+    workspace_gain: float = 0.5
+    samples_per_link: int = 4
+    stall_iterations: int = 40
+    reseed_every: int = 15
+    reseed_restarts: int = 8
+
+
+@dataclass(frozen=True)
+class SolveOutcome:
+    """What one solver run returns: the final vector, its evaluation and the history."""
+
+    z: Array
+    evaluation: Evaluation
+    iterations: int
+    converged: bool
+    cost_history: list[float] = field(default_factory=list)
+
+
+def row_weights(problem: SynthesisProblem) -> Array:
+    """``W_x`` per padded row: 1 for position rows, ``tol_p/tol_o`` for orientation rows."""
+    w = np.ones((problem.K, 6))
+    w[:, 3:] = (problem.task.tol_position / problem.task.tol_orientation)[:, None]
+    return np.where(problem.active_rows, w, 0.0)
+
+
+def converged(problem: SynthesisProblem, ev: Evaluation) -> bool:
+    pos_ok, ori_ok, _ = problem.point_status(ev)
+    return bool(pos_ok.all() and ori_ok.all())
+
+
+def _max_steps(problem: SynthesisProblem) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """Per-variable step caps: angles ``max_step_angle``, lengths ``max_step_length``."""
+    tpl = problem.template
+    angle_d = np.array(
+        [p in ("alpha", "theta", "roll", "pitch", "yaw") for _, _, p in tpl.design.free]
+    )
+    return angle_d, tpl.prismatic[problem.free_joints]
+
+
+def solve_dls(
+    problem: SynthesisProblem,
+    z0: Array,
+    options: SolverOptions | None = None,
+    workspace: Workspace | None = None,
+    rng: np.random.Generator | None = None,
+) -> SolveOutcome:
+    """Iterate the weighted, damped, bounded least-squares update from ``z0``.
+
+    Every ``reseed_every`` iterations the joints of unreached points are re-solved by
+    IK on the current design (``reseed_points``), drawing restarts from ``rng``.
+    """
+    opt = options or SolverOptions()
+    rng = rng if rng is not None else np.random.default_rng(0)
+    lo, hi = problem.bounds
+    p, K, nf = problem.p, problem.K, problem.n_free_joints
+    angle_d, pris_q = _max_steps(problem)
+    cap_d = np.where(angle_d, opt.max_step_angle, opt.max_step_length)
+    cap_q = np.where(pris_q, opt.max_step_length, opt.max_step_angle)
+    wx = row_weights(problem)
+    active = problem.active_rows
+    z = np.clip(z0, lo, hi)
+    ev = problem.evaluate(z)
+    cost = _weighted_cost(ev, wx)
+    history = [cost]
+    boost = 0.0
+    best_cost, since_best = cost, 0
+    it = 0
+    for it in range(1, opt.max_iter + 1):
+        if converged(problem, ev) and _workspace_clear(problem, z, workspace, opt):
+            return SolveOutcome(z, ev, it - 1, True, history)
+        e = ev.e * wx
+        D = ev.D * wx[:, :, None]
+        J = ev.J * wx[:, :, None]
+        zd, zq = z[:p], z[p:].reshape(K, nf)
+        lod, hid = lo[:p], hi[:p]
+        loq, hiq = lo[p:].reshape(K, nf), hi[p:].reshape(K, nf)
+        wd, wq = np.ones(p), np.ones((K, nf))
+        # σ_min of the weighted stacked Jacobian, for the Eq. 14 schedule
+        Dw, Jw = weighted(D, J, wd, wq)
+        sys0 = BlockSystem.build(Dw, Jw, active, 1e-12)
+        smin = smallest_singular_value(sys0, active, 1e-12)
+        lam2 = (1.0 - (smin / opt.eps) ** 2) * opt.lam_max**2 if smin < opt.eps else 0.0
+        lam2 *= min(1.0, np.sqrt(2 * cost) / opt.err_ref) ** 2
+        lam2 += boost
+        for _ in range(4):
+            sd, sq, _ = dls_step(D, J, active, e, wd, wq, lam2)
+            out_d = ((zd <= lod) & (sd < 0)) | ((zd >= hid) & (sd > 0))
+            out_q = ((zq <= loq) & (sq < 0)) | ((zq >= hiq) & (sq > 0))
+            if not (out_d[wd > 0].any() or out_q[wq > 0].any()):
+                break
+            wd[out_d] = 0.0
+            wq[out_q] = 0.0
+        if workspace is not None:
+            nd, nq = _workspace_motion(problem, z, workspace, opt)
+            if nd is not None and nq is not None:
+                Dw, Jw = weighted(D, J, wd, wq)
+                sysn = BlockSystem.build(Dw, Jw, active, 1e-12)
+                pd, pq = null_space_project(sysn, wd * nd, wq * nq, active)
+                sd = sd + wd * pd
+                sq = sq + wq * pq
+        step = np.concatenate([sd, sq.ravel()])
+        caps = np.concatenate([cap_d, np.tile(cap_q, K)])
+        ratio = np.max(np.abs(step) / caps)
+        if ratio > 1.0:
+            step /= ratio
+        accepted = False
+        alpha = 1.0
+        for _ in range(5):
+            z_try = np.clip(z + alpha * step, lo, hi)
+            ev_try = problem.evaluate(z_try)
+            c_try = _weighted_cost(ev_try, wx)
+            if c_try < cost or (workspace is not None and c_try <= cost * 1.000001 + 1e-12):
+                accepted = True
+                break
+            alpha *= 0.5
+        if accepted:
+            z, ev, cost = z_try, ev_try, c_try
+            boost = boost / 4.0 if alpha == 1.0 else boost
+        else:
+            boost = max(4.0 * boost, 1e-6)
+        history.append(cost)
+        if cost < best_cost * (1 - 1e-4):
+            best_cost, since_best = cost, 0
+        else:
+            since_best += 1
+            if since_best >= opt.stall_iterations:
+                break
+        if opt.reseed_every and it % opt.reseed_every == 0:
+            z2 = reseed_points(problem, z, ev, rng, opt.reseed_restarts)
+            if z2 is not None:
+                z = z2
+                ev = problem.evaluate(z)
+                cost = _weighted_cost(ev, wx)
+                best_cost, since_best = cost, 0
+    done = converged(problem, ev) and _workspace_clear(problem, z, workspace, opt)
+    return SolveOutcome(z, ev, it, done, history)
+
+
+def reseed_points(
+    problem: SynthesisProblem,
+    z: Array,
+    ev: Evaluation,
+    rng: np.random.Generator,
+    restarts: int,
+) -> Array | None:
+    """Re-solve the joints of every unreached task point by IK on the current design.
+
+    Given the design, the task points are independent inverse-kinematics problems; a
+    point whose joints are trapped (a wrong branch, a joint stuck at a limit) gets
+    fresh random restarts. A point's joints are replaced only when IK lowers its
+    weighted error. Returns the new vector, or None if nothing improved.
+    """
+    from reachwise.kinematics.ik import solve_ik
+    from reachwise.synthesis.init import locked_robot
+
+    pos_ok, ori_ok, _ = problem.point_status(ev)
+    todo = np.flatnonzero(~(pos_ok & ori_ok))
+    if todo.size == 0:
+        return None
+    design, Q = problem.split(z)
+    robot = locked_robot(problem, problem.robot_at(design))
+    task = problem.task
+    w = task.tol_position / task.tol_orientation
+    improved = False
+    for k in todo:
+        res = solve_ik(
+            robot, task.poses[k], q0=Q[k], mask=int(task.dims[k]), rng=rng,
+            tol_position=float(task.tol_position[k]),
+            tol_orientation=float(task.tol_orientation[k]), max_iter=80, restarts=restarts,
+        )  # fmt: skip
+        before = ev.position_error[k] + w[k] * ev.orientation_error[k]
+        if res.position_error + w[k] * res.orientation_error < before:
+            Q[k] = res.q
+            improved = True
+    return problem.pack(design, Q) if improved else None
+
+
+def _weighted_cost(ev: Evaluation, wx: Array) -> float:
+    r = ev.e * wx
+    return 0.5 * float(np.sum(r * r))
+
+
+def _workspace_clear(
+    problem: SynthesisProblem, z: Array, ws: Workspace | None, opt: SolverOptions
+) -> bool:
+    if ws is None:
+        return True
+    pts, _, _, _ = link_points(problem, z, opt.samples_per_link)
+    return bool(np.all(ws.signed_distance(pts.reshape(-1, 3)) >= 0.0))
+
+
+def _workspace_motion(
+    problem: SynthesisProblem, z: Array, ws: Workspace, opt: SolverOptions
+) -> tuple[Array | None, Array | None]:
+    """``Σ J_dᵀ k (margin − distance) n`` over violating link points (P-II Eq. 29–31)."""
+    pts, Jd, Jq, owner = link_points(problem, z, opt.samples_per_link)
+    flat = pts.reshape(-1, 3)
+    sd = ws.signed_distance(flat)
+    bad = np.flatnonzero(sd < opt.workspace_margin)
+    if bad.size == 0:
+        return None, None
+    g = ws.gradient(flat[bad])
+    v = opt.workspace_gain * (opt.workspace_margin - sd[bad])[:, None] * g  # (k, 3)
+    Jd_bad = Jd.reshape(-1, 3, problem.p)[bad]
+    Jq_bad = Jq.reshape(-1, 3, problem.n_free_joints)[bad]
+    nd = np.einsum("kia,ki->a", Jd_bad, v)
+    nq = np.zeros((problem.K, problem.n_free_joints))
+    np.add.at(nq, owner.reshape(-1)[bad], np.einsum("kia,ki->ka", Jq_bad, v))
+    return nd, nq
+
+
+def solve_trf(
+    problem: SynthesisProblem,
+    z0: Array,
+    workspace: Workspace | None = None,
+    options: SolverOptions | None = None,
+    max_nfev: int | None = None,
+) -> SolveOutcome:
+    """``scipy.optimize.least_squares(method="trf")`` with bounds, the exact sparse
+    Jacobian and, with a workspace, one penalty residual ``max(0, margin − distance)``
+    per sampled link point."""
+    from scipy.optimize import least_squares
+    from scipy.sparse import csr_matrix
+
+    opt = options or SolverOptions()
+    lo, hi = problem.bounds
+    wx = row_weights(problem)
+    act = problem.active_rows
+    p, K, nf = problem.p, problem.K, problem.n_free_joints
+    rows_idx = np.flatnonzero(act.ravel())
+    cols = np.empty((K, 6, p + nf), dtype=np.int64)
+    cols[:, :, :p] = np.arange(p)
+    cols[:, :, p:] = p + np.arange(K)[:, None, None] * nf + np.arange(nf)
+    cols_flat = cols.reshape(K * 6, p + nf)[rows_idx]
+    rr = np.repeat(np.arange(rows_idx.size), p + nf)
+
+    def blocks(z: Array) -> tuple[Evaluation, Array]:
+        ev = problem.evaluate(np.clip(z, lo, hi))
+        return ev, -(ev.e * wx).ravel()[rows_idx]
+
+    def ws_terms(z: Array) -> tuple[Array, Array, NDArray[np.int64]]:
+        if workspace is None:
+            return np.zeros(0), np.zeros((0, p + nf)), np.zeros(0, int)
+        pts, Jd, Jq, owner = link_points(problem, np.clip(z, lo, hi), opt.samples_per_link)
+        flat = pts.reshape(-1, 3)
+        sd = workspace.signed_distance(flat)
+        pen = np.maximum(0.0, opt.workspace_margin - sd)
+        g = workspace.gradient(flat)
+        Jall = np.concatenate([Jd.reshape(-1, 3, p), Jq.reshape(-1, 3, nf)], axis=2)
+        # d pen / dz = −gᵀ J where violated, 0 otherwise
+        dpen = -np.einsum("ki,kia->ka", g, Jall) * (pen > 0)[:, None]
+        return pen, dpen, owner.reshape(-1)
+
+    def fun(z: Array) -> Array:
+        _, r = blocks(z)
+        pen, _, _ = ws_terms(z)
+        return np.concatenate([r, pen])
+
+    def jac(z: Array) -> csr_matrix:
+        ev, _ = blocks(z)
+        D = (ev.D * wx[:, :, None]).reshape(K * 6, p)[rows_idx]
+        J = (ev.J * wx[:, :, None]).reshape(K * 6, nf)[rows_idx]
+        vals = np.concatenate([D, J], axis=1).ravel()
+        m = rows_idx.size
+        pen, dpen, owner = ws_terms(z)
+        if pen.size:
+            wcols = np.empty((pen.size, p + nf), dtype=np.int64)
+            wcols[:, :p] = np.arange(p)
+            wcols[:, p:] = p + owner[:, None] * nf + np.arange(nf)
+            r2 = m + np.repeat(np.arange(pen.size), p + nf)
+            data = np.concatenate([vals, dpen.ravel()])
+            ri = np.concatenate([rr, r2])
+            ci = np.concatenate([cols_flat.ravel(), wcols.ravel()])
+            return csr_matrix((data, (ri, ci)), shape=(m + pen.size, problem.size))
+        return csr_matrix((vals, (rr, cols_flat.ravel())), shape=(m, problem.size))
+
+    z_init = np.clip(z0, lo, hi)
+    # least_squares needs strictly feasible starts and lo < hi
+    span = hi - lo
+    fixed = span <= 0
+    lo_s = np.where(fixed, lo - 1e-12, lo)
+    hi_s = np.where(fixed, hi + 1e-12, hi)
+    res = least_squares(
+        fun, z_init, jac=jac, bounds=(lo_s, hi_s), method="trf", tr_solver="lsmr",
+        x_scale="jac", max_nfev=max_nfev or 200, xtol=1e-12, ftol=1e-12, gtol=1e-12,
+    )  # fmt: skip
+    z = np.clip(res.x, lo, hi)
+    ev = problem.evaluate(z)
+    done = converged(problem, ev) and _workspace_clear(problem, z, workspace, opt)
+    return SolveOutcome(z, ev, int(res.nfev), done, [float(res.cost)])
