@@ -159,8 +159,7 @@ def _distance(console: Console, seed: int) -> dict[str, Any]:
         f"{len(part)} points; {m} random poses, margin 0.5 m: {at_risk} within the margin"
     )
     console.print(
-        f"default strategy equals brute force on {agree}/{m} queries; median query "
-        f"{med:.0f} µs"
+        f"default strategy equals brute force on {agree}/{m} queries; median query {med:.0f} µs"
     )
     return {"scan_points": len(env), "queries": m, "within_margin": at_risk,
             "agree_with_brute": agree, "median_query_us": med}  # fmt: skip
