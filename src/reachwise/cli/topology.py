@@ -1,0 +1,220 @@
+"""``reachwise topology``: the two-round topology sweep of P-II Fig. 1, resumable."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+
+def _bounds(text: str, option: str) -> tuple[float, float]:
+    try:
+        lo, hi = (float(v) for v in text.split(":"))
+    except ValueError:
+        raise typer.BadParameter(
+            f"{text!r}: expected LO:HI, e.g. -2:2", param_hint=option
+        ) from None
+    if not lo <= hi:
+        raise typer.BadParameter(f"{text!r}: LO > HI", param_hint=option)
+    return lo, hi
+
+
+def topology(
+    task: str = typer.Option(..., "--task", help="Task file or built-in task (tunnel-87)."),
+    set_name: str | None = typer.Option(
+        None, "--set", help="Built-in topology set: p2 (the six P-II configurations)."
+    ),
+    rules: str | None = typer.Option(
+        None,
+        "--enumerate",
+        help="Enumerate topologies under rules, e.g. 'joints=6 prismatic=0-2 first=vertical "
+        "sample=40' (see reachwise.synthesis.topology.parse_rules).",
+    ),
+    specs: list[str] = typer.Option(
+        [], "--spec", help="A topology spec, e.g. 'RRPRRR' or 'R(0) R(90) P(90) …' (repeat)."
+    ),
+    db: Path = typer.Option(..., "--db", help="SQLite results database (created or resumed)."),
+    out: Path = typer.Option(..., "--out", help="Report folder."),
+    subset: int | None = typer.Option(
+        None, "--subset", min=1, help="Round 1 on N descriptive task points (default: none)."
+    ),
+    top: int = typer.Option(3, "--top", min=1, help="Feasible topologies taken to round 2."),
+    runs: int = typer.Option(3, "--runs", min=1, help="Multi-start runs per topology."),
+    seed: int = typer.Option(0, "--seed", help="Seed of run 0; run i uses seed+i."),
+    rank_key: str = typer.Option(
+        "mean", "--rank", help="mean, gci, kci, manipulability, length or prismatic."
+    ),
+    workers: int | None = typer.Option(
+        None, "--workers", min=0, help="Worker processes (default all cores; 0 = in process)."
+    ),
+    dask: str | None = typer.Option(
+        None, "--dask", help="Dask scheduler tcp://HOST:8786, or 'local' (LocalCluster)."
+    ),
+    batch: int = typer.Option(1, "--batch", min=1, help="Runs per submitted batch."),
+    lengths: str = typer.Option("-2:2", "--lengths", help="Bounds of every free a, d (m)."),
+    stroke: str = typer.Option("0:3", "--stroke", help="Prismatic joint stroke (m)."),
+    base_box: str = typer.Option("-2:2", "--base-box", help="Bounds of base x, y, z (m)."),
+    tunnel: bool = typer.Option(
+        True, "--tunnel/--no-tunnel", help="Keep links inside the task's tunnel envelope."
+    ),
+    figures: bool = typer.Option(True, "--figures/--no-figures", help="Write PNG figures."),
+    list_only: bool = typer.Option(False, "--list", help="Only list the topologies."),
+    json_out: bool = typer.Option(False, "--json", help="Print the report as JSON."),
+) -> None:
+    """Optimize many topologies and rank them by GCI, KCI and more (P-II Fig. 1, Table 2).
+
+    Every finished run is stored in --db at once; running the same command again skips
+    what is done. Ctrl-C stops submitting, waits for the running runs, stores them and
+    exits (130); a killed sweep loses nothing it stored.
+    """
+    from reachwise.io.sweep_report import write_report
+    from reachwise.io.sweep_store import SweepStore
+    from reachwise.io.task_file import load_task
+    from reachwise.synthesis.rank import RANK_KEYS
+    from reachwise.synthesis.sweep import SweepConfig, SweepInterrupted, dask_executor, run_sweep
+    from reachwise.synthesis.topology import (
+        TemplateOptions,
+        Topology,
+        builtin_set,
+        enumerate_topologies,
+        parse_rules,
+        topologies_from_specs,
+    )
+
+    if sum(x is not None and x != [] for x in (set_name, rules, specs or None)) != 1:
+        raise typer.BadParameter("give exactly one of --set, --enumerate, --spec")
+    if rank_key not in RANK_KEYS:
+        raise typer.BadParameter(f"choose one of {', '.join(RANK_KEYS)}", param_hint="--rank")
+    if dask is not None and workers == 0:
+        raise typer.BadParameter("--workers 0 runs in process; drop it with --dask")
+    t = load_task(task)
+    lo, hi = _bounds(base_box, "--base-box")
+    options = TemplateOptions(
+        length_bounds=_bounds(lengths, "--lengths"),
+        prismatic_limits=_bounds(stroke, "--stroke"),
+        base_bounds={c: (lo, hi) for c in "xyz"},
+    )
+    topos: list[Topology]
+    if set_name is not None:
+        topos = builtin_set(set_name)
+    elif rules is not None:
+        r = parse_rules(rules)
+        if "rotations=" not in rules:  # rule 4 from the task: 6-D needs 3 axes, 5-D 2
+            need = {6: 3, 5: 2, 3: 0}[int(t.dims.max())]
+            r = replace(r, min_rotation_axes=need)
+        topos = topologies_from_specs(enumerate_topologies(r, options), options)
+    else:
+        topos = topologies_from_specs(specs, options)
+    if not topos:
+        raise typer.BadParameter("the rules leave no topology")
+    if list_only:
+        _list(topos, json_out)
+        return
+    cfg = SweepConfig(
+        subset=subset, top=top, runs=runs, seed=seed, rank_key=rank_key, workspace=tunnel,
+        batch_size=batch,
+    )  # fmt: skip
+    console = Console(stderr=True)
+    interrupted = False
+    with SweepStore(db) as store, Progress(
+        TextColumn("[bold]{task.fields[label]}"), BarColumn(), MofNCompleteColumn(),
+        TimeElapsedColumn(), TextColumn("{task.description}"), console=console,
+        disable=json_out,
+    ) as bar:  # fmt: skip
+        jobs: dict[int, Any] = {}
+
+        def on_event(e: Any) -> None:
+            if e.kind == "round":
+                label = "round 1 (subset)" if e.round == 1 else "round 2 (complete task)"
+                jobs[e.round] = bar.add_task("", total=e.total, completed=e.done, label=label)
+            elif e.kind == "topology":
+                bar.update(jobs[e.round], completed=e.done, description=e.topology[:40])
+            elif e.kind == "item" and e.result is not None:
+                r = e.result
+                bar.update(
+                    jobs[e.round],
+                    description=f"{r.topology[:40]} run {r.run}: {r.n_reached}/{r.n_points}",
+                )
+
+        try:
+            if dask is not None:
+                with dask_executor(dask, workers) as ex:
+                    result = run_sweep(t, topos, cfg, executor=ex, store=store, on_event=on_event)
+            else:
+                result = run_sweep(t, topos, cfg, workers=workers, store=store, on_event=on_event)
+        except SweepInterrupted:
+            interrupted = True
+    if interrupted:
+        console.print(
+            f"interrupted: finished runs are stored in {db}; run the same command to resume"
+        )
+        raise typer.Exit(130)
+    data = write_report(result, out, figures=figures)
+    data["db"] = str(db)
+    data["out"] = str(out)
+    if json_out:
+        typer.echo(json.dumps(data, indent=2))
+    else:
+        _print(result, data)
+
+
+def _list(topos: list[Any], json_out: bool) -> None:
+    if json_out:
+        typer.echo(json.dumps([{"name": t.name, "types": t.spec.types} for t in topos], indent=2))
+        return
+    console = Console()
+    for t in topos:
+        console.print(f"{t.spec.types:10s} {t.name}")
+    console.print(f"{len(topos)} topologies")
+
+
+def _print(result: Any, data: dict[str, Any]) -> None:
+    console = Console()
+    tab = Table(
+        title=f"topology sweep on {data['task']}: final ranking by {result.config.rank_key} "
+        "(P-II Table 2)"
+    )
+    for c in ("rank", "topology", "round", "GCI", "KCI", "mean", "reached", "note"):
+        tab.add_column(c, justify="right" if c not in ("topology",) else "left")
+    for r in data["table"]:
+        ok = r["feasible"]
+
+        def f(k: str, r: dict[str, Any] = r, ok: bool = ok) -> str:
+            return f"{r[k]:.4f}" if ok and r[k] is not None else "–"
+
+        tab.add_row(
+            "–" if r["rank"] is None else str(r["rank"]),
+            r["topology"],
+            str(r["round"]),
+            f("gci"),
+            f("kci"),
+            f("mean"),
+            f"{r['reached']}/{r['points']}",
+            r["note"],
+        )
+    console.print(tab)
+    console.print(
+        f"{data['new_items']} runs done now, {data['stored_items']} found in {data['db']}; "
+        f"wrote {data['out']}/ (ranking.md, ranking.csv, ranking.json, designs/)"
+    )
+
+
+def main() -> None:
+    """Run ``topology`` as a stand-alone command (``python -m reachwise.cli.topology``)."""
+    from reachwise.errors import ReachwiseError
+
+    try:
+        typer.run(topology)
+    except ReachwiseError as exc:
+        typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
+        raise SystemExit(2) from None
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,165 @@
+"""Ranking optimized topologies (P-II §5.1, Table 2; thesis §4.2).
+
+After the dimensional synthesis of every topology, "all solutions (topologies) that were
+able to reach all of the desired goal points should be organized into an ordered list"
+by predefined criteria (P-II §2). P-II Table 2 ranks by the global conditioning index
+``GCI = mean LCI`` (Eq. 38), the kinematic conditioning index ``KCI = min LCI``
+(Eq. 39; reachwise's reading ``1 / max κ``, see ``kinematics.indices``) and their mean
+``(GCI + KCI) / 2`` (Table 2's "Mean" column: e.g. Man1 (0.1043 + 0.0744)/2 = 0.0894).
+The LCI is ``1/κ`` of the length-scaled Jacobian (P-I Eq. 34–37) at each task posture.
+
+Further keys, as P-II §6 suggests ("different performance measures can be used"):
+
+* ``manipulability`` — mean over the task of Yoshikawa's ``w = Π σᵢ`` of the same
+  length-scaled Jacobian (higher is better; compare designs on the same task only);
+* ``length`` — total link length ``Σ (|a_i| + |d_i|)`` over the DH rows (prismatic
+  offsets included, strokes not), m (lower is better: a smaller, cheaper machine);
+* ``prismatic`` — number of prismatic joints (lower is better).
+
+Only feasible candidates (the best run reaches every task point) are ranked; the others
+are reported with ``rank = None`` (P-II Table 2's "−": "no solution for the problem").
+Ties are broken deterministically: the selected key, then mean, GCI, KCI (higher
+first), link length, prismatic joints (lower first), then the name. Pure math.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from reachwise.errors import InputError
+from reachwise.kinematics.indices import (
+    gci,
+    inverse_condition,
+    kci,
+    manipulability,
+    nominal_length,
+    scaled_jacobian,
+)
+from reachwise.kinematics.robot import Robot
+
+# key -> +1 when higher is better, -1 when lower is better
+RANK_KEYS: dict[str, int] = {
+    "mean": 1,
+    "gci": 1,
+    "kci": 1,
+    "manipulability": 1,
+    "length": -1,
+    "prismatic": -1,
+}
+
+
+@dataclass(frozen=True)
+class Measures:
+    """Performance figures of one design over its task (module docstring)."""
+
+    gci: float
+    kci: float
+    mean: float
+    manipulability: float
+    length: float
+    prismatic: int
+
+    def value(self, key: str) -> float:
+        check_key(key)
+        return float(getattr(self, key))
+
+
+def check_key(key: str) -> str:
+    if key not in RANK_KEYS:
+        raise InputError("rank", "key", f"{key!r}: choose one of {', '.join(RANK_KEYS)}")
+    return key
+
+
+def link_length(robot: Robot) -> float:
+    """``Σ (|a_i| + |d_i|)`` over the DH rows (m); prismatic offsets, not strokes."""
+    dh = robot.dh
+    return float(np.abs(dh[:, 0]).sum() + np.abs(dh[:, 2]).sum())
+
+
+def measures(robot: Robot, Q: ArrayLike) -> Measures:
+    """GCI, KCI, their mean, mean manipulability, link length and prismatic joints of
+    ``robot`` at the task configurations ``Q (m, n)`` (P-II Eq. 38–39, Table 2)."""
+    from reachwise.kinematics.jacobian import jacobians
+
+    Qa = np.atleast_2d(np.asarray(Q, dtype=np.float64))
+    T, J, _ = jacobians(robot, Qa, params=False)
+    Js = scaled_jacobian(J, nominal_length(robot, T))
+    lcis = np.asarray(inverse_condition(Js), dtype=np.float64)
+    g, k = gci(lcis), kci(lcis)
+    w = np.asarray(manipulability(Js), dtype=np.float64)
+    return Measures(
+        gci=g,
+        kci=k,
+        mean=0.5 * (g + k),
+        manipulability=float(np.mean(w)),
+        length=link_length(robot),
+        prismatic=int(np.sum(robot.prismatic)),
+    )
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One optimized topology to rank: its best run's figures on a task.
+
+    ``n_reached`` of ``n_points`` task points reached; feasible when all are.
+    ``measures`` is ``None`` when the synthesis failed outright (an error)."""
+
+    name: str
+    n_reached: int
+    n_points: int
+    measures: Measures | None
+    e_obj: float = math.inf
+
+    @property
+    def feasible(self) -> bool:
+        return self.measures is not None and self.n_reached == self.n_points
+
+
+@dataclass(frozen=True)
+class RankedRow:
+    """A row of the ranked table: ``rank`` (1 = best) or ``None`` when infeasible."""
+
+    rank: int | None
+    candidate: Candidate
+
+
+def _sort_key(c: Candidate, key: str) -> tuple[float | str, ...]:
+    m = c.measures
+    if m is None:  # pragma: no cover - infeasible ones are sorted separately
+        raise InputError("rank", c.name, "no measures")
+    return (
+        -RANK_KEYS[key] * m.value(key),
+        -m.mean,
+        -m.gci,
+        -m.kci,
+        m.length,
+        m.prismatic,
+        c.name,
+    )
+
+
+def rank(candidates: Sequence[Candidate], key: str = "mean") -> tuple[RankedRow, ...]:
+    """Feasible candidates ordered by ``key`` (ranks 1, 2, …), then the infeasible ones
+    (``rank = None``; most points reached first, then by name). Deterministic."""
+    check_key(key)
+    names = [c.name for c in candidates]
+    if len(set(names)) != len(names):
+        raise InputError("rank", "candidates", "candidate names must be unique")
+    ok = sorted((c for c in candidates if c.feasible), key=lambda c: _sort_key(c, key))
+    bad = sorted((c for c in candidates if not c.feasible), key=lambda c: (-c.n_reached, c.name))
+    return tuple(RankedRow(i + 1, c) for i, c in enumerate(ok)) + tuple(
+        RankedRow(None, c) for c in bad
+    )
+
+
+def best_run_index(n_reached: Sequence[int], e_obj: Sequence[float]) -> int:
+    """The best of a topology's runs: most points reached, then the smallest objective
+    ``e_obj``, then the first (the rule of ``synthesize``)."""
+    if not n_reached:
+        raise InputError("rank", "runs", "no run")
+    return min(range(len(n_reached)), key=lambda i: (-n_reached[i], e_obj[i], i))

@@ -1,0 +1,104 @@
+"""Ranking by GCI, KCI, their mean (P-II Table 2) and further measures."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from reachwise import load_robot
+from reachwise.errors import InputError
+from reachwise.kinematics.indices import gci, kci, lci
+from reachwise.synthesis.rank import (
+    RANK_KEYS,
+    Candidate,
+    Measures,
+    best_run_index,
+    link_length,
+    measures,
+    rank,
+)
+
+
+def _m(g: float, k: float, w: float = 1.0, length: float = 5.0, p: int = 1) -> Measures:
+    return Measures(g, k, 0.5 * (g + k), w, length, p)
+
+
+def test_measures_match_the_indices_of_p2_eq_38_39(rng: np.random.Generator) -> None:
+    robot = load_robot("p2-man2")
+    Q = rng.uniform(robot.lower, np.minimum(robot.upper, 3.0), (30, robot.n))
+    m = measures(robot, Q)
+    lc = lci(robot, Q)
+    assert m.gci == pytest.approx(gci(lc), rel=1e-12)
+    assert m.kci == pytest.approx(kci(lc), rel=1e-12)
+    assert m.mean == pytest.approx(0.5 * (m.gci + m.kci))
+    assert 0 <= m.kci <= m.gci <= 1
+    assert m.prismatic == 2
+    assert m.length == pytest.approx(link_length(robot))
+    assert m.manipulability > 0
+
+
+def test_table_2_mean_column_is_the_mean_of_gci_and_kci() -> None:
+    # P-II Table 2, configuration 1 and 2: mean = (GCI + KCI) / 2 to the printed digits
+    for g, k, mean in [(0.1043, 0.0744, 0.0894), (0.1158, 0.0858, 0.1008),
+                       (0.0741, 0.0058, 0.0400)]:  # fmt: skip
+        assert _m(g, k).mean == pytest.approx(mean, abs=6e-5)
+
+
+def test_link_length_sums_a_and_d() -> None:
+    robot = load_robot("p2-man1")
+    assert link_length(robot) == pytest.approx(sum(abs(j.a) + abs(j.d) for j in robot.joints))
+
+
+def test_rank_by_each_key_and_infeasible_unranked() -> None:
+    cands = [
+        Candidate("a", 10, 10, _m(0.10, 0.07, w=5.0, length=9.0, p=2)),
+        Candidate("b", 10, 10, _m(0.12, 0.05, w=1.0, length=4.0, p=0)),
+        Candidate("c", 10, 10, _m(0.08, 0.08, w=9.0, length=6.0, p=1)),
+        Candidate("x", 9, 10, _m(0.50, 0.40)),  # misses a point: never ranked
+        Candidate("y", 3, 10, None),
+    ]
+    order = {
+        "gci": ["b", "a", "c"],
+        "kci": ["c", "a", "b"],
+        "mean": ["a", "b", "c"],
+        "manipulability": ["c", "a", "b"],
+        "length": ["b", "c", "a"],
+        "prismatic": ["b", "c", "a"],
+    }
+    assert set(order) == set(RANK_KEYS)
+    for key, want in order.items():
+        rows = rank(cands, key)
+        assert [r.candidate.name for r in rows if r.rank is not None] == want, key
+        assert [r.rank for r in rows] == [1, 2, 3, None, None]
+        assert [r.candidate.name for r in rows[3:]] == ["x", "y"]
+        assert not rows[3].candidate.feasible
+
+
+def test_ties_are_broken_deterministically() -> None:
+    same = _m(0.1, 0.05)
+    cands = [Candidate(n, 5, 5, same) for n in ("zeta", "alpha", "mid")]
+    a = [r.candidate.name for r in rank(cands, "gci")]
+    b = [r.candidate.name for r in rank(list(reversed(cands)), "gci")]
+    assert a == b == ["alpha", "mid", "zeta"]
+    # equal key, better mean wins
+    c = [Candidate("p", 5, 5, _m(0.1, 0.01)), Candidate("q", 5, 5, _m(0.1, 0.09))]
+    assert [r.candidate.name for r in rank(c, "gci")] == ["q", "p"]
+
+
+def test_rank_errors() -> None:
+    with pytest.raises(InputError, match="key"):
+        rank([], "speed")
+    with pytest.raises(InputError, match="unique"):
+        rank([Candidate("a", 1, 1, _m(0.1, 0.1))] * 2)
+    with pytest.raises(InputError, match="key"):
+        _m(0.1, 0.1).value("nope")
+
+
+def test_best_run_is_the_rule_of_synthesize() -> None:
+    assert best_run_index([5, 7, 7], [0.1, 0.3, 0.2]) == 2
+    assert best_run_index([7, 7], [0.2, 0.2]) == 0
+    assert best_run_index([1], [math.inf]) == 0
+    with pytest.raises(InputError):
+        best_run_index([], [])
