@@ -1,0 +1,146 @@
+"""``reachwise serve``: run the collision server; ``reachwise serve keygen DIR``: CURVE keys.
+
+The collision server of P-IV/P-V (thesis §3.1, P-III §4.1 Fig. 2) as a process of its
+own: it keeps the clouds of the initialization phase (P-V Table 1), takes joint states
+and scans, and answers all watched pairs every control cycle
+(:mod:`reachwise.server.service`). It binds a loopback or ``ipc://`` address by default;
+any other address needs CURVE keys (``--keys DIR`` from ``reachwise serve keygen DIR``)
+or an explicit ``--insecure`` (:mod:`reachwise.server.security`). With ``--state DIR``
+the scene survives a crash or restart. SIGINT or SIGTERM stop it cleanly.
+
+Run it as ``reachwise serve`` or ``python -m reachwise.cli.serve``.
+"""
+
+from __future__ import annotations
+
+import logging
+import signal
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from reachwise.server.security import DEFAULT_BIND
+
+app = typer.Typer(
+    help="Run the collision server (ZeroMQ + msgpack), or make its CURVE keys.",
+    invoke_without_command=True,
+    no_args_is_help=False,
+    pretty_exceptions_enable=False,
+    add_completion=False,
+)
+
+
+@app.callback(invoke_without_command=True)
+def serve(
+    ctx: typer.Context,
+    bind: str = typer.Option(
+        DEFAULT_BIND,
+        "--bind",
+        help="Endpoint: tcp://127.0.0.1:PORT (PORT * = any free), ipc:///path, or with "
+        "--keys/--insecure any tcp address.",
+    ),
+    state: Annotated[
+        Path | None,
+        typer.Option("--state", help="State directory: the scene survives restarts."),
+    ] = None,
+    keys: Annotated[
+        Path | None,
+        typer.Option("--keys", help="CURVE key folder from `reachwise serve keygen DIR`."),
+    ] = None,
+    insecure: bool = typer.Option(
+        False, "--insecure", help="Allow a non-local bind without CURVE (not recommended)."
+    ),
+    strategy: str = typer.Option("default", "--strategy", help="Distance strategy."),
+    max_message_mb: float = typer.Option(
+        64.0, "--max-message-mb", help="Size cap of one message, MiB."
+    ),
+    max_cloud_points: int = typer.Option(
+        2_000_000, "--max-cloud-points", help="Most points in one cloud."
+    ),
+    max_runtime: Annotated[
+        float | None,
+        typer.Option("--max-runtime", help="Stop by itself after this many seconds."),
+    ] = None,
+    endpoint_file: Annotated[
+        Path | None,
+        typer.Option("--endpoint-file", help="Write the bound endpoint to this file."),
+    ] = None,
+    verbose: bool = typer.Option(False, "--verbose", "-v", help="Log every state change."),
+) -> None:
+    """Run the collision server until SIGINT/SIGTERM (or --max-runtime)."""
+    if ctx.invoked_subcommand is not None:
+        return
+    from reachwise.server.protocol import Limits
+    from reachwise.server.service import CollisionServer
+    from reachwise.server.state import atomic_write
+
+    logging.basicConfig(
+        level=logging.INFO if verbose else logging.WARNING,
+        format="%(asctime)s reachwise-serve %(levelname)s %(message)s",
+        stream=sys.stderr,
+    )
+    try:
+        limits = Limits(int(max_message_mb * 2**20), max_cloud_points)
+    except ValueError as exc:
+        typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
+        raise typer.Exit(2) from None
+    server = CollisionServer(
+        bind, state, keys=keys, insecure=insecure, strategy=strategy, limits=limits
+    )
+    if not server.plan.local and not server.plan.curve:
+        typer.secho(
+            f"warning: {bind} is reachable from other machines WITHOUT encryption (--insecure)",
+            err=True,
+            fg=typer.colors.YELLOW,
+        )
+    endpoint = server.start()
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        if endpoint_file is not None:
+            atomic_write(endpoint_file, endpoint.encode())
+        for sig in previous:
+            signal.signal(sig, lambda *_: server.stop())
+        typer.echo(
+            f"reachwise serve: listening on {endpoint} "
+            f"(CURVE {'on' if server.plan.curve else 'off'}, "
+            f"state {state if state is not None else 'not kept'})"
+        )
+        sys.stdout.flush()
+        server.serve_forever(max_runtime)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        server.close()
+    typer.echo("reachwise serve: stopped")
+
+
+@app.command("keygen")
+def keygen(
+    directory: Annotated[Path, typer.Argument(help="Folder for the key files.")],
+    force: bool = typer.Option(False, "--force", help="Replace existing keys."),
+) -> None:
+    """Create CURVE key pairs for the server and a client, and the authorized/ folder."""
+    from reachwise.server.security import keygen as make_keys
+
+    paths = make_keys(directory, force=force)
+    typer.echo(f"server public key  {paths['server']}  (give to clients)")
+    typer.echo(f"server secret key  {paths['server_secret']}  (server only)")
+    typer.echo(f"client key pair    {paths['client']}, {paths['client_secret']}")
+    typer.echo(f"authorized clients {paths['authorized']}/  (copy more clients' .key here)")
+
+
+def main() -> None:
+    """Entry point of ``python -m reachwise.cli.serve``: errors as one line, exit 2."""
+    from reachwise.errors import ReachwiseError
+
+    try:
+        app()
+    except ReachwiseError as exc:
+        typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
+        raise SystemExit(2) from None
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,702 @@
+"""Client of the collision server, with the in-process scene's interface.
+
+The control system of the thesis asks the collision server for the shortest distances
+every control cycle (P-III §4.1 Fig. 2, P-IV, P-V §II). :class:`SceneClient` has the
+methods and result types of :class:`reachwise.distance.Scene` — ``add_robot``,
+``set_joints``, ``add_object``, ``set_pose``, ``replace_cloud``, ``watch*``,
+``unwatch``, ``robot_objects``, ``poses``, ``query_all`` — so a controller written
+against :class:`SceneLike` runs unchanged against either.
+
+What the network adds, and how the client reports it:
+
+- **Deadlines.** Every call has one (``deadline`` for the per-tick calls
+  ``set_joints``, ``set_pose``, ``query_all``; ``setup_deadline`` for the rest; or
+  ``deadline=`` on the call). ZeroMQ REQ sockets cannot tell a slow server from a dead
+  one, so after a missed deadline the client closes the socket and makes a new one
+  (the ZeroMQ guide's *Lazy Pirate*): the next call goes out on a fresh connection,
+  which reaches a restarted server by itself.
+- **Missing data is a result, not an exception.** When ``query_all`` gets no answer in
+  time (or the server is still restoring its state), it returns a
+  :class:`ServerSceneResult` with ``valid=False``, the ``reason``, the last sequence
+  number, and every pair's distance NaN — missing data, on which the controller's
+  safety layer makes a protective stop (thesis §3.3; controller issue). A joint state
+  or pose that could not be delivered makes the next result invalid too, since the
+  server answered with older inputs. Setup calls (registering robots and clouds,
+  pair rules) raise :class:`ServerUnavailable` instead: nothing sensible follows them.
+- **Time stamps** (seconds, this client's ``clock``, :func:`time.monotonic` by
+  default): ``set_joints``/``set_pose`` stamp their measurement (``stamp=``, default
+  now); a result carries ``measured_at`` (the oldest input it depends on),
+  ``computed_at`` (when its reply arrived, an upper bound of the end of the
+  computation) and ``compute_time`` (the server's computation, s).
+- **Errors** the server reports for bad input raise :class:`ServerInputError`, an
+  :class:`~reachwise.errors.InputError` (as the in-process scene raises), carrying the
+  typed ``code`` and the ``field``.
+
+``batch_inputs=True`` holds joint states and poses until the next ``query_all`` and
+sends them with it, atomically: one round trip per control tick.
+
+A client belongs to one thread (one REQ socket); give each thread its own.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Protocol, TypeVar, runtime_checkable
+
+import numpy as np
+import zmq
+from numpy.typing import ArrayLike, NDArray
+
+from reachwise.distance._common import (
+    NO_RISK,
+    DistanceResult,
+    as_cloud,
+    check_margin,
+    check_pose,
+)
+from reachwise.distance.scene import (
+    Fixed,
+    OnLink,
+    PairResult,
+    RobotLike,
+    Runtime,
+    SceneObject,
+    SceneResult,
+    WatchedPair,
+)
+from reachwise.errors import InputError, ReachwiseError
+from reachwise.geometry.cloud import PointCloud
+from reachwise.io.robot_file import robot_from_dict, robot_to_dict
+from reachwise.kinematics.robot import Robot
+from reachwise.server import protocol as P
+from reachwise.server.security import ClientKeys, load_client_keys, secure_client_socket
+
+if TYPE_CHECKING:
+    from reachwise.distance.scene import Scene
+
+#: Default deadline of the per-tick calls (s): one 10 ms control cycle of P-V.
+TICK_DEADLINE = 0.010
+#: Default deadline of setup calls (s): building a large cloud's index takes a while.
+SETUP_DEADLINE = 30.0
+#: Replies the client accepts: describe with clouds can be large.
+CLIENT_LIMITS = P.Limits(max_message_bytes=4 * P.MAX_MESSAGE_BYTES)
+
+_R = TypeVar("_R", bound=P.Reply)
+
+
+@runtime_checkable
+class SceneLike(Protocol):
+    """The scene interface a controller uses: :class:`reachwise.distance.Scene` in
+    process, :class:`SceneClient` over the network."""
+
+    def add_robot(self, robot: RobotLike, q: ArrayLike | None = None) -> None: ...
+
+    def set_joints(self, robot: str, q: ArrayLike) -> None: ...
+
+    def add_object(
+        self,
+        name: str,
+        cloud: PointCloud | ArrayLike,
+        pose: ArrayLike | None = None,
+        *,
+        robot: str | None = None,
+        link: str | None = None,
+        dynamic: bool = False,
+    ) -> SceneObject: ...
+
+    def set_pose(self, name: str, pose: ArrayLike) -> None: ...
+
+    def replace_cloud(self, name: str, cloud: PointCloud | ArrayLike) -> None: ...
+
+    def watch(self, a: str, b: str, margin: float, kind: str = "custom") -> WatchedPair: ...
+
+    def unwatch(self, a: str, b: str) -> None: ...
+
+    def watch_self(
+        self, robot: str, margin: float, exclude: Iterable[tuple[str, str]] = ()
+    ) -> tuple[WatchedPair, ...]: ...
+
+    def watch_environment(
+        self, robot: str, margin: float, objects: Iterable[str] | None = None
+    ) -> tuple[WatchedPair, ...]: ...
+
+    def watch_robots(
+        self, robot_a: str, robot_b: str, margin: float
+    ) -> tuple[WatchedPair, ...]: ...
+
+    def robot_objects(self, robot: str) -> tuple[SceneObject, ...]: ...
+
+    def poses(self) -> dict[str, NDArray[np.float64]]: ...
+
+    def query_all(self) -> SceneResult: ...
+
+
+@dataclass(frozen=True)
+class ServerSceneResult(SceneResult):
+    """A :class:`~reachwise.distance.scene.SceneResult` with what a safety layer needs
+    of remote data: ``measured_at`` (s, the oldest joint state or run-time pose the
+    answer depends on), ``computed_at`` (s, when the reply arrived), ``compute_time``
+    (s, on the server), both times on the client's clock; ``valid`` False with a
+    ``reason`` when the data is missing (then every distance is NaN and ``sequence``
+    is the last one received)."""
+
+    measured_at: float = math.nan
+    computed_at: float = math.nan
+    compute_time: float = math.nan
+    valid: bool = True
+    reason: str = ""
+
+
+def _nan3() -> NDArray[np.float64]:
+    v = np.full(3, np.nan)
+    v.setflags(write=False)
+    return v
+
+
+#: The result of a pair whose answer is missing: every number NaN, not "no risk".
+MISSING = DistanceResult(math.nan, _nan3(), _nan3(), _nan3(), -1, -1, False)
+
+
+class ServerError(ReachwiseError):
+    """The collision server could not answer: ``code`` (None when there was no reply)."""
+
+    def __init__(self, message: str, code: P.ErrorCode | None = None, field: str = "") -> None:
+        self.code = code
+        self.field = field
+        super().__init__(message)
+
+
+class ServerUnavailable(ServerError):
+    """No reply within the deadline (the socket has been recreated)."""
+
+
+class ServerInputError(InputError):
+    """The server rejected the request's content: ``code`` and ``field`` as sent."""
+
+    def __init__(self, address: str, error: P.ErrorReply) -> None:
+        self.code = error.code
+        super().__init__(
+            f"collision server {address}", error.field, f"{error.message} [{error.code}]"
+        )
+
+
+def _vector(q: ArrayLike, robot: str) -> NDArray[np.float64]:
+    try:
+        arr = np.array(q, dtype=np.float64, copy=True).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"robot {robot!r}", "q", f"not numeric: {exc}") from None
+    if not np.isfinite(arr).all():
+        raise InputError(f"robot {robot!r}", "q", "contains NaN or inf")
+    return arr
+
+
+class SceneClient:
+    """A scene on a collision server at ``address`` (see the module docstring).
+
+    ``keys``: a ``reachwise serve keygen`` folder (or :class:`ClientKeys`) for a CURVE
+    server. ``clock`` stamps measurements and results (s). ``name`` is sent in hello.
+    """
+
+    def __init__(
+        self,
+        address: str,
+        *,
+        deadline: float = TICK_DEADLINE,
+        setup_deadline: float = SETUP_DEADLINE,
+        keys: str | Path | ClientKeys | None = None,
+        clock: Callable[[], float] = time.monotonic,
+        batch_inputs: bool = False,
+        name: str = "reachwise",
+    ) -> None:
+        for label, value in (("deadline", deadline), ("setup_deadline", setup_deadline)):
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+                raise InputError("SceneClient", label, f"must be a time > 0 s, got {value!r}")
+        self.address = address
+        self.deadline = float(deadline)
+        self.setup_deadline = float(setup_deadline)
+        self.keys = load_client_keys(keys) if isinstance(keys, str | Path) else keys
+        self.clock = clock
+        self.batch_inputs = batch_inputs
+        self.name = name
+        self._ctx: zmq.Context[zmq.Socket[bytes]] = zmq.Context()
+        self._sock: zmq.Socket[bytes] | None = None
+        self._next_id = 0
+        self._reconnects = 0
+        self._pending_joints: dict[str, tuple[NDArray[np.float64], float]] = {}
+        self._pending_poses: dict[str, tuple[NDArray[np.float64], float]] = {}
+        self._lost: str | None = None
+        self._last_sequence = 0
+        self._last_measured = math.nan
+        self._layout: tuple[str, tuple[P.PairInfo, ...]] | None = None
+        self._last_pairs: tuple[P.PairInfo, ...] = ()
+        self._robot_cache: dict[str, Robot] = {}
+
+    # ------------------------------------------------------------------ transport
+    @property
+    def reconnects(self) -> int:
+        """How many times the socket was recreated after a lost reply."""
+        return self._reconnects
+
+    def _socket(self) -> zmq.Socket[bytes]:
+        if self._sock is None:
+            sock = self._ctx.socket(zmq.REQ)
+            sock.linger = 0
+            sock.setsockopt(zmq.RECONNECT_IVL, 20)
+            sock.setsockopt(zmq.RECONNECT_IVL_MAX, 200)
+            if self.keys is not None:
+                secure_client_socket(sock, self.keys)
+            sock.connect(self.address)
+            self._sock = sock
+        return self._sock
+
+    def _reset(self) -> None:
+        """Lazy Pirate: drop the socket (and any reply still on its way)."""
+        if self._sock is not None:
+            self._sock.close(linger=0)
+            self._sock = None
+            self._reconnects += 1
+
+    def call(self, request: P.Request, deadline: float | None = None) -> P.Reply:
+        """Send one request and wait for its reply until ``deadline`` seconds.
+
+        Raises :class:`ServerUnavailable` (no reply in time; the socket is recreated),
+        :class:`ServerInputError` (the request's content was rejected) or
+        :class:`ServerError` (any other typed error or an invalid reply).
+        """
+        limit = self.setup_deadline if deadline is None else float(deadline)
+        reply_type = P.REPLIES[request.OP]
+        sock = self._socket()
+        self._next_id += 1
+        rid = self._next_id
+        end = time.monotonic() + limit
+        try:
+            sock.send(P.encode_request(rid, request), zmq.NOBLOCK)
+        except zmq.Again:
+            self._reset()
+            raise ServerUnavailable(f"cannot send {request.OP} to {self.address}") from None
+        wait_ms = max(1, math.ceil((end - time.monotonic()) * 1e3))
+        if not sock.poll(wait_ms, zmq.POLLIN):
+            self._reset()
+            raise ServerUnavailable(
+                f"no reply to {request.OP} from {self.address} within {limit * 1e3:.1f} ms"
+            )
+        raw = sock.recv()
+        try:
+            decoded = P.decode_reply(raw, reply_type, CLIENT_LIMITS)
+        except P.ProtocolError as exc:
+            self._reset()
+            raise ServerError(
+                f"invalid reply to {request.OP}: {exc}", exc.code, exc.field
+            ) from None
+        if decoded.request_id not in (rid, None):
+            self._reset()
+            raise ServerError(
+                f"reply to request {decoded.request_id} received for request {rid}",
+                P.ErrorCode.BAD_MESSAGE,
+                "id",
+            )
+        if decoded.error is not None:
+            err = decoded.error
+            if err.code in P.INPUT_CODES:
+                raise ServerInputError(self.address, err)
+            raise ServerError(f"{request.OP}: {err.message} [{err.code}]", err.code, err.field)
+        if decoded.reply is None:  # decode_reply gives one of the two
+            raise ServerError(f"empty reply to {request.OP}", P.ErrorCode.BAD_MESSAGE)
+        return decoded.reply
+
+    def _setup(self, request: P.Request, kind: type[_R], deadline: float | None = None) -> _R:
+        """A setup call whose reply must be of type ``kind``."""
+        rep = self.call(request, self.setup_deadline if deadline is None else deadline)
+        if not isinstance(rep, kind):  # decode_reply parsed it as REPLIES[op]
+            raise ServerError(f"unexpected reply {type(rep).__name__} to {request.OP}")
+        return rep
+
+    def close(self) -> None:
+        """Close the socket and the client's ZeroMQ context."""
+        if self._sock is not None:
+            self._sock.close(linger=0)
+            self._sock = None
+        if not self._ctx.closed:
+            self._ctx.term()
+
+    def __enter__(self) -> SceneClient:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ service calls
+    def hello(self, deadline: float | None = None) -> P.HelloReply:
+        """Server name, version, protocol and instance (raises if versions differ)."""
+        return self._setup(P.Hello(self.name), P.HelloReply, deadline)
+
+    def health(self, deadline: float | None = None) -> P.HealthReply:
+        """Readiness, state and a sequence number that only grows."""
+        return self._setup(P.Health(), P.HealthReply, deadline)
+
+    def metrics(self, deadline: float | None = None) -> P.MetricsReply:
+        """Request and error counts and the query latency histograms."""
+        return self._setup(P.Metrics(), P.MetricsReply, deadline)
+
+    def describe(self, clouds: bool = False, deadline: float | None = None) -> P.DescribeReply:
+        """The server's scene: robots, objects (with clouds if asked), pairs."""
+        return self._setup(P.Describe(clouds), P.DescribeReply, deadline)
+
+    def wait_ready(self, timeout: float = 30.0, poll: float = 0.5) -> P.HealthReply:
+        """Ask for health until the server is ready (retrying on a fresh socket after
+        each lost reply); raises :class:`ServerUnavailable` after ``timeout`` s, or
+        :class:`ServerError` if the server failed to restore its state."""
+        end = time.monotonic() + timeout
+        last = "no reply"
+        while True:
+            left = end - time.monotonic()
+            if left <= 0:
+                raise ServerUnavailable(f"{self.address} not ready within {timeout:g} s ({last})")
+            try:
+                h = self.health(deadline=min(poll, left))
+            except ServerUnavailable as exc:
+                last = str(exc)
+                continue
+            if h.ready:
+                return h
+            if h.state == "failed":
+                raise ServerError(f"{self.address} failed: {h.reason}", P.ErrorCode.NOT_READY)
+            last = f"state {h.state}"
+            time.sleep(min(0.05, max(0.0, end - time.monotonic())))
+
+    # ------------------------------------------------------------------ scene interface
+    @property
+    def strategy(self) -> str:
+        """The server scene's distance strategy."""
+        return self.describe().strategy
+
+    @property
+    def sequence(self) -> int:
+        """The server's last sequence number."""
+        return self.describe().sequence
+
+    @property
+    def robots(self) -> dict[str, Robot]:
+        """Registered robots, rebuilt from the YAML mappings the server holds."""
+        out = {}
+        for name, model in self.describe().robots.items():
+            robot = self._robot_cache.get(name)
+            if robot is None:
+                robot = robot_from_dict(model, f"collision server {self.address}: robot {name!r}")
+                self._robot_cache[name] = robot
+            out[name] = robot
+        return out
+
+    @property
+    def objects(self) -> dict[str, SceneObject]:
+        """Every object with its cloud and pose source (downloads the clouds)."""
+        return {o.name: _scene_object(o) for o in self.describe(clouds=True).objects}
+
+    @property
+    def pairs(self) -> tuple[WatchedPair, ...]:
+        """Watched pairs in query order."""
+        return tuple(_watched(p) for p in self.describe().pairs)
+
+    def add_robot(
+        self,
+        robot: RobotLike,
+        q: ArrayLike | None = None,
+        *,
+        stamp: float | None = None,
+        deadline: float | None = None,
+    ) -> None:
+        """Register ``robot`` (sent as its YAML mapping), optionally with its joints."""
+        if not isinstance(robot, Robot):
+            raise InputError(
+                "robot", "", "a collision server needs a reachwise Robot (sent as its YAML mapping)"
+            )
+        qa = None if q is None else _vector(q, robot.name)
+        t = None if qa is None else (self.clock() if stamp is None else float(stamp))
+        self._setup(P.AddRobot(robot_to_dict(robot), qa, t), P.RobotReply, deadline)
+        self._robot_cache[robot.name] = robot
+
+    def set_joints(
+        self,
+        robot: str,
+        q: ArrayLike,
+        *,
+        stamp: float | None = None,
+        deadline: float | None = None,
+    ) -> None:
+        """The joint state of ``robot`` measured at ``stamp`` (default now). A missed
+        deadline does not raise: the next :meth:`query_all` result is invalid."""
+        arr = _vector(q, robot)
+        t = self.clock() if stamp is None else float(stamp)
+        if self.batch_inputs:
+            self._pending_joints[robot] = (arr, t)
+            return
+        self._tick_call(P.SetJoints(robot, arr, t), f"joint state of {robot!r}", deadline)
+
+    def set_pose(
+        self,
+        name: str,
+        pose: ArrayLike,
+        *,
+        stamp: float | None = None,
+        deadline: float | None = None,
+    ) -> None:
+        """The world pose of run-time object ``name`` measured at ``stamp``."""
+        P_ = check_pose(pose, f"pose of {name!r}")
+        t = self.clock() if stamp is None else float(stamp)
+        if self.batch_inputs:
+            self._pending_poses[name] = (P_, t)
+            return
+        self._tick_call(P.SetPose(name, P_, t), f"pose of {name!r}", deadline)
+
+    def _tick_call(self, request: P.Request, what: str, deadline: float | None) -> None:
+        try:
+            self.call(request, self.deadline if deadline is None else deadline)
+        except ServerUnavailable as exc:
+            self._lost = f"{what} not delivered: {exc}"
+        except ServerError as exc:
+            if exc.code != P.ErrorCode.NOT_READY:
+                raise
+            self._lost = f"{what} not delivered: {exc}"
+
+    def flush(self, deadline: float | None = None) -> None:
+        """Send the joint states and poses held back by ``batch_inputs`` now."""
+        joints, poses = self._pending_joints, self._pending_poses
+        self._pending_joints, self._pending_poses = {}, {}
+        for robot, (q, t) in joints.items():
+            self._tick_call(P.SetJoints(robot, q, t), f"joint state of {robot!r}", deadline)
+        for name, (pose, t) in poses.items():
+            self._tick_call(P.SetPose(name, pose, t), f"pose of {name!r}", deadline)
+
+    def add_object(
+        self,
+        name: str,
+        cloud: PointCloud | ArrayLike,
+        pose: ArrayLike | None = None,
+        *,
+        robot: str | None = None,
+        link: str | None = None,
+        dynamic: bool = False,
+        deadline: float | None = None,
+    ) -> SceneObject:
+        """Add a cloud (see :meth:`reachwise.distance.Scene.add_object`); the server
+        builds its index before it replies."""
+        if not isinstance(name, str) or not name:
+            raise InputError("scene", "object name", "must be a non-empty string")
+        c = as_cloud(cloud, name)
+        pose_arr = check_pose(pose, f"pose of {name!r}").copy()
+        self._setup(
+            P.AddObject(name, c.points, pose_arr, robot, link, dynamic), P.ObjectReply, deadline
+        )
+        source: Fixed | OnLink | Runtime
+        if robot is not None and link is not None:
+            source = OnLink(robot, link, pose_arr)
+        elif dynamic:
+            source = Runtime()
+        else:
+            source = Fixed(pose_arr)
+        return SceneObject(name, c, source)
+
+    def replace_cloud(
+        self, name: str, cloud: PointCloud | ArrayLike, *, deadline: float | None = None
+    ) -> None:
+        """Swap object ``name``'s cloud (e.g. a new scan); the server rebuilds its index."""
+        c = as_cloud(cloud, name)
+        self._setup(P.ReplaceCloud(name, c.points), P.ObjectReply, deadline)
+
+    def watch(
+        self,
+        a: str,
+        b: str,
+        margin: float,
+        kind: str = "custom",
+        *,
+        deadline: float | None = None,
+    ) -> WatchedPair:
+        """Watch ``a`` and ``b`` with ``margin`` metres."""
+        rep = self._setup(P.Watch(a, b, check_margin(margin), kind), P.PairsReply, deadline)
+        return _watched(rep.pairs[0])
+
+    def unwatch(self, a: str, b: str, *, deadline: float | None = None) -> None:
+        self._setup(P.Unwatch(a, b), P.Ack, deadline)
+
+    def watch_self(
+        self,
+        robot: str,
+        margin: float,
+        exclude: Iterable[tuple[str, str]] = (),
+        *,
+        deadline: float | None = None,
+    ) -> tuple[WatchedPair, ...]:
+        """Self-collision pairs of ``robot`` (see :meth:`Scene.watch_self`)."""
+        ex = tuple((str(x), str(y)) for x, y in exclude)
+        rep = self._setup(P.WatchSelf(robot, check_margin(margin), ex), P.PairsReply, deadline)
+        return tuple(_watched(p) for p in rep.pairs)
+
+    def watch_environment(
+        self,
+        robot: str,
+        margin: float,
+        objects: Iterable[str] | None = None,
+        *,
+        deadline: float | None = None,
+    ) -> tuple[WatchedPair, ...]:
+        """``robot``'s objects against the environment (see :meth:`Scene.watch_environment`)."""
+        objs = None if objects is None else tuple(objects)
+        rep = self._setup(
+            P.WatchEnvironment(robot, check_margin(margin), objs), P.PairsReply, deadline
+        )
+        return tuple(_watched(p) for p in rep.pairs)
+
+    def watch_robots(
+        self, robot_a: str, robot_b: str, margin: float, *, deadline: float | None = None
+    ) -> tuple[WatchedPair, ...]:
+        """Every object of ``robot_a`` against every object of ``robot_b``."""
+        rep = self._setup(
+            P.WatchRobots(robot_a, robot_b, check_margin(margin)), P.PairsReply, deadline
+        )
+        return tuple(_watched(p) for p in rep.pairs)
+
+    def robot_objects(self, robot: str) -> tuple[SceneObject, ...]:
+        """Objects attached to ``robot``'s links, base to tool."""
+        d = self.describe(clouds=True)
+        model = d.robots.get(robot)
+        if model is None:
+            raise InputError(
+                "scene", f"robot {robot!r}", f"not registered; robots: {list(d.robots)}"
+            )
+        order = {n: i for i, n in enumerate(self.robots[robot].link_names)}
+        mine = [o for o in d.objects if o.source == "link" and o.robot == robot]
+        return tuple(_scene_object(o) for o in sorted(mine, key=lambda o: order[str(o.link)]))
+
+    def poses(self) -> dict[str, NDArray[np.float64]]:
+        """Current world pose of every object."""
+        return self._setup(P.Poses(), P.PosesReply).poses
+
+    # ------------------------------------------------------------------ queries
+    def query_all(
+        self,
+        *,
+        pairs: Iterable[tuple[str, str]] | None = None,
+        deadline: float | None = None,
+    ) -> ServerSceneResult:
+        """Answer every watched pair (or the watched ``pairs`` given) at the current
+        joint states and poses; missing data gives an invalid result, never raises."""
+        now = self.clock()
+        joints, poses = self._pending_joints, self._pending_poses
+        stamp = min([now, *(t for _, t in joints.values()), *(t for _, t in poses.values())])
+        req = P.Query(
+            stamp,
+            {k: q for k, (q, _) in joints.items()} or None,
+            {k: p for k, (p, _) in poses.items()} or None,
+            None if pairs is None else tuple((str(a), str(b)) for a, b in pairs),
+            None if self._layout is None or pairs is not None else self._layout[0],
+        )
+        try:
+            rep = self.call(req, self.deadline if deadline is None else deadline)
+        except ServerUnavailable as exc:
+            return self._missing(str(exc))
+        except ServerError as exc:
+            if exc.code != P.ErrorCode.NOT_READY:
+                raise
+            return self._missing(str(exc))
+        except ServerInputError:
+            # the inputs held back were refused: drop them, or every later tick fails too
+            self._pending_joints, self._pending_poses = {}, {}
+            raise
+        if not isinstance(rep, P.QueryReply):
+            return self._missing(f"unexpected reply {type(rep).__name__} to query")
+        arrived = self.clock()
+        if rep.pairs is not None:
+            infos = rep.pairs
+            if rep.layout:
+                self._layout = (rep.layout, infos)
+        elif self._layout is not None and self._layout[0] == rep.layout:
+            infos = self._layout[1]
+        else:  # the server left out a pair list this client does not hold
+            self._layout = None
+            self._reset()
+            return self._missing(f"reply without the pair list of layout {rep.layout!r}")
+        if len(infos) != rep.rows.shape[0]:
+            self._layout = None
+            return self._missing("reply rows do not match the pair list")
+        self._pending_joints, self._pending_poses = {}, {}
+        self._last_sequence = rep.sequence
+        self._last_measured = rep.measured_at
+        self._last_pairs = infos
+        lost, self._lost = self._lost, None
+        return ServerSceneResult(
+            rep.sequence,
+            _pair_results(infos, rep),
+            measured_at=rep.measured_at,
+            computed_at=arrived,
+            compute_time=rep.compute_time,
+            valid=lost is None,
+            reason=lost or "",
+        )
+
+    def _missing(self, reason: str) -> ServerSceneResult:
+        """The invalid result that stands for data that did not arrive."""
+        return ServerSceneResult(
+            self._last_sequence,
+            tuple(PairResult(p.a, p.b, p.margin, p.kind, MISSING) for p in self._last_pairs),
+            measured_at=self._last_measured,
+            valid=False,
+            reason=reason,
+        )
+
+
+def _watched(p: P.PairInfo) -> WatchedPair:
+    return WatchedPair(p.a, p.b, p.margin, p.kind)
+
+
+def _scene_object(o: P.ObjectInfo) -> SceneObject:
+    if o.cloud is None:
+        raise ServerError(f"object {o.name!r} came without its cloud")
+    cloud = PointCloud(o.cloud, frame=o.link or "world", name=o.name)
+    source: Fixed | OnLink | Runtime
+    if o.source == "link":
+        source = OnLink(str(o.robot), str(o.link), np.array(o.pose))
+    elif o.source == "runtime":
+        source = Runtime()
+    else:
+        source = Fixed(np.array(o.pose))
+    return SceneObject(o.name, cloud, source)
+
+
+def _pair_results(infos: tuple[P.PairInfo, ...], rep: P.QueryReply) -> tuple[PairResult, ...]:
+    """The reply's rows as PairResults, equal to the in-process scene's."""
+    out = []
+    rows = rep.rows
+    for k, p in enumerate(infos):
+        row = rows[k]
+        if row[12] == 1.0:
+            res = NO_RISK
+        else:
+            res = DistanceResult(
+                float(row[0]), row[1:4], row[4:7], row[7:10], int(row[10]), int(row[11]), False
+            )
+        out.append(PairResult(p.a, p.b, p.margin, p.kind, res))
+    return tuple(out)
+
+
+if TYPE_CHECKING:
+
+    def _conforms(a: Scene, b: SceneClient) -> tuple[SceneLike, SceneLike]:
+        return a, b  # mypy checks that both satisfy SceneLike
+
+
+__all__ = [
+    "MISSING",
+    "SETUP_DEADLINE",
+    "TICK_DEADLINE",
+    "SceneClient",
+    "SceneLike",
+    "ServerError",
+    "ServerInputError",
+    "ServerSceneResult",
+    "ServerUnavailable",
+]

@@ -1,0 +1,1062 @@
+"""The collision server: a ZeroMQ service around the distance scene (P-IV/P-V architecture).
+
+In the thesis's collision avoidance architecture (P-III §4.1 Fig. 2, P-IV, P-V §I–II) a
+*collision server* holds every point cloud, keeps their poses current from the joint
+sensors and the laser scanner, and sends the control system the shortest distances of all
+watched pairs every control cycle (10 ms in P-V). This module is that server:
+
+- :class:`SceneService` — the scene behind the wire (:class:`reachwise.distance.Scene`):
+  validated requests in (:mod:`reachwise.server.protocol`), replies or typed errors out.
+  The *initialization phase* of P-V Table 1 (robots, clouds and their spatial indices,
+  pair rules) happens in ``add_robot``, ``add_object``, ``replace_cloud`` and ``watch*``;
+  the *calculation phase* in ``set_joints`` (link poses by forward kinematics on the
+  server), ``set_pose`` and ``query``. With a state directory every change of the
+  initialization phase is persisted before it is acknowledged, and restored at start
+  (:mod:`reachwise.server.state`).
+- :class:`CollisionServer` — the transport: one ZeroMQ ROUTER socket, bound locally or
+  with CURVE (:mod:`reachwise.server.security`).
+
+Threads, so that one request never blocks another longer than its own work:
+
+- the *I/O thread* (the one running :meth:`CollisionServer.serve_forever`) receives,
+  checks the size, decodes and answers at once everything that is short: hello, health,
+  metrics, joint states, poses, queries, descriptions. The scene lock is held only for
+  the scene work itself.
+- the *writer thread* does, in arrival order, everything that builds or persists:
+  restoring the state directory at start, registering robots and clouds (the cloud and
+  its k-d tree are built *outside* the lock and swapped in under it), replacing scans,
+  pair rules, and the batched write of the latest joint states and poses. Its replies go
+  back to the I/O thread over an ``inproc://`` socket. The distance kernels release the
+  GIL (numba ``nogil``), so an index being built does not stall queries.
+
+Until the state directory has been restored the server answers ``health`` with
+``ready: false`` and refuses scene requests with ``not_ready``. A bad request of any kind
+gets a typed error reply; the server never stops serving because of one.
+
+Sequence numbers: every query and health reply draws the next number of one counter.
+With a state directory the counter never goes back, also across crashes: the server
+reserves numbers in blocks of :data:`SEQUENCE_BLOCK` in ``sequence.json`` and starts
+after the reserved block when it restarts (numbers may skip, never repeat).
+"""
+
+from __future__ import annotations
+
+import bisect
+import contextlib
+import logging
+import math
+import queue
+import threading
+import time
+import uuid
+from collections import Counter
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import zmq
+import zmq.auth.thread
+from numpy.typing import NDArray
+
+from reachwise import __version__
+from reachwise.distance._common import check_pose, cloud_tree
+from reachwise.distance.scene import Fixed, OnLink, Scene
+from reachwise.errors import InputError
+from reachwise.geometry.cloud import PointCloud
+from reachwise.io.robot_file import robot_from_dict
+from reachwise.kinematics.robot import Robot
+from reachwise.server import protocol as P
+from reachwise.server.security import DEFAULT_BIND, BindPlan, plan_bind, secure_server_socket
+from reachwise.server.state import (
+    JointState,
+    LiveState,
+    Manifest,
+    ObjectState,
+    PairState,
+    PoseState,
+    RobotState,
+    StateStore,
+    matrix4,
+)
+
+log = logging.getLogger("reachwise.server")
+
+#: Sequence numbers reserved in the state directory at a time.
+SEQUENCE_BLOCK = 1_000_000
+#: Upper bucket edges of the latency histograms, microseconds (1-2-5 series).
+LATENCY_EDGES_US: tuple[float, ...] = tuple(
+    float(m * 10**e) for e in range(0, 7) for m in (1, 2, 5) if m * 10**e <= 1_000_000
+)
+#: How often the writer thread saves the latest joint states and poses (s).
+LIVE_INTERVAL = 0.2
+
+ALWAYS_ALLOWED = frozenset({"hello", "health", "metrics"})
+
+
+def _err(code: P.ErrorCode, field: str, message: str) -> P.ProtocolError:
+    return P.ProtocolError(code, field, message)
+
+
+def _names(names: Iterable[str], shown: int = 10) -> str:
+    """A short sorted list of names for an error message."""
+    all_ = sorted(names)
+    more = f" … ({len(all_)} in all)" if len(all_) > shown else ""
+    return f"{all_[:shown]}{more}"
+
+
+class Metrics:
+    """Request and error counts and the query latency histograms (thread-safe)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._requests: Counter[str] = Counter()
+        self._errors: Counter[str] = Counter()
+        n = len(LATENCY_EDGES_US) + 1
+        self._compute = [0] * n
+        self._handling = [0] * n
+
+    def request(self, op: str) -> None:
+        with self._lock:
+            self._requests[op] += 1
+
+    def error(self, code: P.ErrorCode) -> None:
+        with self._lock:
+            self._errors[code.value] += 1
+
+    def query(self, compute_s: float, handling_s: float) -> None:
+        with self._lock:
+            self._compute[bisect.bisect_right(LATENCY_EDGES_US, compute_s * 1e6)] += 1
+            self._handling[bisect.bisect_right(LATENCY_EDGES_US, handling_s * 1e6)] += 1
+
+    def snapshot(self, uptime: float, sequence: int) -> P.MetricsReply:
+        with self._lock:
+            return P.MetricsReply(
+                uptime,
+                sequence,
+                dict(self._requests),
+                dict(self._errors),
+                LATENCY_EDGES_US,
+                tuple(self._compute),
+                tuple(self._handling),
+            )
+
+
+class SequenceCounter:
+    """Numbers 1, 2, 3 … for query and health replies; with a store, reserved in blocks
+    so that a restarted server continues above everything it may have handed out."""
+
+    def __init__(self, store: StateStore | None, block: int = SEQUENCE_BLOCK) -> None:
+        self._store = store
+        self._block = block
+        self._lock = threading.Lock()
+        self._last = 0
+        self._reserved = math.inf
+        if store is not None:
+            self._last = store.read_reserved()
+            self._reserved = self._last + block
+            store.write_reserved(int(self._reserved))
+
+    @property
+    def last(self) -> int:
+        """The last number handed out (0 before the first)."""
+        return self._last
+
+    def take(self) -> int:
+        with self._lock:
+            self._last += 1
+            if self._last > self._reserved:  # the writer thread fell far behind
+                self._extend_locked()
+            return self._last
+
+    @property
+    def wants_extension(self) -> bool:
+        return self._last > self._reserved - self._block // 2
+
+    def extend(self) -> None:
+        with self._lock:
+            self._extend_locked()
+
+    def _extend_locked(self) -> None:
+        if self._store is not None:
+            self._reserved = max(self._reserved, self._last) + self._block
+            self._store.write_reserved(int(self._reserved))
+
+
+@dataclass(frozen=True)
+class _ObjectMeta:
+    """What the server keeps beside the scene's object: its cloud file and whose time
+    stamp its pose carries (``("robot", name)``, ``("object", name)`` or None)."""
+
+    cloud_file: str | None
+    stamp_of: tuple[str, str] | None
+
+
+class SceneService:
+    """The scene behind the wire (thread-safe): :meth:`handle` one request.
+
+    ``store`` (optional) is the state directory; :meth:`load` restores it (the server
+    is not ready before). ``clock`` stamps inputs that carry no time stamp.
+    """
+
+    def __init__(
+        self,
+        strategy: str = "default",
+        store: StateStore | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.scene = Scene(strategy)
+        self.strategy = strategy
+        self.store = store
+        self.clock = clock
+        self.lock = threading.RLock()
+        self.metrics = Metrics()
+        self.sequence = SequenceCounter(store)
+        self.instance = uuid.uuid4().hex
+        self.started = time.monotonic()
+        self.state = "loading" if store is not None else "ready"
+        self.reason = ""
+        self._models: dict[str, dict[str, Any]] = {}
+        self._robots: dict[str, Robot] = {}
+        self._joints: dict[str, tuple[NDArray[np.float64], float]] = {}
+        self._runtime: dict[str, tuple[NDArray[np.float64], float]] = {}
+        self._meta: dict[str, _ObjectMeta] = {}
+        self._live_dirty = False
+        self._layout_count = 0
+        self._layout: tuple[str, tuple[P.PairInfo, ...]] | None = None
+        self._handlers: dict[type[P.Request], Callable[[Any], P.Reply]] = {
+            P.Hello: self._hello,
+            P.Health: self._health,
+            P.Metrics: self._metrics,
+            P.AddRobot: self._add_robot,
+            P.AddObject: self._add_object,
+            P.ReplaceCloud: self._replace_cloud,
+            P.SetJoints: self._set_joints,
+            P.SetPose: self._set_pose,
+            P.Watch: self._watch,
+            P.WatchSelf: self._watch_self,
+            P.WatchEnvironment: self._watch_environment,
+            P.WatchRobots: self._watch_robots,
+            P.Unwatch: self._unwatch,
+            P.Query: self._query,
+            P.Describe: self._describe,
+            P.Poses: self._poses,
+        }
+
+    @property
+    def ready(self) -> bool:
+        return self.state == "ready"
+
+    # ------------------------------------------------------------------ entry
+    def handle(self, request: P.Request) -> P.Reply:
+        """Answer one request or raise :class:`~reachwise.server.protocol.ProtocolError`.
+
+        Scene input errors become ``invalid``; anything unexpected ``internal`` (logged),
+        so the caller can always send a typed reply.
+        """
+        if request.OP not in ALWAYS_ALLOWED and not self.ready:
+            why = f": {self.reason}" if self.reason else ""
+            raise _err(P.ErrorCode.NOT_READY, "op", f"the server is {self.state}{why}")
+        try:
+            return self._handlers[type(request)](request)
+        except P.ProtocolError:
+            raise
+        except InputError as exc:
+            raise _err(P.ErrorCode.INVALID, exc.field or exc.source, str(exc)) from None
+        except Exception as exc:
+            log.exception("request %s failed", request.OP)
+            raise _err(P.ErrorCode.INTERNAL, "", f"{type(exc).__name__}: {exc}") from None
+
+    # ------------------------------------------------------------------ lookups
+    def _robot(self, name: str, where: str) -> Robot:
+        r = self._robots.get(name)
+        if r is None:
+            raise _err(
+                P.ErrorCode.UNKNOWN_ID, where, f"no robot {name!r}; robots: {_names(self._robots)}"
+            )
+        return r
+
+    def _object(self, name: str, where: str) -> None:
+        if name not in self._meta:
+            raise _err(
+                P.ErrorCode.UNKNOWN_ID, where, f"no object {name!r}; objects: {_names(self._meta)}"
+            )
+
+    def _check_q(self, robot: Robot, q: NDArray[np.float64], where: str) -> None:
+        if q.shape != (robot.n,):
+            raise _err(
+                P.ErrorCode.WRONG_SHAPE,
+                where,
+                f"robot {robot.name!r} has {robot.n} joint variables; got shape {q.shape}",
+            )
+
+    def _check_runtime(self, name: str, where: str) -> None:
+        self._object(name, where)
+        meta = self._meta[name]
+        if meta.stamp_of != ("object", name):
+            raise _err(
+                P.ErrorCode.INVALID, where, f"object {name!r}: its pose is not set at run time"
+            )
+
+    # ------------------------------------------------------------------ always allowed
+    def _hello(self, req: P.Hello) -> P.Reply:
+        if P.PROTOCOL_VERSION not in req.versions:
+            raise _err(
+                P.ErrorCode.UNSUPPORTED_VERSION,
+                "body.versions",
+                f"the client speaks {list(req.versions)}; "
+                f"this server speaks {list(P.SUPPORTED_VERSIONS)}",
+            )
+        return P.HelloReply("reachwise", __version__, P.PROTOCOL_VERSION, self.instance, self.ready)
+
+    def _health(self, req: P.Health) -> P.Reply:
+        with self.lock:
+            counts = (
+                (len(self._robots), len(self._meta), len(self.scene.pairs))
+                if self.ready
+                else (0, 0, 0)
+            )
+        return P.HealthReply(
+            self.ready,
+            self.state,
+            self.reason,
+            self.sequence.take(),
+            self.instance,
+            time.monotonic() - self.started,
+            *counts,
+        )
+
+    def _metrics(self, req: P.Metrics) -> P.Reply:
+        return self.metrics.snapshot(time.monotonic() - self.started, self.sequence.last)
+
+    # ------------------------------------------------------------------ calculation phase
+    def _checked_pose(
+        self, name: str, pose: NDArray[np.float64], name_at: str, pose_at: str
+    ) -> NDArray[np.float64]:
+        """The pose of run-time object ``name`` checked as the scene checks it; errors
+        name ``name_at`` (unknown or not a run-time object) or ``pose_at``."""
+        self._check_runtime(name, name_at)
+        try:
+            return check_pose(pose, pose_at)
+        except InputError as exc:
+            raise _err(P.ErrorCode.INVALID, pose_at, exc.reason) from None
+
+    def _store_joints(self, robot: str, q: NDArray[np.float64], stamp: float) -> None:
+        """Apply checked joint values (call under the lock)."""
+        self.scene.set_joints(robot, q)
+        self._joints[robot] = (np.array(q, dtype=np.float64), stamp)
+        self._live_dirty = True
+
+    def _store_pose(self, name: str, pose: NDArray[np.float64], stamp: float) -> None:
+        """Apply a checked run-time pose (call under the lock)."""
+        self.scene.set_pose(name, pose)
+        self._runtime[name] = (pose.copy(), stamp)
+        self._live_dirty = True
+
+    def _set_joints(self, req: P.SetJoints) -> P.Reply:
+        stamp = self.clock() if req.stamp is None else req.stamp
+        with self.lock:
+            self._check_q(self._robot(req.robot, "body.robot"), req.q, "body.q")
+            self._store_joints(req.robot, req.q, stamp)
+        return P.Ack()
+
+    def _set_pose(self, req: P.SetPose) -> P.Reply:
+        stamp = self.clock() if req.stamp is None else req.stamp
+        with self.lock:
+            pose = self._checked_pose(req.name, req.pose, "body.name", "body.pose")
+            self._store_pose(req.name, pose, stamp)
+        return P.Ack()
+
+    def _query(self, req: P.Query) -> P.Reply:
+        stamp = self.clock() if req.stamp is None else req.stamp
+        with self.lock:
+            # every input is checked before any is applied: a query's inputs are atomic
+            for name, q in (req.joints or {}).items():
+                where = f"body.joints.{name}"
+                self._check_q(self._robot(name, where), q, where)
+            poses = {
+                name: self._checked_pose(name, pose, f"body.poses.{name}", f"body.poses.{name}")
+                for name, pose in (req.poses or {}).items()
+            }
+            wanted = None
+            if req.pairs is not None:
+                watched = {frozenset((p.a, p.b)) for p in self.scene.pairs}
+                for i, (a, b) in enumerate(req.pairs):
+                    if frozenset((a, b)) not in watched:
+                        raise _err(
+                            P.ErrorCode.UNKNOWN_PAIR,
+                            f"body.pairs[{i}]",
+                            f"pair ({a!r}, {b!r}) is not watched",
+                        )
+                wanted = {frozenset(p) for p in req.pairs}
+            for name, q in (req.joints or {}).items():
+                self._store_joints(name, q, stamp)
+            for name, pose in poses.items():
+                self._store_pose(name, pose, stamp)
+            t0 = time.perf_counter()
+            res = self.scene.query_all()
+            compute = time.perf_counter() - t0
+            pairs = res.pairs
+            if wanted is not None:
+                pairs = tuple(p for p in pairs if frozenset((p.a, p.b)) in wanted)
+            measured = self._measured_at(pairs, stamp)
+            seq = self.sequence.take()
+            if wanted is None:
+                layout, infos = self._current_layout()
+                sent: tuple[P.PairInfo, ...] | None = None if req.layout == layout else infos
+            else:
+                layout, sent = "", tuple(P.PairInfo(p.a, p.b, p.margin, p.kind) for p in pairs)
+        return _query_reply(seq, measured, compute, layout, sent, pairs)
+
+    def _current_layout(self) -> tuple[str, tuple[P.PairInfo, ...]]:
+        """Name and list of the watched pairs (call under the lock)."""
+        if self._layout is None:
+            infos = tuple(P.PairInfo(p.a, p.b, p.margin, p.kind) for p in self.scene.pairs)
+            self._layout = (f"{self.instance}-{self._layout_count}", infos)
+        return self._layout
+
+    def _pairs_changed(self) -> None:
+        """A pair, margin or the order changed: the next reply sends a new layout."""
+        self._layout_count += 1
+        self._layout = None
+
+    def _measured_at(self, pairs: tuple[Any, ...], stamp: float) -> float:
+        oldest = stamp
+        for p in pairs:
+            for name in (p.a, p.b):
+                src = self._meta[name].stamp_of
+                if src is None:
+                    continue
+                kind, key = src
+                entry = self._joints.get(key) if kind == "robot" else self._runtime.get(key)
+                if entry is not None and entry[1] < oldest:
+                    oldest = entry[1]
+        return oldest
+
+    def _describe(self, req: P.Describe) -> P.Reply:
+        with self.lock:
+            objects = []
+            for name, obj in self.scene.objects.items():
+                src = obj.source
+                cloud = obj.cloud.points if req.clouds else None
+                if isinstance(src, Fixed):
+                    info = P.ObjectInfo(name, len(obj.cloud), "fixed", src.pose, cloud=cloud)
+                elif isinstance(src, OnLink):
+                    info = P.ObjectInfo(
+                        name, len(obj.cloud), "link", src.offset, src.robot, src.link, cloud
+                    )
+                else:
+                    info = P.ObjectInfo(
+                        name, len(obj.cloud), "runtime", self._runtime[name][0], cloud=cloud
+                    )
+                objects.append(info)
+            return P.DescribeReply(
+                self.strategy,
+                dict(self._models),
+                {k: v[0] for k, v in self._joints.items()},
+                tuple(objects),
+                tuple(P.PairInfo(p.a, p.b, p.margin, p.kind) for p in self.scene.pairs),
+                self.sequence.last,
+            )
+
+    def _poses(self, req: P.Poses) -> P.Reply:
+        with self.lock:
+            return P.PosesReply(self.scene.poses())
+
+    # ------------------------------------------------------------------ initialization phase
+    def _add_robot(self, req: P.AddRobot) -> P.Reply:
+        try:
+            robot = robot_from_dict(req.robot, "robot")
+        except InputError as exc:
+            field = f"body.robot.{exc.field}" if exc.field else "body.robot"
+            raise _err(P.ErrorCode.INVALID, field, exc.reason) from None
+        P.check_name(robot.name, "body.robot.name")  # addressable by every later request
+        with self.lock:
+            if robot.name in self._robots:
+                raise _err(
+                    P.ErrorCode.EXISTS,
+                    "body.robot.name",
+                    f"robot {robot.name!r} is already registered",
+                )
+            if req.q is not None:
+                self._check_q(robot, req.q, "body.q")
+            self.scene.add_robot(robot)
+            self._robots[robot.name] = robot
+            self._models[robot.name] = req.robot
+            if req.q is not None:
+                self._store_joints(
+                    robot.name, req.q, self.clock() if req.stamp is None else req.stamp
+                )
+            manifest = self._manifest()
+        self._persist(manifest)
+        return P.RobotReply(robot.name, robot.link_names, robot.n)
+
+    def _add_object(self, req: P.AddObject) -> P.Reply:
+        with self.lock:
+            if req.name in self._meta:
+                raise _err(P.ErrorCode.EXISTS, "body.name", f"object {req.name!r} already exists")
+            if (req.robot is None) != (req.link is None):
+                raise _err(
+                    P.ErrorCode.INVALID,
+                    "body.link" if req.link is None else "body.robot",
+                    "give both robot and link",
+                )
+            if req.robot is not None and req.link is not None:
+                r = self._robot(req.robot, "body.robot")
+                if req.link not in r.link_names:
+                    raise _err(
+                        P.ErrorCode.UNKNOWN_ID,
+                        "body.link",
+                        f"robot {req.robot!r} has no link {req.link!r}; "
+                        f"links: {list(r.link_names)}",
+                    )
+                if req.dynamic:
+                    raise _err(
+                        P.ErrorCode.INVALID, "body.dynamic", "an object on a link cannot be dynamic"
+                    )
+        # the index is built outside the lock (P-V Table 1 steps 1-3)
+        cloud = _cloud(req.cloud, req.name, req.link or "world")
+        cloud_file = self.store.write_cloud(cloud.points) if self.store is not None else None
+        try:
+            with self.lock:
+                if req.name in self._meta:
+                    raise _err(
+                        P.ErrorCode.EXISTS, "body.name", f"object {req.name!r} already exists"
+                    )
+                try:
+                    self.scene.add_object(
+                        req.name,
+                        cloud,
+                        req.pose,
+                        robot=req.robot,
+                        link=req.link,
+                        dynamic=req.dynamic,
+                    )
+                except InputError as exc:
+                    raise _err(P.ErrorCode.INVALID, "body.pose", exc.reason) from None
+                stamp_of = None
+                if req.robot is not None:
+                    stamp_of = ("robot", req.robot)
+                elif req.dynamic:
+                    stamp_of = ("object", req.name)
+                    self._runtime[req.name] = (check_pose(req.pose, "body.pose"), self.clock())
+                self._meta[req.name] = _ObjectMeta(cloud_file, stamp_of)
+                manifest = self._manifest()
+        except BaseException:
+            self._drop_file(cloud_file)
+            raise
+        self._persist(manifest)
+        return P.ObjectReply(req.name, len(cloud))
+
+    def _replace_cloud(self, req: P.ReplaceCloud) -> P.Reply:
+        with self.lock:
+            self._object(req.name, "body.name")
+            frame = self.scene.objects[req.name].cloud.frame
+        cloud = _cloud(req.cloud, req.name, frame)
+        cloud_file = self.store.write_cloud(cloud.points) if self.store is not None else None
+        try:
+            with self.lock:
+                self._object(req.name, "body.name")
+                self.scene.replace_cloud(req.name, cloud)
+                old = self._meta[req.name]
+                self._meta[req.name] = _ObjectMeta(cloud_file, old.stamp_of)
+                manifest = self._manifest()
+        except BaseException:
+            self._drop_file(cloud_file)
+            raise
+        self._persist(manifest)
+        self._drop_file(old.cloud_file)
+        return P.ObjectReply(req.name, len(cloud))
+
+    def _watch(self, req: P.Watch) -> P.Reply:
+        with self.lock:
+            self._object(req.a, "body.a")
+            self._object(req.b, "body.b")
+            if req.a == req.b:
+                raise _err(P.ErrorCode.INVALID, "body.b", "an object cannot be paired with itself")
+            pairs = (self.scene.watch(req.a, req.b, req.margin, req.kind),)
+            self._pairs_changed()
+            manifest = self._manifest()
+        self._persist(manifest)
+        return _pairs_reply(pairs)
+
+    def _watch_self(self, req: P.WatchSelf) -> P.Reply:
+        with self.lock:
+            self._robot(req.robot, "body.robot")
+            pairs = self.scene.watch_self(req.robot, req.margin, req.exclude)
+            self._pairs_changed()
+            manifest = self._manifest()
+        self._persist(manifest)
+        return _pairs_reply(pairs)
+
+    def _watch_environment(self, req: P.WatchEnvironment) -> P.Reply:
+        with self.lock:
+            self._robot(req.robot, "body.robot")
+            for i, name in enumerate(req.objects or ()):
+                self._object(name, f"body.objects[{i}]")
+            pairs = self.scene.watch_environment(req.robot, req.margin, req.objects)
+            self._pairs_changed()
+            manifest = self._manifest()
+        self._persist(manifest)
+        return _pairs_reply(pairs)
+
+    def _watch_robots(self, req: P.WatchRobots) -> P.Reply:
+        with self.lock:
+            self._robot(req.robot_a, "body.robot_a")
+            self._robot(req.robot_b, "body.robot_b")
+            if req.robot_a == req.robot_b:
+                raise _err(P.ErrorCode.INVALID, "body.robot_b", "use watch_self for one robot")
+            pairs = self.scene.watch_robots(req.robot_a, req.robot_b, req.margin)
+            self._pairs_changed()
+            manifest = self._manifest()
+        self._persist(manifest)
+        return _pairs_reply(pairs)
+
+    def _unwatch(self, req: P.Unwatch) -> P.Reply:
+        with self.lock:
+            self.scene.unwatch(req.a, req.b)
+            self._pairs_changed()
+            manifest = self._manifest()
+        self._persist(manifest)
+        return P.Ack()
+
+    # ------------------------------------------------------------------ persistence
+    def _manifest(self) -> Manifest | None:
+        """The initialization-phase state to persist (call under the lock); None
+        without a state directory."""
+        if self.store is None:
+            return None
+        objects = []
+        for name, obj in self.scene.objects.items():
+            src = obj.source
+            meta = self._meta[name]
+            source: Literal["fixed", "link", "runtime"]
+            if isinstance(src, Fixed):
+                source, pose, robot, link = "fixed", src.pose, None, None
+            elif isinstance(src, OnLink):
+                source, pose, robot, link = "link", src.offset, src.robot, src.link
+            else:
+                source, pose, robot, link = "runtime", self._runtime[name][0], None, None
+            objects.append(
+                ObjectState(
+                    name=name,
+                    cloud=str(meta.cloud_file),
+                    points=len(obj.cloud),
+                    source=source,
+                    pose=matrix4(pose),
+                    robot=robot,
+                    link=link,
+                )
+            )
+        return Manifest(
+            strategy=self.strategy,
+            robots=tuple(RobotState(name=k, model=v) for k, v in self._models.items()),
+            objects=tuple(objects),
+            pairs=tuple(
+                PairState(a=p.a, b=p.b, margin=p.margin, kind=p.kind) for p in self.scene.pairs
+            ),
+        )
+
+    def _persist(self, manifest: Manifest | None) -> None:
+        """Write the manifest; the change is applied already, so a failure is reported
+        as such (and in health) rather than as if nothing had happened."""
+        if self.store is None or manifest is None:
+            return
+        try:
+            self.store.write_manifest(manifest)
+        except OSError as exc:
+            self.reason = f"state directory not writable: {exc}"
+            log.error("%s", self.reason)
+            raise _err(
+                P.ErrorCode.INTERNAL,
+                "state",
+                f"applied, but the state directory could not be written: {exc}",
+            ) from None
+        self.reason = ""
+
+    def _drop_file(self, cloud_file: str | None) -> None:
+        if self.store is not None and cloud_file is not None:
+            (self.store.root / "clouds" / cloud_file).unlink(missing_ok=True)
+
+    def flush_live(self, force: bool = False) -> None:
+        """Save the latest joint states and run-time poses if they changed."""
+        if self.store is None or not self.ready or not (self._live_dirty or force):
+            return
+        with self.lock:
+            live = LiveState(
+                joints={
+                    k: JointState(q=tuple(float(v) for v in q), stamp=t)
+                    for k, (q, t) in self._joints.items()
+                },
+                poses={
+                    k: PoseState(pose=matrix4(p), stamp=t) for k, (p, t) in self._runtime.items()
+                },
+            )
+            self._live_dirty = False
+        self.store.write_live(live)
+
+    def load(self) -> None:
+        """Restore the state directory into a fresh scene, then become ready. A bad
+        state leaves the server ``failed`` (not ready) with the reason."""
+        if self.store is None:
+            self.state = "ready"
+            return
+        try:
+            self._restore(self.store)
+        except Exception as exc:
+            log.exception("restoring %s failed", self.store.root)
+            self.reason = f"restoring {self.store.root} failed: {exc}"
+            self.state = "failed"
+            return
+        self.state = "ready"
+        log.info("state restored from %s", self.store.root)
+
+    def _restore(self, store: StateStore) -> None:
+        snap = store.read()
+        if snap is None:
+            return
+        m, live = snap.manifest, snap.live
+        where = str(store.root / "scene.json")
+        scene = Scene(m.strategy)
+        robots: dict[str, Robot] = {}
+        joints: dict[str, tuple[NDArray[np.float64], float]] = {}
+        runtime: dict[str, tuple[NDArray[np.float64], float]] = {}
+        meta: dict[str, _ObjectMeta] = {}
+        for rs in m.robots:
+            robot = robot_from_dict(rs.model, f"{where}: robot {rs.name!r}")
+            scene.add_robot(robot)
+            robots[robot.name] = robot
+            js = live.joints.get(robot.name)
+            if js is not None:
+                q = np.array(js.q, dtype=np.float64)
+                scene.set_joints(robot.name, q)
+                joints[robot.name] = (q, js.stamp)
+        for o in m.objects:
+            cloud = _cloud(snap.clouds[o.name], o.name, o.link or "world")
+            pose = np.array(o.pose, dtype=np.float64)
+            if o.source == "runtime":
+                ps = live.poses.get(o.name)
+                stamp = self.clock()
+                if ps is not None:
+                    pose, stamp = np.array(ps.pose, dtype=np.float64), ps.stamp
+                scene.add_object(o.name, cloud, pose, dynamic=True)
+                runtime[o.name] = (check_pose(pose, o.name), stamp)
+                meta[o.name] = _ObjectMeta(o.cloud, ("object", o.name))
+            elif o.source == "link":
+                scene.add_object(o.name, cloud, pose, robot=o.robot, link=o.link)
+                meta[o.name] = _ObjectMeta(o.cloud, ("robot", str(o.robot)))
+            else:
+                scene.add_object(o.name, cloud, pose)
+                meta[o.name] = _ObjectMeta(o.cloud, None)
+        for p in m.pairs:
+            scene.watch(p.a, p.b, p.margin, p.kind)
+        removed = store.remove_unreferenced(m)
+        if removed:
+            log.info("removed %d unreferenced state files", len(removed))
+        with self.lock:
+            self.scene = scene
+            self.strategy = m.strategy
+            self._robots = robots
+            self._models = {rs.name: rs.model for rs in m.robots}
+            self._joints = joints
+            self._runtime = runtime
+            self._meta = meta
+            self._pairs_changed()
+
+
+def _cloud(points: NDArray[np.float64], name: str, frame: str) -> PointCloud:
+    """A validated cloud with its k-d tree built (P-V Table 1 initialization)."""
+    cloud = PointCloud(points, frame=frame, name=name)
+    cloud_tree(cloud)
+    return cloud
+
+
+def _pairs_reply(pairs: tuple[Any, ...]) -> P.PairsReply:
+    return P.PairsReply(tuple(P.PairInfo(p.a, p.b, p.margin, p.kind) for p in pairs))
+
+
+def _query_reply(
+    seq: int,
+    measured: float,
+    compute: float,
+    layout: str,
+    infos: tuple[P.PairInfo, ...] | None,
+    pairs: tuple[Any, ...],
+) -> P.QueryReply:
+    rows = np.array(
+        [
+            [
+                r.distance,
+                *r.point_a.tolist(),
+                *r.point_b.tolist(),
+                *r.direction.tolist(),
+                r.index_a,
+                r.index_b,
+                1.0 if r.no_risk else 0.0,
+            ]
+            for r in (p.result for p in pairs)
+        ],
+        dtype=np.float64,
+    ).reshape(len(pairs), P.ROW_COLUMNS)
+    return P.QueryReply(seq, measured, compute, layout, infos, rows)
+
+
+def _answer(service: SceneService, rid: int, req: P.Request) -> tuple[bytes, P.Reply | None]:
+    """The reply frame of one request (a typed error frame on failure) and the reply."""
+    try:
+        reply = service.handle(req)
+        return P.encode_reply(rid, reply), reply
+    except P.ProtocolError as exc:
+        service.metrics.error(exc.code)
+        return P.encode_error(rid, P.ErrorReply.of(exc)), None
+    except Exception as exc:  # an unencodable reply would be our bug: still answer
+        log.exception("encoding the reply to %s failed", req.OP)
+        service.metrics.error(P.ErrorCode.INTERNAL)
+        err = P.ErrorReply(P.ErrorCode.INTERNAL, "", f"{type(exc).__name__}: {exc}")
+        return P.encode_error(rid, err), None
+
+
+# --------------------------------------------------------------------------- transport
+
+
+@dataclass(frozen=True)
+class _Job:
+    route: list[bytes]
+    request_id: int
+    request: P.Request
+
+
+_STOP = object()
+
+
+def split_frames(frames: list[bytes]) -> tuple[list[bytes], list[bytes]]:
+    """(routing envelope, body frames) of a ROUTER message: the envelope runs up to
+    and including the first empty delimiter frame (REQ peers), else it is the peer
+    identity alone (DEALER peers)."""
+    for k in range(1, len(frames)):
+        if not frames[k]:
+            return frames[: k + 1], frames[k + 1 :]
+    return frames[:1], frames[1:]
+
+
+class CollisionServer:
+    """The collision server on one ZeroMQ ROUTER socket.
+
+    ``bind`` is checked by :func:`reachwise.server.security.plan_bind` (local by
+    default; CURVE with ``keys``; ``insecure`` to bind a non-local address without).
+    ``state_dir`` makes the scene durable. :meth:`start` binds and returns the
+    endpoint; :meth:`serve_forever` runs the I/O loop until :meth:`stop` (from any
+    thread or a signal handler) or ``max_runtime`` seconds; :meth:`close` frees the
+    port and every thread. ``with server.background() as endpoint:`` does all of that
+    on a thread.
+    """
+
+    def __init__(
+        self,
+        bind: str = DEFAULT_BIND,
+        state_dir: str | Path | None = None,
+        *,
+        keys: str | Path | None = None,
+        insecure: bool = False,
+        strategy: str = "default",
+        limits: P.Limits = P.DEFAULT_LIMITS,
+        live_interval: float = LIVE_INTERVAL,
+    ) -> None:
+        self.plan: BindPlan = plan_bind(bind, keys, insecure)
+        self.limits = limits
+        self.live_interval = live_interval
+        store = StateStore(state_dir) if state_dir is not None else None
+        self.service = SceneService(strategy, store)
+        self.endpoint: str | None = None
+        self._stop = threading.Event()
+        self._jobs: queue.Queue[object] = queue.Queue()
+        self._ctx: zmq.Context[zmq.Socket[bytes]] | None = None
+        self._router: zmq.Socket[bytes] | None = None
+        self._replies: zmq.Socket[bytes] | None = None
+        self._auth: zmq.auth.thread.ThreadAuthenticator | None = None
+        self._writer: threading.Thread | None = None
+        self._inproc = f"inproc://reachwise-replies-{uuid.uuid4().hex}"
+
+    # ------------------------------------------------------------------ life cycle
+    def start(self) -> str:
+        """Bind (CURVE if planned), start the writer thread (which restores the state
+        directory first) and return the bound endpoint."""
+        if self._ctx is not None:
+            raise RuntimeError("the server is already started")
+        ctx: zmq.Context[zmq.Socket[bytes]] = zmq.Context()
+        self._ctx = ctx
+        try:
+            if self.plan.keys is not None:
+                self._auth = zmq.auth.thread.ThreadAuthenticator(ctx, log=log)
+                self._auth.start()
+                self._auth.configure_curve(domain="*", location=str(self.plan.keys.authorized))
+            router = ctx.socket(zmq.ROUTER)
+            self._router = router
+            router.linger = 0
+            # a hard cap far above the checked one: beyond it ZeroMQ drops the peer
+            router.setsockopt(zmq.MAXMSGSIZE, 2 * self.limits.max_message_bytes + 4096)
+            if self.plan.keys is not None:
+                secure_server_socket(router, self.plan.keys)
+            router.bind(self.plan.address)
+            self.endpoint = router.getsockopt_string(zmq.LAST_ENDPOINT)
+            replies = ctx.socket(zmq.PULL)
+            replies.linger = 0
+            replies.bind(self._inproc)
+            self._replies = replies
+        except BaseException:
+            self.close()
+            raise
+        self._writer = threading.Thread(
+            target=self._write_loop, name="reachwise-writer", daemon=True
+        )
+        self._writer.start()
+        log.info(
+            "listening on %s (%s%s)",
+            self.endpoint,
+            "CURVE" if self.plan.curve else "no encryption",
+            "" if self.plan.local else ", reachable from other machines",
+        )
+        return self.endpoint
+
+    def stop(self) -> None:
+        """Ask :meth:`serve_forever` to return (thread- and signal-safe)."""
+        self._stop.set()
+
+    def close(self) -> None:
+        """Stop the writer (saving the latest joint states), close sockets, stop the
+        authenticator and terminate the context: the port is free afterwards."""
+        self._stop.set()
+        if self._writer is not None:
+            self._jobs.put(_STOP)
+            self._writer.join()
+            self._writer = None
+        for sock in (self._router, self._replies):
+            if sock is not None:
+                sock.close(linger=0)
+        self._router = self._replies = None
+        if self._auth is not None:
+            self._auth.stop()
+            self._auth = None
+        if self._ctx is not None:
+            self._ctx.term()
+            self._ctx = None
+
+    def __enter__(self) -> CollisionServer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @contextlib.contextmanager
+    def background(self) -> Iterator[str]:
+        """Start, serve on a thread, yield the endpoint; stop and close on exit."""
+        endpoint = self.start()
+        thread = threading.Thread(target=self.serve_forever, name="reachwise-io", daemon=True)
+        thread.start()
+        try:
+            yield endpoint
+        finally:
+            self.stop()
+            thread.join()
+            self.close()
+
+    # ------------------------------------------------------------------ I/O thread
+    def serve_forever(self, max_runtime: float | None = None) -> None:
+        """Run the I/O loop until :meth:`stop` or ``max_runtime`` seconds."""
+        router, replies = self._router, self._replies
+        if router is None or replies is None:
+            raise RuntimeError("start() the server first")
+        poller = zmq.Poller()
+        poller.register(router, zmq.POLLIN)
+        poller.register(replies, zmq.POLLIN)
+        end = math.inf if max_runtime is None else time.monotonic() + max_runtime
+        while not self._stop.is_set() and time.monotonic() < end:
+            events = dict(poller.poll(100))
+            if replies in events:
+                while True:
+                    try:
+                        router.send_multipart(replies.recv_multipart(zmq.NOBLOCK))
+                    except zmq.Again:
+                        break
+            if router in events:
+                for _ in range(256):  # then look at the replies again
+                    try:
+                        frames = router.recv_multipart(zmq.NOBLOCK)
+                    except zmq.Again:
+                        break
+                    self._on_message(router, frames)
+                    if not int(router.get(zmq.EVENTS)) & zmq.POLLIN:
+                        break
+
+    def _on_message(self, router: zmq.Socket[bytes], frames: list[bytes]) -> None:
+        t0 = time.perf_counter()
+        route, body = split_frames(frames)
+        if len(body) != 1:
+            self._send_error(
+                router,
+                route,
+                P.ProtocolError(
+                    P.ErrorCode.BAD_MESSAGE, "frames", f"expected one body frame, got {len(body)}"
+                ),
+            )
+            return
+        try:
+            rid, req = P.decode_request(body[0], self.limits)
+        except P.ProtocolError as exc:
+            self._send_error(router, route, exc)
+            return
+        self.service.metrics.request(req.OP)
+        if req.STRUCTURAL:
+            if not self.service.ready:
+                why = P.ProtocolError(
+                    P.ErrorCode.NOT_READY, "op", f"the server is {self.service.state}", rid
+                )
+                self._send_error(router, route, why)
+            else:
+                self._jobs.put(_Job(route, rid, req))
+            return
+        payload, reply = _answer(self.service, rid, req)
+        router.send_multipart([*route, payload])
+        if isinstance(reply, P.QueryReply):
+            self.service.metrics.query(reply.compute_time, time.perf_counter() - t0)
+
+    def _send_error(
+        self, router: zmq.Socket[bytes], route: list[bytes], exc: P.ProtocolError
+    ) -> None:
+        self.service.metrics.error(exc.code)
+        router.send_multipart([*route, P.encode_error(exc.request_id, P.ErrorReply.of(exc))])
+
+    # ------------------------------------------------------------------ writer thread
+    def _write_loop(self) -> None:
+        ctx = self._ctx
+        if ctx is None:
+            return
+        push = ctx.socket(zmq.PUSH)
+        push.linger = 0
+        push.connect(self._inproc)
+        try:
+            self.service.load()
+            while True:
+                try:
+                    job = self._jobs.get(timeout=self.live_interval)
+                except queue.Empty:
+                    job = None
+                if job is _STOP:
+                    break
+                if isinstance(job, _Job):
+                    payload, _ = _answer(self.service, job.request_id, job.request)
+                    push.send_multipart([*job.route, payload])
+                self._housekeeping()
+        finally:
+            with contextlib.suppress(Exception):
+                self.service.flush_live(force=True)
+            push.close(linger=0)
+
+    def _housekeeping(self) -> None:
+        try:
+            self.service.flush_live()
+            if self.service.store is not None and self.service.sequence.wants_extension:
+                self.service.sequence.extend()
+        except Exception:  # the writer thread must live on; the next round retries
+            log.exception("saving the live state failed")

@@ -1,0 +1,367 @@
+"""The wire protocol: round trips, strict validation with typed errors, decoder fuzzing."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import msgpack
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from reachwise.io.robot_file import robot_to_dict
+from reachwise.kinematics.robot import Robot
+from reachwise.server import protocol as P
+
+E = P.ErrorCode
+LIMITS = P.Limits(max_message_bytes=64 * 1024, max_cloud_points=100)
+
+
+def _pose() -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = [1.0, -2.0, 0.5]
+    return T
+
+
+def sample_requests(crane: Robot) -> list[P.Request]:
+    cloud = np.arange(30, dtype=float).reshape(10, 3)
+    return [
+        P.Hello("test", (1,)),
+        P.Health(),
+        P.Metrics(),
+        P.AddRobot(robot_to_dict(crane), np.zeros(crane.n), 12.5),
+        P.AddRobot(robot_to_dict(crane)),
+        P.AddObject("part", cloud, _pose(), "hiab-xs033", "link_2"),
+        P.AddObject("probe", cloud, None, None, None, True),
+        P.ReplaceCloud("environment", cloud),
+        P.SetJoints("hiab-xs033", np.linspace(0, 1, crane.n), 3.0),
+        P.SetPose("probe", _pose()),
+        P.Watch("a", "b", math.inf, "custom"),
+        P.WatchSelf("hiab-xs033", 0.2, (("link_1", "link_3"),)),
+        P.WatchEnvironment("hiab-xs033", 0.5, ("environment",)),
+        P.WatchEnvironment("hiab-xs033", 0.5),
+        P.WatchRobots("r1", "r2", 0.3),
+        P.Unwatch("a", "b"),
+        P.Query(),
+        P.Query(1.0, {"hiab-xs033": np.zeros(crane.n)}, {"probe": _pose()}, (("a", "b"),), "x-1"),
+        P.Describe(True),
+        P.Poses(),
+    ]
+
+
+def _equal(a: object, b: object) -> bool:
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return bool(np.array_equal(np.asarray(a), np.asarray(b), equal_nan=True))
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
+    if isinstance(a, tuple | list) and isinstance(b, tuple | list):
+        return len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b, strict=True))
+    if hasattr(a, "__dataclass_fields__"):
+        return type(a) is type(b) and all(
+            _equal(getattr(a, f), getattr(b, f)) for f in a.__dataclass_fields__
+        )
+    return a == b
+
+
+def test_every_request_round_trips(crane: Robot) -> None:
+    reqs = sample_requests(crane)
+    assert {type(r).OP for r in reqs} == set(P.REQUESTS)
+    for k, req in enumerate(reqs):
+        rid, back = P.decode_request(P.encode_request(k, req))
+        assert rid == k
+        assert _equal(back, req), req.OP
+
+
+def test_replies_round_trip(crane: Robot) -> None:
+    rows = np.zeros((2, P.ROW_COLUMNS))
+    rows[0] = [0.1, 1, 2, 3, 4, 5, 6, 0, 0, 1, 7, 9, 0]
+    rows[1, :10] = [math.inf] + [math.nan] * 9
+    rows[1, 10:] = [-1, -1, 1]
+    pairs = (P.PairInfo("a", "b", 0.5, "custom"), P.PairInfo("c", "d", math.inf, "self"))
+    replies: list[tuple[str, P.Reply]] = [
+        ("hello", P.HelloReply("reachwise", "0.1.0", 1, "abc", True)),
+        ("health", P.HealthReply(True, "ready", "", 7, "abc", 1.5, 1, 2, 3)),
+        (
+            "metrics",
+            P.MetricsReply(
+                2.0, 9, {"query": 3}, {"unknown_id": 1}, (1.0, 2.0), (0, 1, 2), (3, 0, 0)
+            ),
+        ),
+        ("add_robot", P.RobotReply("hiab-xs033", crane.link_names, crane.n)),
+        ("add_object", P.ObjectReply("part", 10)),
+        ("watch", P.PairsReply(pairs)),
+        ("set_joints", P.Ack()),
+        ("query", P.QueryReply(3, 1.25, 1e-4, "abc-2", pairs, rows)),
+        ("query", P.QueryReply(4, 1.25, 1e-4, "abc-2", None, rows)),
+        (
+            "describe",
+            P.DescribeReply(
+                "default",
+                {"hiab-xs033": robot_to_dict(crane)},
+                {"hiab-xs033": np.zeros(crane.n)},
+                (
+                    P.ObjectInfo("part", 10, "link", np.eye(4), "hiab-xs033", "link_2"),
+                    P.ObjectInfo("env", 2, "fixed", _pose(), cloud=np.ones((2, 3))),
+                ),
+                pairs,
+                4,
+            ),
+        ),
+        ("poses", P.PosesReply({"part": _pose()})),
+    ]
+    for op, rep in replies:
+        back = P.decode_reply(P.encode_reply(11, rep), P.REPLIES[op])
+        assert back.request_id == 11 and back.error is None
+        assert _equal(back.reply, rep), op
+    q = P.decode_reply(P.encode_reply(1, replies[7][1]), P.QueryReply).reply
+    assert isinstance(q, P.QueryReply)
+    assert q.index.tolist() == [[7, 9], [-1, -1]] and q.no_risk.tolist() == [False, True]
+    err = P.decode_reply(
+        P.encode_error(None, P.ErrorReply(E.UNKNOWN_ID, "body.robot", "no robot")), P.Ack
+    )
+    assert err.request_id is None and err.error == P.ErrorReply(
+        E.UNKNOWN_ID, "body.robot", "no robot"
+    )
+
+
+def _raw(op: str, body: Any, v: int = 1, rid: Any = 1) -> bytes:
+    return msgpack.packb({"v": v, "id": rid, "op": op, "body": body}, use_bin_type=True)
+
+
+def _arr(a: np.ndarray, dtype: str = "<f8") -> list[Any]:
+    return P.encode_array(a, dtype)
+
+
+def _code(raw: bytes, limits: P.Limits = LIMITS) -> tuple[P.ErrorCode, str]:
+    with pytest.raises(P.ProtocolError) as info:
+        P.decode_request(raw, limits)
+    return info.value.code, info.value.field
+
+
+@pytest.mark.parametrize(
+    ("raw", "code", "field"),
+    [
+        (b"", E.BAD_MESSAGE, "message"),
+        (b"\xc1", E.BAD_MESSAGE, "message"),  # never used in msgpack
+        (msgpack.packb([1, 2, 3]), E.BAD_MESSAGE, "message"),
+        (msgpack.packb({"v": 1, "id": 1, "op": "health"}), E.MISSING_FIELD, "body"),
+        (msgpack.packb({"v": 1, "op": "health", "body": {}}), E.BAD_MESSAGE, "id"),
+        (msgpack.packb({"v": 1, "id": -3, "op": "health", "body": {}}), E.BAD_MESSAGE, "id"),
+        (_raw("health", {}, v=2), E.UNSUPPORTED_VERSION, "v"),
+        (_raw("health", {}, v="1"), E.BAD_MESSAGE, "v"),
+        (_raw("launch", {}), E.UNKNOWN_OP, "op"),
+        (_raw("health", {"x": 1}), E.UNKNOWN_FIELD, "body.x"),
+        (_raw("health", []), E.WRONG_TYPE, "body"),
+        (
+            msgpack.packb({"v": 1, "id": 1, "op": "health", "body": {}, "extra": 0}),
+            E.UNKNOWN_FIELD,
+            "extra",
+        ),
+        (_raw("set_joints", {"robot": "r"}), E.MISSING_FIELD, "body.q"),
+        (_raw("set_joints", {"robot": 5, "q": _arr(np.zeros(3))}), E.WRONG_TYPE, "body.robot"),
+        (_raw("set_joints", {"robot": "", "q": _arr(np.zeros(3))}), E.WRONG_TYPE, "body.robot"),
+        (_raw("set_joints", {"robot": "r", "q": [0.0, 1.0]}), E.WRONG_TYPE, "body.q"),
+        (_raw("set_joints", {"robot": "r", "q": _arr(np.zeros((3, 1)))}), E.WRONG_SHAPE, "body.q"),
+        (_raw("set_joints", {"robot": "r", "q": _arr(np.zeros(3), "<i8")}), E.WRONG_TYPE, "body.q"),
+        (
+            _raw("set_joints", {"robot": "r", "q": ["<f8", [4], b"\x00" * 24]}),
+            E.WRONG_SHAPE,
+            "body.q",
+        ),
+        (_raw("set_joints", {"robot": "r", "q": ["<f8", [-1], b""]}), E.WRONG_SHAPE, "body.q"),
+        (_raw("set_joints", {"robot": "r", "q": ["<f8", [3], "text"]}), E.WRONG_TYPE, "body.q"),
+        (
+            _raw("set_joints", {"robot": "r", "q": _arr(np.array([0.0, np.nan]))}),
+            E.NON_FINITE,
+            "body.q",
+        ),
+        (
+            _raw("set_joints", {"robot": "r", "q": _arr(np.zeros(2)), "stamp": math.inf}),
+            E.NON_FINITE,
+            "body.stamp",
+        ),
+        (
+            _raw("set_joints", {"robot": "r", "q": _arr(np.zeros(2)), "stamp": True}),
+            E.WRONG_TYPE,
+            "body.stamp",
+        ),
+        (_raw("set_pose", {"name": "p", "pose": _arr(np.eye(3))}), E.WRONG_SHAPE, "body.pose"),
+        (
+            _raw("add_object", {"name": "p", "cloud": _arr(np.zeros((101, 3)))}),
+            E.OVERSIZED_CLOUD,
+            "body.cloud",
+        ),
+        (
+            _raw("add_object", {"name": "p", "cloud": _arr(np.zeros((0, 3)))}),
+            E.WRONG_SHAPE,
+            "body.cloud",
+        ),
+        (
+            _raw("add_object", {"name": "p", "cloud": _arr(np.full((2, 3), np.inf))}),
+            E.NON_FINITE,
+            "body.cloud",
+        ),
+        (
+            _raw("add_object", {"name": "p", "cloud": _arr(np.zeros((4, 2)))}),
+            E.WRONG_SHAPE,
+            "body.cloud",
+        ),
+        (
+            _raw("add_object", {"name": "p", "cloud": _arr(np.zeros((4, 3))), "dynamic": 1}),
+            E.WRONG_TYPE,
+            "body.dynamic",
+        ),
+        (
+            _raw("watch", {"a": "x", "b": "y", "margin": -1.0, "kind": "custom"}),
+            E.WRONG_TYPE,
+            "body.margin",
+        ),
+        (
+            _raw("watch", {"a": "x", "b": "y", "margin": math.nan, "kind": "custom"}),
+            E.NON_FINITE,
+            "body.margin",
+        ),
+        (
+            _raw("watch_self", {"robot": "r", "margin": 0.1, "exclude": [["a"]]}),
+            E.WRONG_SHAPE,
+            "body.exclude[0]",
+        ),
+        (_raw("query", {"pairs": [["a", 3]]}), E.WRONG_TYPE, "body.pairs[0][1]"),
+        (_raw("query", {"joints": {"r": _arr(np.array([np.nan]))}}), E.NON_FINITE, "body.joints.r"),
+        (_raw("query", {"poses": {"p": _arr(np.zeros((4, 4, 1)))}}), E.WRONG_SHAPE, "body.poses.p"),
+        (_raw("add_robot", {"robot": {"name": "r", "x": {1: 2}}}), E.BAD_MESSAGE, "message"),
+        (
+            _raw("add_robot", {"robot": {"name": "r", "joints": [{}] * 65}}),
+            E.WRONG_SHAPE,
+            "body.robot.joints",
+        ),
+        (
+            _raw("add_robot", {"robot": {"name": "r", "blob": b"\x00"}}),
+            E.WRONG_TYPE,
+            "body.robot.blob",
+        ),
+        (_raw("describe", {"clouds": "yes"}), E.WRONG_TYPE, "body.clouds"),
+    ],
+)
+def test_bad_requests_are_typed_errors(raw: bytes, code: P.ErrorCode, field: str) -> None:
+    assert _code(raw) == (code, field)
+
+
+def test_size_cap_is_checked_before_decoding() -> None:
+    big = _raw("add_object", {"name": "p", "cloud": _arr(np.zeros((5000, 3)))})
+    assert len(big) > LIMITS.max_message_bytes
+    assert _code(big) == (E.TOO_LARGE, "message")
+    # garbage of that size is refused by its size, never handed to msgpack
+    assert _code(b"\xc1" * (LIMITS.max_message_bytes + 1)) == (E.TOO_LARGE, "message")
+
+
+def test_request_id_is_echoed_in_errors() -> None:
+    with pytest.raises(P.ProtocolError) as info:
+        P.decode_request(_raw("set_joints", {"robot": "r"}, rid=42), LIMITS)
+    assert info.value.request_id == 42
+
+
+def test_extension_types_and_deep_nesting_are_refused() -> None:
+    ext = msgpack.packb({"v": 1, "id": 1, "op": "health", "body": msgpack.ExtType(5, b"abc")})
+    assert _code(ext)[0] == E.BAD_MESSAGE
+    stamp = msgpack.packb({"v": 1, "id": 1, "op": "health", "body": msgpack.Timestamp(1, 0)})
+    assert _code(stamp)[0] == E.BAD_MESSAGE
+    # 100 000 nested one-element arrays as the body, written by hand (msgpack's own
+    # packer refuses that depth): the decoder must refuse it, not overflow its stack
+    head = b"\x84" + b"".join(msgpack.packb(x) for x in ("v", 1, "id", 1, "op", "health", "body"))
+    nested = head + b"\x91" * 100_000 + b"\x01"
+    code, _ = _code(nested, P.Limits(max_message_bytes=1 << 20))
+    assert code in (E.BAD_MESSAGE, E.WRONG_TYPE)
+
+
+# ------------------------------------------------------------------ fuzzing the decoder
+
+_FUZZ = settings(
+    max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow], database=None
+)
+_leaf = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(min_value=-(2**63), max_value=2**64 - 1),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=20),
+    st.binary(max_size=64),
+)
+_values = st.recursive(
+    _leaf,
+    lambda inner: st.one_of(
+        st.lists(inner, max_size=5), st.dictionaries(st.text(max_size=8), inner, max_size=5)
+    ),
+    max_leaves=30,
+)
+_keys = st.sampled_from(
+    [
+        "v",
+        "id",
+        "op",
+        "body",
+        "robot",
+        "q",
+        "name",
+        "cloud",
+        "pose",
+        "pairs",
+        "joints",
+        "stamp",
+        "margin",
+        "a",
+        "b",
+        "kind",
+        "clouds",
+        "x",
+    ]
+)
+
+
+def _decodes_or_typed_error(raw: bytes) -> None:
+    try:
+        rid, req = P.decode_request(raw, LIMITS)
+    except P.ProtocolError as exc:
+        assert isinstance(exc.code, P.ErrorCode) and isinstance(exc.field, str) and exc.message
+    else:
+        assert isinstance(req, P.Request) and isinstance(rid, int)
+
+
+@_FUZZ
+@given(st.binary(max_size=512))
+def test_fuzz_random_bytes(raw: bytes) -> None:
+    _decodes_or_typed_error(raw)
+
+
+@_FUZZ
+@given(
+    op=st.one_of(st.sampled_from(sorted(P.REQUESTS)), st.text(max_size=10)),
+    body=st.dictionaries(_keys, _values, max_size=6),
+    v=st.one_of(st.just(1), _leaf),
+    rid=st.one_of(st.integers(min_value=0, max_value=2**40), _leaf),
+)
+def test_fuzz_structured_messages(op: str, body: dict[str, Any], v: Any, rid: Any) -> None:
+    _decodes_or_typed_error(
+        msgpack.packb({"v": v, "id": rid, "op": op, "body": body}, use_bin_type=True)
+    )
+
+
+@_FUZZ
+@given(data=st.data())
+def test_fuzz_mutated_valid_requests(crane: Robot, data: st.DataObject) -> None:
+    reqs = sample_requests(crane)
+    raw = bytearray(P.encode_request(1, data.draw(st.sampled_from(reqs))))
+    for _ in range(data.draw(st.integers(1, 4))):
+        i = data.draw(st.integers(0, len(raw) - 1))
+        action = data.draw(st.sampled_from(["flip", "cut", "insert"]))
+        if action == "flip":
+            raw[i] ^= data.draw(st.integers(1, 255))
+        elif action == "cut":
+            del raw[i:]
+            if not raw:
+                raw.append(0)
+        else:
+            raw[i:i] = data.draw(st.binary(min_size=1, max_size=8))
+    _decodes_or_typed_error(bytes(raw))
