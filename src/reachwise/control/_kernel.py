@@ -1,0 +1,497 @@
+"""Compiled controller tick (numba): thesis Eq. 3.8–3.18 with P-V Eq. 6, joint limits
+and the approach guard. The documentation of the law is in ``controller.py``; this
+module is its arithmetic, on plain arrays, compiled once and cached on disk.
+
+Avoidance point arrays (``m`` rows): ``a_link`` frame index of the robot part,
+``a_pt`` its closest point (world); ``b_link`` the other part's frame index on the same
+robot (self-collision: the Jacobian is the relative one ``J_a − J_b``) or ``-1``;
+``normal`` unit collision-line vector pointing away from the other part; ``dist``,
+``rho0`` distance and margin; ``task_pt`` True for a tool part handled in task space.
+
+``diag`` out: 0 position error, 1 orientation error (rad), 2 σ_min, 3 λ, 4 task scale
+``s``, 5 limit scale ``α``, 6 active avoidance points, 7 guard scale, 8 min distance.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from reachwise.kinematics._kernels import frames, point_jacobian_rows, tool_jacobian
+
+DIAG = 9
+
+
+@njit(cache=True)
+def quat_of(R):  # type: ignore[no-untyped-def]
+    """Unit quaternion ``(x, y, z, w)`` of a rotation matrix (Shepperd's method)."""
+    t = R[0, 0] + R[1, 1] + R[2, 2]
+    out = np.empty(4)
+    if t > 0.0:
+        s = math.sqrt(t + 1.0) * 2.0
+        out[3] = 0.25 * s
+        out[0] = (R[2, 1] - R[1, 2]) / s
+        out[1] = (R[0, 2] - R[2, 0]) / s
+        out[2] = (R[1, 0] - R[0, 1]) / s
+    elif R[0, 0] > R[1, 1] and R[0, 0] > R[2, 2]:
+        s = math.sqrt(1.0 + R[0, 0] - R[1, 1] - R[2, 2]) * 2.0
+        out[3] = (R[2, 1] - R[1, 2]) / s
+        out[0] = 0.25 * s
+        out[1] = (R[0, 1] + R[1, 0]) / s
+        out[2] = (R[0, 2] + R[2, 0]) / s
+    elif R[1, 1] > R[2, 2]:
+        s = math.sqrt(1.0 + R[1, 1] - R[0, 0] - R[2, 2]) * 2.0
+        out[3] = (R[0, 2] - R[2, 0]) / s
+        out[0] = (R[0, 1] + R[1, 0]) / s
+        out[1] = 0.25 * s
+        out[2] = (R[1, 2] + R[2, 1]) / s
+    else:
+        s = math.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1]) * 2.0
+        out[3] = (R[1, 0] - R[0, 1]) / s
+        out[0] = (R[0, 2] + R[2, 0]) / s
+        out[1] = (R[1, 2] + R[2, 1]) / s
+        out[2] = 0.25 * s
+    return out
+
+
+@njit(cache=True)
+def quaternion_error(R, Rd, e):  # type: ignore[no-untyped-def]
+    """``e_O = η ε_d − η_d ε − S(ε_d) ε`` (thesis Eq. 3.9) into ``e``; returns the angle."""
+    q = quat_of(R)
+    qd = quat_of(Rd)
+    if q[0] * qd[0] + q[1] * qd[1] + q[2] * qd[2] + q[3] * qd[3] < 0.0:
+        for i in range(4):
+            qd[i] = -qd[i]
+    eta = q[3]
+    eta_d = qd[3]
+    e[0] = eta * qd[0] - eta_d * q[0] - (qd[1] * q[2] - qd[2] * q[1])
+    e[1] = eta * qd[1] - eta_d * q[1] - (qd[2] * q[0] - qd[0] * q[2])
+    e[2] = eta * qd[2] - eta_d * q[2] - (qd[0] * q[1] - qd[1] * q[0])
+    s = math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
+    return 2.0 * math.asin(min(s, 1.0))
+
+
+@njit(cache=True)
+def damped_pinv(Phi, lam_max, eps, exact_proj):  # type: ignore[no-untyped-def]
+    """Damped right pseudo-inverse ``Φᵀ(ΦΦᵀ + λ²I)⁻¹`` (Eq. 3.6) with the σ_min damping
+    schedule of P-I Eq. 14, and (if asked) the exact projector ``Φ⁺Φ``.
+
+    Returns ``(M, P, σ_min, λ)``; ``P`` is ``(n, n)`` (empty when not asked).
+    """
+    r, n = Phi.shape
+    G = Phi @ Phi.T
+    ev, V = np.linalg.eigh(G)
+    smin = math.sqrt(max(ev[0], 0.0))
+    lam2 = 0.0
+    if smin < eps:
+        lam2 = (1.0 - (smin / eps) ** 2) * lam_max * lam_max
+    damped = np.empty(r)
+    exact = np.empty(r)
+    cut = 1e-12 * max(ev[r - 1], 1e-300)
+    for i in range(r):
+        damped[i] = 1.0 / max(ev[i] + lam2, 1e-300)
+        exact[i] = 1.0 / ev[i] if ev[i] > cut else 0.0
+    PV = Phi.T @ V  # (n, r)
+    M = np.empty((n, r))
+    for k in range(n):
+        for j in range(r):
+            acc = 0.0
+            for i in range(r):
+                acc += PV[k, i] * damped[i] * V[j, i]
+            M[k, j] = acc
+    if exact_proj:
+        P = np.empty((n, n))
+        for k in range(n):
+            for j in range(n):
+                acc = 0.0
+                for i in range(r):
+                    acc += PV[k, i] * exact[i] * PV[j, i]
+                P[k, j] = acc
+    else:
+        P = np.empty((0, 0))
+    return M, P, smin, math.sqrt(lam2)
+
+
+@njit(cache=True)
+def _bounded(v, vmax):  # type: ignore[no-untyped-def]
+    """Eq. 3.12/3.13: scale a 3-vector down to norm ``vmax`` if it is longer."""
+    nrm = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    if nrm > vmax:
+        f = vmax / nrm
+        v[0] *= f
+        v[1] *= f
+        v[2] *= f
+
+
+@njit(cache=True)
+def _task_velocity(s, pG, pR, wG, six, vlin, wmax, xd):  # type: ignore[no-untyped-def]
+    """``ẋ(s) = [bound(s ṗ_G + Σ ṗ_O); bound(s ω)]`` (Eq. 3.11–3.13, P-V Eq. 6–7)."""
+    v = np.empty(3)
+    for i in range(3):
+        v[i] = s * pG[i] + pR[i]
+    _bounded(v, vlin)
+    for i in range(3):
+        xd[i] = v[i]
+    if six:
+        w = np.empty(3)
+        for i in range(3):
+            w[i] = s * wG[i]
+        _bounded(w, wmax)
+        for i in range(3):
+            xd[3 + i] = w[i]
+
+
+@njit(cache=True)
+def control_step(  # type: ignore[no-untyped-def]
+    kind,
+    qidx,
+    dh,
+    classic,
+    base,
+    tool,
+    q,
+    Td,
+    six,
+    kv,
+    kw,
+    vlin,
+    wmax,
+    lam_max,
+    eps,
+    lower,
+    upper,
+    vmax,
+    usable,
+    passive,
+    k_lim,
+    zone,
+    a_link,
+    a_pt,
+    b_link,
+    b_pt,
+    normal,
+    dist,
+    rho0,
+    mu,
+    vrep_max,
+    task_pt,
+    avoid_on,
+    guard_on,
+    rho_stop,
+    xi,
+    qdot,
+    diag,
+):
+    """One controller tick; writes ``qdot`` (n,) and ``diag`` (see module docstring)."""
+    N = kind.shape[0]
+    n = q.shape[0]
+    F = np.empty((N + 2, 4, 4))
+    frames(kind, qidx, dh, classic, base, tool, q, F)
+    Jg = np.empty((6, n))
+    tool_jacobian(kind, qidx, classic, F, n, Jg)
+    T = F[N + 1]
+    r = 6 if six else 3
+    J = Jg[:r].copy()
+
+    # ---- primary task: bounded P control of position and orientation (Eq. 3.8–3.13)
+    pG = np.empty(3)
+    ep2 = 0.0
+    for i in range(3):
+        d = Td[i, 3] - T[i, 3]
+        pG[i] = kv * d
+        ep2 += d * d
+    wG = np.zeros(3)
+    ang = 0.0
+    if six:
+        eo = np.empty(3)
+        ang = quaternion_error(T[:3, :3], Td[:3, :3], eo)
+        for i in range(3):
+            wG[i] = kw * eo[i]
+    diag[0] = math.sqrt(ep2)
+    diag[1] = ang
+
+    # ---- avoidance points: Khatib speeds (Eq. 3.17), Jacobians, task-space sum (P-V Eq. 6)
+    m = dist.shape[0]
+    active = np.zeros(m, dtype=np.bool_)
+    vrep = np.zeros(m)
+    JO = np.zeros((m, 3, n))
+    Ja = np.empty((6, n))
+    Jb = np.empty((6, n))
+    pR = np.zeros(3)
+    n_active = 0
+    dmin = math.inf
+    for i in range(m):
+        if dist[i] < dmin:
+            dmin = dist[i]
+        if not (dist[i] <= rho0[i]):
+            continue
+        active[i] = True
+        n_active += 1
+        rho = max(dist[i], 1e-6)
+        v = mu[i] * (1.0 / rho - 1.0 / rho0[i]) / (rho * rho)
+        vrep[i] = min(v, vrep_max)
+        if task_pt[i]:
+            # a tool part moves with the tool: rigidly (its own point Jacobian), or, if
+            # it hangs on passive joints, with the tool point plus the tool's rotation
+            # about the vertical (the hanging part keeps only that rotation)
+            hanging = False
+            for jj in range(N):
+                if qidx[jj] >= 0 and passive[qidx[jj]] and jj + 1 <= a_link[i]:
+                    hanging = True
+            if hanging:
+                rx = a_pt[i, 0] - T[0, 3]
+                ry = a_pt[i, 1] - T[1, 3]
+                for k in range(n):
+                    wz = Jg[5, k]
+                    JO[i, 0, k] = Jg[0, k] - wz * ry
+                    JO[i, 1, k] = Jg[1, k] + wz * rx
+                    JO[i, 2, k] = Jg[2, k]
+            else:
+                point_jacobian_rows(
+                    kind, qidx, classic, F, a_link[i], a_pt[i, 0], a_pt[i, 1], a_pt[i, 2], Ja
+                )
+                for j in range(3):
+                    for k in range(n):
+                        JO[i, j, k] = Ja[j, k]
+            if avoid_on:
+                for j in range(3):
+                    pR[j] += vrep[i] * normal[i, j]
+        else:
+            point_jacobian_rows(
+                kind, qidx, classic, F, a_link[i], a_pt[i, 0], a_pt[i, 1], a_pt[i, 2], Ja
+            )
+            if b_link[i] >= 0:
+                point_jacobian_rows(
+                    kind, qidx, classic, F, b_link[i], b_pt[i, 0], b_pt[i, 1], b_pt[i, 2], Jb
+                )
+                for j in range(3):
+                    for k in range(n):
+                        JO[i, j, k] = Ja[j, k] - Jb[j, k]
+            else:
+                for j in range(3):
+                    for k in range(n):
+                        JO[i, j, k] = Ja[j, k]
+    diag[6] = n_active
+    diag[8] = dmin
+
+    # ---- guard, tool parts: remove from the goal velocity the part that would close
+    # a tool part's gap faster than the velocity damper allows, keep the part along
+    # the obstacle (the tool slides around it instead of stopping)
+    if guard_on and avoid_on:
+        for _ in range(3):
+            for i in range(m):
+                if not (active[i] and task_pt[i]):
+                    continue
+                span = max(rho0[i] - rho_stop, 1e-9)
+                frac = min(max((dist[i] - rho_stop) / span, 0.0), 1.0)
+                rate = 0.0
+                for j in range(3):
+                    rate += normal[i, j] * (pG[j] + pR[j])
+                lo = -xi * frac
+                if rate < lo:
+                    for j in range(3):
+                        pG[j] += (lo - rate) * normal[i, j]
+
+    # ---- joints: usable ones get weight 1; a joint outside its limits recovers inward
+    rec = np.zeros(n)
+    w = np.zeros(n)
+    for k in range(n):
+        if not usable[k]:
+            continue
+        if q[k] < lower[k]:
+            rec[k] = min(k_lim * (lower[k] - q[k]), vmax[k])
+        elif q[k] > upper[k]:
+            rec[k] = -min(k_lim * (q[k] - upper[k]), vmax[k])
+        else:
+            w[k] = 1.0
+    # the recovering joints' motion is known: the others solve for what is left
+    xrec = np.zeros(r)
+    for j in range(r):
+        acc = 0.0
+        for k in range(n):
+            acc += J[j, k] * rec[k]
+        xrec[j] = acc
+
+    xd = np.empty(r)
+    xs = np.empty(r)
+    qd1 = np.empty(n)
+    u = np.empty(n)
+    unull = np.zeros(n)
+    M = np.empty((n, r))
+    smin = 0.0
+    lam = 0.0
+    for npass in range(2):
+        Phi = np.empty((r, n))
+        for j in range(r):
+            for k in range(n):
+                Phi[j, k] = J[j, k] * w[k]
+        M, P, smin, lam = damped_pinv(Phi, lam_max, eps, True)
+        # ---- secondary goal: Eq. 3.18, every body point through the null space
+        unull[:] = 0.0
+        if avoid_on:
+            zsum = np.zeros(n)
+            for i in range(m):
+                if not active[i] or task_pt[i]:
+                    continue
+                PhiO = np.empty((3, n))
+                for j in range(3):
+                    for k in range(n):
+                        PhiO[j, k] = JO[i, j, k] * w[k]
+                MO, _, _, _ = damped_pinv(PhiO, lam_max, eps, False)
+                for k in range(n):
+                    acc = 0.0
+                    for j in range(3):
+                        acc += MO[k, j] * normal[i, j]
+                    zsum[k] += vrep[i] * acc
+            for k in range(n):
+                acc = 0.0
+                for j in range(n):
+                    acc += P[k, j] * zsum[j]
+                unull[k] = zsum[k] - acc
+        _task_velocity(1.0, pG, pR, wG, six, vlin, wmax, xd)
+        for j in range(r):
+            xs[j] = xd[j] - xrec[j]
+        for k in range(n):
+            acc = 0.0
+            for j in range(r):
+                acc += M[k, j] * xs[j]
+            u[k] = acc + unull[k]
+            qd1[k] = w[k] * u[k] + rec[k]
+        if npass == 1:
+            break
+        # dynamic weighting (P-II Eq. 25–28): a joint moving toward a near limit gets
+        # a weight that falls to 0 at the limit; solve once more with those weights
+        changed = False
+        for k in range(n):
+            if w[k] == 0.0:
+                continue
+            if qd1[k] > 0.0:
+                room = upper[k] - q[k]
+            elif qd1[k] < 0.0:
+                room = q[k] - lower[k]
+            else:
+                continue
+            if room < zone[k]:
+                w[k] = max(room / zone[k], 0.0)
+                changed = True
+        if not changed:
+            break
+    diag[2] = smin
+    diag[3] = lam
+
+    # ---- guard: the task is scaled down (s < 1) before any pair closes in too fast
+    s = 1.0
+    guard = 1.0
+    if guard_on and n_active > 0:
+        g = np.zeros((m, n))
+        lo_rate = np.zeros(m)
+        for i in range(m):
+            if not active[i]:
+                continue
+            for k in range(n):
+                acc = 0.0
+                for j in range(3):
+                    acc += normal[i, j] * JO[i, j, k]
+                g[i, k] = acc
+            span = max(rho0[i] - rho_stop, 1e-9)
+            frac = min(max((dist[i] - rho_stop) / span, 0.0), 1.0)
+            lo_rate[i] = -xi * frac
+        qs = np.empty(n)
+        # feasibility of a task scale: every active pair's rate above its bound
+        lo_s = 0.0
+        hi_s = 1.0
+        for it in range(16):
+            trial = 1.0 if it == 0 else (0.0 if it == 1 else 0.5 * (lo_s + hi_s))
+            _task_velocity(trial, pG, pR, wG, six, vlin, wmax, xd)
+            for k in range(n):
+                acc = 0.0
+                for j in range(r):
+                    acc += M[k, j] * (xd[j] - xrec[j])
+                qs[k] = w[k] * (acc + unull[k]) + rec[k]
+            ok = True
+            for i in range(m):
+                if not active[i]:
+                    continue
+                rate = 0.0
+                for k in range(n):
+                    rate += g[i, k] * qs[k]
+                if rate < lo_rate[i] - 1e-12:
+                    ok = False
+                    break
+            if it == 0:
+                if ok:
+                    s = 1.0
+                    break
+            elif it == 1:
+                if not ok:
+                    s = 0.0
+                    break
+                lo_s = 0.0
+            else:
+                if ok:
+                    lo_s = trial
+                else:
+                    hi_s = trial
+            s = lo_s
+        _task_velocity(s, pG, pR, wG, six, vlin, wmax, xd)
+        for k in range(n):
+            acc = 0.0
+            for j in range(r):
+                acc += M[k, j] * (xd[j] - xrec[j])
+            qd1[k] = w[k] * (acc + unull[k]) + rec[k]
+        # still closing in too fast with no task left: slow the whole motion down
+        for i in range(m):
+            if not active[i]:
+                continue
+            rate = 0.0
+            for k in range(n):
+                rate += g[i, k] * qd1[k]
+            if rate < lo_rate[i]:
+                f = lo_rate[i] / rate if rate < 0.0 else 0.0
+                guard = min(guard, max(f, 0.0))
+    diag[4] = s
+    diag[7] = guard
+
+    # ---- limits: scale the whole vector (never clip one joint into another direction)
+    alpha = guard
+    for k in range(n):
+        v = qd1[k] * guard
+        if rec[k] != 0.0:
+            hi = vmax[k] if rec[k] > 0.0 else 0.0
+            lo = -vmax[k] if rec[k] < 0.0 else 0.0
+        else:
+            hi = min(vmax[k], max(k_lim * (upper[k] - q[k]), 0.0))
+            lo = max(-vmax[k], min(k_lim * (lower[k] - q[k]), 0.0))
+        if v > hi:
+            alpha = min(alpha, guard * hi / v if v > 0.0 else 0.0)
+        elif v < lo:
+            alpha = min(alpha, guard * lo / v if v < 0.0 else 0.0)
+    alpha = max(alpha, 0.0)
+    for k in range(n):
+        qdot[k] = alpha * qd1[k]
+    diag[5] = alpha / guard if guard > 0.0 else 0.0
+
+
+def warm_up() -> None:
+    """Compile the controller kernel for the signature used at run time."""
+    kind = np.array([0, 1, 0], dtype=np.int64)
+    qidx = np.array([0, 1, 2], dtype=np.int64)
+    dh = np.zeros((3, 4))
+    dh[1, 0] = 0.5
+    eye = np.eye(4)
+    n = 3
+    for six in (False, True):
+        for m in (0, 1):
+            control_step(
+                kind, qidx, dh, False, eye, eye, np.zeros(n), eye, six,
+                1.0, 1.0, 1.0, 1.0, 0.1, 0.01,
+                np.full(n, -1.0), np.full(n, 1.0), np.ones(n), np.ones(n, np.bool_),
+                np.zeros(n, np.bool_), 2.0,
+                np.full(n, 0.1),
+                np.zeros(m, np.int64), np.zeros((m, 3)), np.full(m, -1, np.int64),
+                np.zeros((m, 3)), np.zeros((m, 3)), np.full(m, 0.1), np.full(m, 0.2),
+                np.full(m, 1e-3), 1.0, np.zeros(m, np.bool_), True, True, 0.03, 0.5,
+                np.empty(n), np.empty(DIAG),
+            )  # fmt: skip

@@ -1,0 +1,323 @@
+"""Collision-avoidance path controller of one manipulator (thesis §3.3, P-III §3, P-V §III).
+
+One tick, ``Controller.step(q, goal, distances, now) -> (q̇, status)``:
+
+1. **Primary task** (Eq. 3.8–3.13). Proportional control of the tool position,
+   ``ṗ_G = k_v (p_d − p)``, and of its orientation with the unit-quaternion error
+   ``e_O = η ε_d − η_d ε − S(ε_d) ε`` (Eq. 3.9), ``ω = k_w e_O``; 3-D goals control the
+   position only. Tool parts near an obstacle (a hanging grabber, a drill feed) add
+   their repulsive velocities in task space, ``ṗ = ṗ_G + Σ ṗ_Oi`` (P-V Eq. 6), and the
+   linear and angular velocities are bounded by scaling their vectors (Eq. 3.12–3.13,
+   P-V Eq. 7).
+2. **Damped pseudo-inverse** (Eq. 3.5–3.6) with the damping of P-I Eq. 14:
+   ``λ² = (1 − (σ_min/ε)²) λ_max²`` inside the singular region ``σ_min < ε``, else 0.
+3. **Avoidance in the null space** (Eq. 3.14–3.18). Every watched pair closer than its
+   margin ``ρ_O`` gives an avoidance point at the robot part's closest point, its
+   point Jacobian ``J_Oi`` (for a self-collision pair the relative Jacobian of the two
+   closest points) and the Khatib velocity ``ẋ_Oi = μ (1/ρ_i − 1/ρ_O)/ρ_i² n_i`` along
+   the collision line (Eq. 3.16–3.17, capped at ``v_rep_max``); then
+   ``q̇ = J̃⁺ ẋ + Σ_i (I − J⁺J) J̃_Oi⁺ ẋ_Oi`` (Eq. 3.18). The projector uses the exact
+   (rank-truncated) pseudo-inverse, so the avoidance motion never disturbs the task —
+   the same as the thesis's ``I − J̃⁺J`` outside the singular region, where ``λ = 0``.
+4. **Joint limits** (``limits``). Joints that are passive, locked or outside their
+   range get weight 0 in a weighted pseudo-inverse (P-II Eq. 25–28; a joint outside
+   its range is driven back inward and the others solve for the rest of the task);
+   a joint moving toward a limit within ``limit_zone`` gets a weight falling to 0 at
+   the limit. Finally the whole ``q̇`` is scaled by one factor ``α ≤ 1`` so that every
+   joint respects ``|q̇| ≤ v_max`` and the position velocity damper — never clipped
+   joint by joint.
+5. **Guard** (our addition, beyond the thesis). Eq. 3.18 "gives up the desired
+   velocity" only as far as the repulsion outweighs it. So that no pair can
+   interpenetrate even when the primary task is infeasible, every active pair's
+   distance rate ``ρ̇_i = n_iᵀ J_Oi q̇`` must stay above the velocity damper
+   ``−ξ (ρ_i − ρ_s)/(ρ_O − ρ_s)``: the goal part of the task velocity is scaled by the
+   largest ``s ∈ [0, 1]`` that satisfies it (the tool deviates or slows down), and if
+   even ``s = 0`` does not, the whole motion is slowed down (the robot stops before
+   ``ρ_s``).
+6. **Safety and status** (``safety``): missing, repeated, old or non-finite distance
+   data ⇒ protective stop; per tick the state is ``moving``, ``reached``, ``locked``,
+   ``protective_stop`` (with the reason) or ``stalled`` (no progress toward the goal
+   for ``stall_time`` — the local minimum of thesis Fig. 3.3, reported, not hidden).
+
+The arithmetic of one tick is one compiled kernel (``_kernel``), so a tick costs tens
+of microseconds.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from reachwise.control import _kernel as K
+from reachwise.control.avoidance import AvoidancePoints
+from reachwise.control.safety import SafetyConfig, check_data, stop_ramp
+from reachwise.errors import InputError
+from reachwise.kinematics.robot import Robot
+from reachwise.kinematics.transforms import check_pose
+
+__all__ = ["ControlStatus", "Controller", "ControllerConfig", "Goal", "State"]
+
+State = Literal["moving", "reached", "locked", "protective_stop", "stalled"]
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    """Gains and limits of the controller (SI units).
+
+    ``kv`` (1/s) and ``kw`` (1/s): position and orientation gains (Eq. 3.8, 3.10);
+    ``v_max`` (m/s), ``w_max`` (rad/s): task velocity bounds (Eq. 3.12–3.13);
+    ``lambda_max``, ``epsilon``: damping schedule (P-I Eq. 14);
+    ``mu`` (m⁴/s): Khatib coefficient (Eq. 3.17), ``v_rep_max`` (m/s) caps a repulsive
+    speed; ``k_limit`` (1/s): position-limit velocity damper, ``limit_zone`` (rad or
+    m): where the limit weighting starts; ``guard``, ``stop_distance`` ``ρ_s`` (m) and
+    ``approach_speed`` ``ξ`` (m/s): the approach guard; ``avoidance``: False gives the
+    conventional controller (no avoidance, no distance data needed);
+    ``position_tolerance`` (m), ``orientation_tolerance`` (rad): goal reached;
+    ``stall_time`` (s), ``stall_progress`` (m, orientation counted 1 m/rad): stall
+    detection; ``safety``: data freshness and protective stop.
+    """
+
+    kv: float = 1.0
+    kw: float = 1.0
+    v_max: float = 0.5
+    w_max: float = 0.3
+    lambda_max: float = 0.05
+    epsilon: float = 0.05
+    mu: float = 2e-4
+    v_rep_max: float = 1.0
+    k_limit: float = 2.0
+    limit_zone: float = 0.1
+    guard: bool = True
+    stop_distance: float = 0.04
+    approach_speed: float = 0.5
+    avoidance: bool = True
+    position_tolerance: float = 0.005
+    orientation_tolerance: float = 0.01
+    stall_time: float = 3.0
+    stall_progress: float = 0.01
+    safety: SafetyConfig = field(default_factory=SafetyConfig)
+
+    def __post_init__(self) -> None:
+        positive = (
+            "kv", "kw", "v_max", "w_max", "epsilon", "k_limit", "limit_zone",
+            "approach_speed", "position_tolerance", "orientation_tolerance", "stall_time",
+            "stall_progress", "v_rep_max",
+        )  # fmt: skip
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.name in positive and not (isinstance(v, int | float) and v > 0):
+                raise InputError("controller", f.name, f"must be > 0, got {v!r}")
+        for name in ("lambda_max", "mu", "stop_distance"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise InputError("controller", name, f"must be finite and >= 0, got {v!r}")
+
+    @property
+    def dt(self) -> float:
+        return self.safety.dt
+
+
+@dataclass(frozen=True, eq=False)
+class Goal:
+    """A tool goal: a 4x4 pose; ``dims`` 3 (position only) or 6 (full pose).
+
+    ``position_tolerance``/``orientation_tolerance`` override the controller's.
+    """
+
+    pose: NDArray[np.float64]
+    dims: Literal[3, 6] = 6
+    position_tolerance: float | None = None
+    orientation_tolerance: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.dims not in (3, 6):
+            raise InputError("goal", "dims", f"3 or 6, got {self.dims!r}")
+        P = check_pose(self.pose, "goal pose").copy()
+        P.setflags(write=False)
+        object.__setattr__(self, "pose", P)
+
+    @classmethod
+    def at(cls, xyz: ArrayLike, **kw: float) -> Goal:
+        """A 3-D (position-only) goal."""
+        T = np.eye(4)
+        T[:3, 3] = np.asarray(xyz, dtype=float)
+        return cls(T, 3, **kw)  # type: ignore[arg-type]
+
+    @property
+    def position(self) -> NDArray[np.float64]:
+        return self.pose[:3, 3]
+
+
+@dataclass(frozen=True)
+class ControlStatus:
+    """What the controller did this tick and why.
+
+    ``state``: ``moving``, ``reached``, ``locked``, ``protective_stop`` or
+    ``stalled``; ``reason`` says why for the last two. ``position_error`` (m),
+    ``orientation_error`` (rad, 0 for 3-D goals); ``task_scale`` ``s`` (1 = the path
+    is followed), ``limit_scale`` ``α`` (1 = no joint at a bound), ``guard_scale``
+    (1 = no pair closing in too fast); ``sigma_min`` and ``damping`` ``λ`` of the
+    pseudo-inverse; ``active_points`` within their margins, ``min_distance`` (m, inf
+    when none).
+    """
+
+    state: State
+    reason: str = ""
+    position_error: float = math.nan
+    orientation_error: float = math.nan
+    task_scale: float = 1.0
+    limit_scale: float = 1.0
+    guard_scale: float = 1.0
+    sigma_min: float = math.nan
+    damping: float = 0.0
+    active_points: int = 0
+    min_distance: float = math.inf
+
+
+class Controller:
+    """The controller of one robot; keeps the little state a tick needs (last command,
+    last sequence number, protective-stop ramp, stall clock)."""
+
+    def __init__(
+        self,
+        robot: Robot,
+        config: ControllerConfig | None = None,
+        *,
+        locked_joints: tuple[int, ...] = (),
+    ) -> None:
+        self.robot = robot
+        self.config = config or ControllerConfig()
+        usable = np.array(robot.actuated, dtype=np.bool_)
+        for k in locked_joints:
+            if not 0 <= k < robot.n:
+                raise InputError(robot.name, "locked_joints", f"no joint variable {k}")
+            usable[k] = False
+        self._usable = usable
+        self._passive = np.array(~np.asarray(robot.actuated), dtype=np.bool_)
+        self._zone = np.full(robot.n, self.config.limit_zone)
+        self._c = robot.arrays
+        self.locked = False
+        self.reset()
+        self._warm_up()
+
+    # ------------------------------------------------------------------ state
+    def reset(self) -> None:
+        """Forget the last command, sequence and stall clock (e.g. for a new goal)."""
+        self._last_cmd = np.zeros(self.robot.n)
+        self._last_seq: int | None = None
+        self._faults = 0
+        self._fault_reason = ""
+        self._goal: Goal | None = None
+        self._best = math.inf
+        self._best_t = 0.0
+
+    def _warm_up(self) -> None:
+        q = np.clip(np.zeros(self.robot.n), self.robot.lower, self.robot.upper)
+        T = self.robot.fk(q)
+        for m in (0, 1):
+            pts = AvoidancePoints(
+                0, 0.0, 0.0,
+                np.full(m, len(self.robot.link_names) - 1, np.int64), np.zeros((m, 3)),
+                np.full(m, -1, np.int64), np.zeros((m, 3)), np.tile([0.0, 0.0, 1.0], (m, 1)),
+                np.full(m, 0.1), np.full(m, 0.2), np.zeros(m, np.bool_),
+            )  # fmt: skip
+            for dims in (3, 6):
+                self._kernel(q, Goal(T, dims), pts, True)
+
+    # ------------------------------------------------------------------ tick
+    def step(
+        self,
+        q: ArrayLike,
+        goal: Goal,
+        distances: AvoidancePoints | None,
+        now: float,
+    ) -> tuple[NDArray[np.float64], ControlStatus]:
+        """One control tick at time ``now`` (s): joint velocity command and status."""
+        qq = np.ascontiguousarray(q, dtype=np.float64)
+        if qq.shape != (self.robot.n,) or not np.isfinite(qq).all():
+            raise InputError(self.robot.name, "q", f"expected {self.robot.n} finite values")
+        cfg = self.config
+        if self.locked:
+            self._last_cmd = np.zeros(self.robot.n)
+            return self._last_cmd.copy(), ControlStatus("locked", "locked while working")
+        if goal is not self._goal:
+            self._goal = goal
+            self._best = math.inf
+            self._best_t = now
+        if cfg.avoidance:
+            if distances is None:
+                chk = check_data(None, None, self._last_seq, now, cfg.safety)
+            else:
+                values = (distances.distance, distances.a_point, distances.normal)
+                chk = check_data(
+                    distances.sequence, distances.stamp, self._last_seq, now, cfg.safety, values
+                )
+            if not chk.ok or distances is None:
+                return self._stop(chk.reason)
+            self._last_seq = distances.sequence
+        pts = distances if (cfg.avoidance and distances is not None) else _NO_POINTS
+        qdot, diag = self._kernel(qq, goal, pts, cfg.avoidance)
+        self._faults = 0
+        self._last_cmd = qdot.copy()
+        ptol = (
+            cfg.position_tolerance if goal.position_tolerance is None else goal.position_tolerance
+        )
+        otol = (
+            cfg.orientation_tolerance
+            if goal.orientation_tolerance is None
+            else goal.orientation_tolerance
+        )
+        pe = float(diag[0])
+        oe = float(diag[1]) if goal.dims == 6 else 0.0
+        state: State = "moving"
+        reason = ""
+        if pe <= ptol and oe <= otol:
+            state = "reached"
+            self._best_t = now
+        else:
+            err = pe + oe
+            if err < self._best - cfg.stall_progress:
+                self._best = err
+                self._best_t = now
+            elif now - self._best_t >= cfg.stall_time:
+                state = "stalled"
+                reason = (
+                    f"no progress toward the goal for {now - self._best_t:.2f} s "
+                    f"(error {err:.3f}, best {self._best:.3f}); a local minimum"
+                )
+        status = ControlStatus(
+            state, reason, pe, oe, float(diag[4]), float(diag[5]), float(diag[7]),
+            float(diag[2]), float(diag[3]), int(diag[6]), float(diag[8]),
+        )  # fmt: skip
+        return qdot, status
+
+    def _stop(self, reason: str) -> tuple[NDArray[np.float64], ControlStatus]:
+        st = self.config.safety.stop_ticks
+        self._faults += 1
+        cmd = stop_ramp(self._last_cmd, st - self._faults, st)
+        return cmd, ControlStatus("protective_stop", reason)
+
+    def _kernel(
+        self, q: NDArray[np.float64], goal: Goal, p: AvoidancePoints, avoid: bool
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        cfg = self.config
+        c = self._c
+        r = self.robot
+        qdot = np.empty(r.n)
+        diag = np.empty(K.DIAG)
+        K.control_step(
+            c.kind, c.qidx, c.dh, c.classic, c.base, c.tool, q, goal.pose, goal.dims == 6,
+            cfg.kv, cfg.kw, cfg.v_max, cfg.w_max, cfg.lambda_max, cfg.epsilon,
+            r.lower, r.upper, r.vmax, self._usable, self._passive, cfg.k_limit, self._zone,
+            p.a_link, p.a_point, p.b_link, p.b_point, p.normal, p.distance, p.margin,
+            np.full(len(p), cfg.mu), cfg.v_rep_max, p.task_space, avoid,
+            cfg.guard and avoid, cfg.stop_distance, cfg.approach_speed, qdot, diag,
+        )  # fmt: skip
+        return qdot, diag
+
+
+_NO_POINTS = AvoidancePoints.empty(0, 0.0)
