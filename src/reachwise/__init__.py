@@ -13,6 +13,7 @@ from reachwise.io.robot_file import load_robot
 from reachwise.io.task_file import load_task
 from reachwise.kinematics.ik import IKResult
 from reachwise.kinematics.robot import Joint, Robot
+from reachwise.sim.simulate import SimulationLog, simulate
 from reachwise.synthesis.synthesize import SynthesisResult, synthesize
 from reachwise.tasks.task import Task, TaskPoint
 
@@ -21,11 +22,13 @@ __all__ = [
     "Joint",
     "PointCloud",
     "Robot",
+    "SimulationLog",
     "SynthesisResult",
     "Task",
     "TaskPoint",
     "__version__",
     "load_robot",
     "load_task",
+    "simulate",
     "synthesize",
 ]

@@ -11,4 +11,7 @@ REGISTRY: dict[str, str] = {
     "kinematics": "reachwise.benchmarks.kinematics",
     "distance": "reachwise.benchmarks.distance",
     "synthesis": "reachwise.benchmarks.synthesis",
+    "sweep": "reachwise.benchmarks.sweep",
+    "control": "reachwise.benchmarks.control",
+    "server": "reachwise.benchmarks.server",
 }

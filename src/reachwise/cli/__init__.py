@@ -5,7 +5,8 @@ from __future__ import annotations
 import typer
 
 from reachwise import __version__
-from reachwise.cli import bench, cloud, demo, robot, synth, task
+from reachwise.cli import bench, cloud, demo, robot, serve, synth, task, topology
+from reachwise.cli import simulate as sim_cli
 
 app = typer.Typer(
     name="reachwise",
@@ -18,6 +19,9 @@ app.add_typer(robot.app, name="robot")
 app.add_typer(cloud.app, name="cloud")
 app.add_typer(task.app, name="task")
 app.command("synth")(synth.synth)
+app.command("topology")(topology.topology)
+app.command("simulate")(sim_cli.simulate)
+app.add_typer(serve.app, name="serve")
 app.command("bench")(bench.bench)
 app.command("demo")(demo.demo)
 app.command("scan")(cloud.scan)
