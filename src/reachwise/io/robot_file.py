@@ -8,7 +8,6 @@ says so (``alpha_deg``, ``theta_deg``, ``limits_deg``, ``vmax_deg``, ``rpy_deg``
 from __future__ import annotations
 
 import math
-from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -17,6 +16,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from reachwise.errors import InputError, RobotFileError
+from reachwise.io._builtin import builtin_names, builtin_text
 from reachwise.kinematics.robot import (
     BASE_PARAMS,
     DH_PARAMS,
@@ -284,16 +284,14 @@ def load_robot_file(path: str | Path) -> Robot:
 
 def builtin_robots() -> list[str]:
     """Names of the robots shipped with reachwise."""
-    folder = resources.files("reachwise.data") / "robots"
-    return sorted(f.name[:-5] for f in folder.iterdir() if f.name.endswith(".yaml"))
+    return builtin_names("robots")
 
 
 def load_robot(name_or_path: str | Path) -> Robot:
     """A built-in robot by name (``panda``, ``sb60`` …) or a YAML/URDF robot file."""
     s = str(name_or_path)
     if s in builtin_robots():
-        res = resources.files("reachwise.data") / "robots" / f"{s}.yaml"
-        data = yaml.safe_load(res.read_text())
+        data = yaml.safe_load(builtin_text("robots", s))
         return robot_from_dict(data, f"built-in robot {s}")
     p = Path(s)
     if p.suffix.lower() in (".yaml", ".yml", ".urdf") or p.exists():

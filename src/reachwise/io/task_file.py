@@ -44,7 +44,6 @@ import json
 import math
 from collections import Counter
 from collections.abc import Callable
-from importlib import resources
 from pathlib import Path
 from typing import Any, Literal
 
@@ -54,6 +53,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from scipy.spatial.transform import Rotation
 
 from reachwise.errors import TaskError
+from reachwise.io._builtin import builtin_names, builtin_text
 from reachwise.tasks.task import (
     DEFAULT_TOL_ORIENTATION,
     DEFAULT_TOL_POSITION,
@@ -565,16 +565,14 @@ def builtin_task_text(name: str) -> str:
 
 def builtin_tasks() -> list[str]:
     """Names of the tasks shipped with reachwise."""
-    folder = resources.files("reachwise.data") / "tasks"
-    return sorted(f.name[:-5] for f in folder.iterdir() if f.name.endswith(".yaml"))
+    return builtin_names("tasks")
 
 
 def load_task(name_or_path: str | Path) -> Task:
     """A built-in task by name (``tunnel-87``) or a YAML/JSON/CSV task file."""
     s = str(name_or_path)
     if s in builtin_tasks():
-        res = resources.files("reachwise.data") / "tasks" / f"{s}.yaml"
-        return task_from_dict(yaml.safe_load(res.read_text()), f"built-in task {s}", s)
+        return task_from_dict(yaml.safe_load(builtin_text("tasks", s)), f"built-in task {s}", s)
     p = Path(s)
     if p.is_file() or p.suffix.lower() in _SUFFIX:
         return load_task_file(p)

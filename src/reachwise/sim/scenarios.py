@@ -54,7 +54,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from scipy.spatial.transform import Rotation
 
 from reachwise.errors import InputError
-from reachwise.kinematics.transforms import pose_from_xyz_rpy
+from reachwise.io._builtin import builtin_names
+from reachwise.io.robot_file import FrameModel
 
 __all__ = [
     "ControllerSpec",
@@ -75,21 +76,8 @@ _STRICT = ConfigDict(extra="forbid", allow_inf_nan=False)
 V3 = tuple[float, float, float]
 
 
-class FrameSpec(BaseModel):
-    model_config = _STRICT
-    xyz: V3 = (0.0, 0.0, 0.0)
-    rpy: V3 | None = None
-    rpy_deg: V3 | None = None
-
-    @model_validator(mode="after")
-    def _one(self) -> FrameSpec:
-        if self.rpy is not None and self.rpy_deg is not None:
-            raise ValueError("give rpy or rpy_deg, not both")
-        return self
-
-    def matrix(self) -> np.ndarray:
-        rpy = np.radians(self.rpy_deg) if self.rpy_deg is not None else (self.rpy or (0, 0, 0))
-        return pose_from_xyz_rpy(self.xyz, rpy)
+# Frames in scenario files use the robot file's schema: xyz + rpy | rpy_deg.
+FrameSpec = FrameModel
 
 
 class GoalSpec(BaseModel):
@@ -335,7 +323,7 @@ def _scenario_folder() -> Path:
 
 def builtin_scenarios() -> list[str]:
     """Names of the scenarios shipped with reachwise."""
-    return sorted(p.stem for p in _scenario_folder().glob("*.yaml"))
+    return builtin_names("scenarios")
 
 
 def load_scenario(name_or_path: str | Path | Scenario) -> Scenario:
