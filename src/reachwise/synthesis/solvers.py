@@ -55,7 +55,7 @@ class Workspace(Protocol):
 class SolverOptions:
     """Tuning of the ``dls`` solver (lengths in m, angles in rad)."""
 
-    max_iter: int = 400
+    max_iter: int = 1000
     lam_max: float = 0.05
     eps: float = 0.02
     err_ref: float = 0.05
@@ -64,7 +64,7 @@ class SolverOptions:
     workspace_margin: float = 0.1
     workspace_gain: float = 0.5
     samples_per_link: int = 4
-    stall_iterations: int = 40
+    stall_iterations: int = 100
     reseed_every: int = 15
     reseed_restarts: int = 8
 
