@@ -317,29 +317,6 @@ def _render_yaml(data: dict[str, Any], comment: str | None) -> str:
     return text
 
 
-CSV_COLUMNS: tuple[str, ...] = (
-    "x",
-    "y",
-    "z",
-    "qx",
-    "qy",
-    "qz",
-    "qw",
-    "ax",
-    "ay",
-    "az",
-    "roll",
-    "pitch",
-    "yaw",
-    "roll_deg",
-    "pitch_deg",
-    "yaw_deg",
-    "dims",
-    "tol_position",
-    "tol_orientation",
-    "name",
-    "group",
-)
 _CSV_GROUPS: dict[str, tuple[str, ...]] = {
     "xyz": ("x", "y", "z"),
     "quat": ("qx", "qy", "qz", "qw"),
@@ -347,23 +324,11 @@ _CSV_GROUPS: dict[str, tuple[str, ...]] = {
     "rpy": ("roll", "pitch", "yaw"),
     "rpy_deg": ("roll_deg", "pitch_deg", "yaw_deg"),
 }
-_CSV_WRITE = (
-    "x",
-    "y",
-    "z",
-    "qx",
-    "qy",
-    "qz",
-    "qw",
-    "ax",
-    "ay",
-    "az",
-    "dims",
-    "tol_position",
-    "tol_orientation",
-    "name",
-    "group",
-)
+_CSV_POINT = ("dims", "tol_position", "tol_orientation", "name", "group")
+#: Every column a task CSV may have: the pose groups, then the per-point fields.
+CSV_COLUMNS: tuple[str, ...] = (*(c for g in _CSV_GROUPS.values() for c in g), *_CSV_POINT)
+#: What ``save_task`` writes: position, quaternion, axis and the per-point fields.
+_CSV_WRITE = (*_CSV_GROUPS["xyz"], *_CSV_GROUPS["quat"], *_CSV_GROUPS["axis"], *_CSV_POINT)
 
 
 def _render_csv(task: Task, decimals: int | None) -> str:

@@ -160,23 +160,8 @@ def point_jacobian_rows(kind, qidx, classic, F, link, px, py, pz, J):  # type: i
         if k < 0 or i + 1 > link:
             continue
         f = _axis_frame(i, classic)
-        zx = F[f, 0, 2]
-        zy = F[f, 1, 2]
-        zz = F[f, 2, 2]
-        if kind[i] == 0:
-            rx = px - F[f, 0, 3]
-            ry = py - F[f, 1, 3]
-            rz = pz - F[f, 2, 3]
-            J[0, k] = zy * rz - zz * ry
-            J[1, k] = zz * rx - zx * rz
-            J[2, k] = zx * ry - zy * rx
-            J[3, k] = zx
-            J[4, k] = zy
-            J[5, k] = zz
-        else:
-            J[0, k] = zx
-            J[1, k] = zy
-            J[2, k] = zz
+        _screw(J, k, kind[i] == 0, F[f, 0, 2], F[f, 1, 2], F[f, 2, 2],
+               F[f, 0, 3], F[f, 1, 3], F[f, 2, 3], px, py, pz)  # fmt: skip
 
 
 @njit(cache=True)
