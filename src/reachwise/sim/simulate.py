@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 from reachwise.control.avoidance import SceneConverter
 from reachwise.control.controller import Controller, ControllerConfig, ControlStatus, Goal
 from reachwise.control.safety import SafetyConfig
-from reachwise.distance.scene import Scene
+from reachwise.distance.scene import Scene, SceneResult
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
 from reachwise.kinematics.robot import Robot
@@ -458,11 +458,13 @@ def simulate(
     *,
     duration: float | None = None,
     progress: Callable[[float, float], None] | None = None,
+    on_tick: Callable[[float, dict[str, NDArray[np.float64]], SceneResult], None] | None = None,
 ) -> SimulationLog:
     """Run ``scenario`` (a built-in name, a file or a :class:`Scenario`) in simulated
     time; ``avoidance=False`` runs the conventional controller (the baseline).
     ``duration`` overrides the scenario's; ``progress(t, duration)`` is called each
-    tick."""
+    tick; ``on_tick(t, {robot: q}, distances)`` too, after the distance query (a live
+    viewer attaches here)."""
     world = build_world(scenario, avoidance)
     spec = world.scenario.spec
     dt = spec.dt
@@ -521,6 +523,8 @@ def simulate(
         for a in agents:
             scene.set_joints(a.name, a.plant.q)
         res = scene.query_all()
+        if on_tick is not None:
+            on_tick(t, {a.name: a.plant.q.copy() for a in agents}, res)
         poses: dict[str, NDArray[np.float64]] | None = None
         for i, pr in enumerate(res.pairs):
             d = pr.result.distance
