@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -70,8 +71,9 @@ class OnLink:
     link: str
     offset: NDArray[np.float64]
 
-    @property
+    @cached_property
     def identity(self) -> bool:
+        """The offset is the identity (the per-tick pose needs no extra product)."""
         return bool(np.array_equal(self.offset, np.eye(4)))
 
 

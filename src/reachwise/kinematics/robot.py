@@ -198,7 +198,7 @@ class Robot:
                 )
 
     # ---- sizes and per-joint arrays -------------------------------------------------
-    @property
+    @cached_property
     def n(self) -> int:
         """Number of joint variables: every non-fixed joint, passive ones included."""
         return sum(j.movable for j in self.joints)
