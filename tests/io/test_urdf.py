@@ -198,9 +198,12 @@ def test_round_trip_keeps_geometry_in_place(tmp_path: Path, rng: np.random.Gener
         for k, g in back.geometry.items()
     )
     assert placed == placed_back
-    assert sorted(g.size for g in robot.geometry.values()) == sorted(  # type: ignore[type-var]
-        g.size for g in back.geometry.values()
-    )
+
+    def shapes(r: Robot) -> list[tuple[object, ...]]:  # boxes and cylinders (the feed)
+        return sorted((g.shape, g.size or (), g.radius or 0.0, g.length or 0.0)
+                      for g in r.geometry.values())  # fmt: skip
+
+    assert shapes(robot) == shapes(back)
 
 
 def test_loader_dispatches_urdf_files(tmp_path: Path) -> None:
