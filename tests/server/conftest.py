@@ -79,7 +79,7 @@ def build_scene(scene: SceneLike, robot: Robot, clouds: dict[str, NDArray[np.flo
 def start_server(
     workdir: Path, *, bind: str = "tcp://127.0.0.1:*", extra: tuple[str, ...] = ()
 ) -> ServerProcess:
-    """A started server process (``python -m reachwise.cli.serve``) with small caps."""
+    """A started server process (``reachwise serve``) with small caps."""
     workdir.mkdir(parents=True, exist_ok=True)
     caps = ("--max-cloud-points", str(MAX_CLOUD_POINTS), "--max-message-mb", str(MAX_MESSAGE_MB))
     return ServerProcess(workdir, MAX_RUNTIME, bind=bind, extra=caps + extra).__enter__()

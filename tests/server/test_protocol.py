@@ -44,6 +44,7 @@ def sample_requests(crane: Robot) -> list[P.Request]:
         P.WatchEnvironment("hiab-xs033", 0.5),
         P.WatchRobots("r1", "r2", 0.3),
         P.Unwatch("a", "b"),
+        P.Clear(),
         P.Query(),
         P.Query(1.0, {"hiab-xs033": np.zeros(crane.n)}, {"probe": _pose()}, (("a", "b"),), "x-1"),
         P.Describe(True),
@@ -365,3 +366,112 @@ def test_fuzz_mutated_valid_requests(crane: Robot, data: st.DataObject) -> None:
         else:
             raw[i:i] = data.draw(st.binary(min_size=1, max_size=8))
     _decodes_or_typed_error(bytes(raw))
+
+
+def _float_vector(n: int, values: list[float]) -> list[Any]:
+    return [P.FLOAT, [n], np.asarray(values, dtype="<f8").tobytes()]
+
+
+_stamps = st.one_of(
+    st.none(), st.floats(), st.integers(-(2**40), 2**40), st.booleans(), st.text(max_size=3)
+)
+_names = st.one_of(
+    st.sampled_from(["crane", "hiab-xs033", "", "a\nb", "x" * 201]), st.integers(0, 3)
+)
+_vectors = st.one_of(
+    st.lists(st.floats(), min_size=0, max_size=7).map(lambda v: _float_vector(len(v), v)),
+    st.lists(st.floats(), min_size=1, max_size=7).map(lambda v: _float_vector(len(v) + 1, v)),
+    st.just(["<f4", [2], b"\0" * 8]),
+    st.just([P.FLOAT, [2, 1], b"\0" * 16]),
+    st.just([P.FLOAT, [True], b"\0" * 8]),
+    _leaf,
+)
+
+
+def _full_parse(cls: type[P.Request], body: Any) -> P.Request | None:
+    try:
+        r = P.Reader(body)
+        out = cls.parse(r, P.DEFAULT_LIMITS)
+        r.done()
+    except P.ProtocolError:
+        return None
+    return out
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    stamp=_stamps,
+    layout=st.one_of(st.none(), st.text(max_size=4), st.just("l" * 201), st.integers(-5, 5)),
+    joints=st.one_of(st.none(), st.dictionaries(_names, _vectors, max_size=3), _leaf),
+    extra=st.sampled_from([{}, {"poses": None}, {"pairs": [["a", "b"]]}, {"bogus": 1}]),
+    drop=st.sets(st.sampled_from(["stamp", "layout", "joints"])),
+)
+def test_fast_query_parser_agrees_with_the_full_one(
+    stamp: Any, layout: Any, joints: Any, extra: dict[str, Any], drop: set[str]
+) -> None:
+    """The hot-path parser accepts only what the full parser accepts, and builds the
+    same request; everything else falls through to the full parser's typed errors."""
+    body = {"stamp": stamp, "layout": layout, "joints": joints, **extra}
+    for k in drop:
+        body.pop(k)
+    fast = P._fast_query(body)
+    full = _full_parse(P.Query, body)
+    if fast is not None:
+        assert full is not None and _equal(fast, full), (fast, full)
+    # and the whole decoder gives the full parser's answer either way
+    raw = msgpack.packb({"v": 1, "id": 3, "op": "query", "body": body}, use_bin_type=True)
+    try:
+        _, dec = P.decode_request(raw)
+    except P.ProtocolError:
+        assert full is None
+    else:
+        assert full is not None and _equal(dec, full)
+
+
+@settings(max_examples=200, deadline=None)
+@given(robot=_names, q=_vectors, stamp=_stamps, extra=st.sampled_from([{}, {"x": 1}]))
+def test_fast_set_joints_parser_agrees_with_the_full_one(
+    robot: Any, q: Any, stamp: Any, extra: dict[str, Any]
+) -> None:
+    body = {"robot": robot, "q": q, "stamp": stamp, **extra}
+    fast = P._fast_set_joints(body)
+    full = _full_parse(P.SetJoints, body)
+    if fast is not None:
+        assert full is not None and _equal(fast, full)
+
+
+def _index_row(r: list[float]) -> list[float]:
+    """Mostly valid index and flag columns (sometimes not: NaN, inf stay as drawn)."""
+    ia = float(round(r[10] % 5)) if math.isfinite(r[10]) else r[10]
+    flag = float(r[12] > 0) if math.isfinite(r[12]) else r[12]
+    return [*r[:10], ia, -1.0, flag]
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    seq=st.one_of(st.integers(-2, 2**40), st.floats(), st.booleans()),
+    measured=st.one_of(st.floats(), st.integers(-5, 5)),
+    compute=st.one_of(st.floats(), st.integers(-5, 5)),
+    rows=st.lists(st.lists(st.floats(), min_size=13, max_size=13).map(_index_row), max_size=4),
+    cols=st.sampled_from([13, 12]),
+    pairs=st.sampled_from([None, "omit", []]),
+)
+def test_fast_query_reply_parser_agrees_with_the_full_one(
+    seq: Any, measured: Any, compute: Any, rows: list[list[float]], cols: int, pairs: Any
+) -> None:
+    arr = np.asarray(rows, dtype="<f8").reshape(len(rows), 13)[:, :cols]
+    body: dict[str, Any] = {
+        "sequence": seq, "measured_at": measured, "compute_time": compute, "layout": "x-1",
+        "rows": [P.FLOAT, [len(rows), cols], arr.tobytes()], "pairs": pairs,
+    }  # fmt: skip
+    if pairs == "omit":
+        del body["pairs"]
+    fast = P._fast_query_reply(body)
+    try:
+        r = P.Reader(body)
+        full: P.QueryReply | None = P.QueryReply.parse(r)
+        r.done()
+    except P.ProtocolError:
+        full = None
+    if fast is not None:
+        assert full is not None and _equal(fast, full)

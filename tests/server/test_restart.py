@@ -1,161 +1,146 @@
 """Kill the server with SIGKILL during a simulation: the robot stops safely; restart it
 on the same state directory: the scene is restored and the simulation reaches its goal.
 
-The simulation here is a stand-in for ``reachwise.simulate`` (issue 6, in progress): a
-kinematic plant driven to a goal at bounded joint speed, 100 Hz, that makes a
-protective stop (zero velocity) on missing distance data — an invalid result or a
-non-finite distance. :func:`run_simulation` is the one place to change when the real
-simulation lands.
+The simulation is the real one (:func:`reachwise.sim.simulate.simulate` with
+``server=``): the crane of P-V, its controller with the safety layer, a kinematic plant
+and a scenario of our own. It runs in simulated time; the kill and the restart are real
+and happen from its ``on_tick`` hook, so they land on known ticks: the server is killed
+right after the answer of tick :data:`KILL_AT`, and a restart on the same address and
+state directory begins on a thread while the simulation goes on (a tick whose reply
+misses the deadline takes that deadline of real time, which paces the outage).
 """
 
 from __future__ import annotations
 
 import math
 import threading
-import time
-from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
 from reachwise.benchmarks.server import ServerProcess
-from reachwise.kinematics.robot import Robot
+from reachwise.distance.scene import SceneResult
 from reachwise.server import protocol as P
-from reachwise.server.client import SceneClient, SceneLike
+from reachwise.server.client import SceneClient, ServerOptions
+from reachwise.sim.scenarios import scenario_from_dict
+from reachwise.sim.simulate import simulate
 
-from .conftest import build_scene, crane_q, start_server
+from .conftest import start_server
 
-DT = 0.01  # s, P-V's 10 ms control cycle
-SPEED = 0.4  # rad/s (m/s for the telescope), per joint
-KILL_AT = 40  # tick
-RESTART_AT = 60  # tick: the restart begins (it takes a while: the loop goes on)
-MAX_TICKS = 3000
-
-
-@dataclass(frozen=True)
-class Tick:
-    k: int
-    q: NDArray[np.float64]
-    status: str  # "moving", "reached" or "protective stop"
-    reason: str
-    sequence: int
+KILL_AT = 60  # tick: the server dies right after answering it
+STOP_TICKS = 4  # the controller's protective-stop ramp (ticks)
+DEADLINE = 0.2  # s, per tick: a reply later than this is missing data
 
 
-def stand_in_simulation(
-    scene: SceneLike,
-    robot: Robot,
-    start: NDArray[np.float64],
-    goal: NDArray[np.float64],
-    on_tick: Callable[[int], None],
-) -> list[Tick]:
-    """Drive ``robot`` from ``start`` to ``goal``; stop on missing distance data."""
-    q = start.copy()
-    log: list[Tick] = []
-    next_tick = time.monotonic()
-    for k in range(MAX_TICKS):
-        on_tick(k)
-        scene.set_joints(robot.name, q)
-        r = scene.query_all()
-        valid = bool(getattr(r, "valid", True))
-        finite = all(p.result.no_risk or math.isfinite(p.result.distance) for p in r.pairs)
-        if valid and finite:
-            step = np.clip(goal - q, -SPEED * DT, SPEED * DT)
-            status = "reached" if np.max(np.abs(goal - q)) < 1e-9 else "moving"
-            q = q + step
-            reason = ""
-        else:
-            status, reason = "protective stop", getattr(r, "reason", "") or "non-finite distance"
-        log.append(Tick(k, q.copy(), status, reason, r.sequence))
-        if status == "reached":
-            break
-        next_tick += DT
-        time.sleep(max(0.0, next_tick - time.monotonic()))
-    return log
-
-
-def run_simulation(scene: SceneLike, robot: Robot, on_tick: Callable[[int], None]) -> list[Tick]:
-    """The simulation this test drives (stand-in until ``reachwise.simulate`` lands)."""
-    start, goal = crane_q(robot, 0), crane_q(robot, 150)
-    return stand_in_simulation(scene, robot, start, goal, on_tick)
+def _scenario(folder: Path, environment: NDArray[np.float64]) -> dict[str, object]:
+    """The crane's tool goes 1.2 m sideways past a rock (3-D goal, ~6 s at 0.25 m/s)."""
+    np.save(folder / "rock.npy", environment)
+    return {
+        "name": "server-kill",
+        "dt": 0.01,
+        "duration": 30.0,
+        "robots": [{
+            "name": "crane", "robot": "hiab-xs033",
+            "q0": [0.4161, 1.0425, -2.0918, 0.2913, 0.0, 0.0],
+            "links": ["link_3", "link_6"], "points": 300,
+            "controller": {"v_max": 0.25, "stop_ticks": STOP_TICKS,
+                           "position_tolerance": 0.01},
+            "plant": {"kind": "kinematic"},
+            "goals": [{"name": "goal", "xyz": [2.15, -0.25, 1.3], "dims": 3}],
+        }],
+        "objects": [{"name": "rock", "file": "rock.npy", "pose": {"xyz": [3.3, 0.0, 0.0]}}],
+        "watch": [{"robot": "crane", "environment": ["rock"], "margin": 0.3}],
+    }  # fmt: skip
 
 
 def _describe(endpoint: str) -> P.DescribeReply:
-    with SceneClient(endpoint, setup_deadline=10.0) as c:
+    with SceneClient(endpoint, setup_deadline=20.0) as c:
+        c.wait_ready(30.0)
         return c.describe(clouds=True)
 
 
 def test_sigkill_stops_the_robot_and_a_restart_restores_the_scene(
-    tmp_path: Path, crane: Robot, clouds: dict[str, NDArray[np.float64]]
+    tmp_path: Path, clouds: dict[str, NDArray[np.float64]]
 ) -> None:
+    sc = scenario_from_dict(_scenario(tmp_path, clouds["environment"]), "test", tmp_path)
     workdir = tmp_path / "srv"
     first = start_server(workdir)
     endpoint = first.endpoint
     procs: list[ServerProcess] = [first]
     restarter: list[threading.Thread] = []
+    answers: list[tuple[float, int, bool, str]] = []  # t, sequence, valid, reason
+    before: list[P.DescribeReply] = []
+
+    def chaos(t: float, q: dict[str, NDArray[np.float64]], res: SceneResult) -> None:
+        answers.append((t, res.sequence, res.valid, res.reason))
+        if len(answers) - 1 == KILL_AT:
+            before.append(_describe(endpoint))  # the scene the simulation registered
+            first.kill()  # SIGKILL: no goodbye, no flush
+
+            def restart() -> None:  # the same address and state directory
+                procs.append(start_server(workdir, bind=endpoint))
+
+            thread = threading.Thread(target=restart)
+            thread.start()
+            restarter.append(thread)
+
     try:
-        with SceneClient(endpoint) as setup:
-            setup.wait_ready(30.0)
-            build_scene(setup, crane, clouds)
-            probe = np.eye(4)
-            probe[:3, 3] = [3.0, 0.0, 1.2]
-            setup.add_object("probe", clouds["link_6"], probe, dynamic=True)
-            setup.watch("probe", "link_6", 2.0, "robot-obstacle")
-            sequence_before = setup.health().sequence
-        before = _describe(endpoint)
-
-        def chaos(k: int) -> None:
-            if k == KILL_AT:
-                first.kill()  # SIGKILL: no goodbye, no flush
-            if k == RESTART_AT:
-                # the same address and state directory, started while the loop goes on
-                def restart() -> None:
-                    procs.append(start_server(workdir, bind=endpoint))
-
-                t = threading.Thread(target=restart)
-                t.start()
-                restarter.append(t)
-
-        with SceneClient(endpoint, deadline=0.05, batch_inputs=True) as client:
-            log = run_simulation(client, crane, chaos)
-            reconnects = client.reconnects
-        for t in restarter:
-            t.join()
-
-        # before the kill: moving on valid data
-        assert all(t.status == "moving" for t in log[:KILL_AT])
-        # the kill: a protective stop at the very next tick, holding still
-        stopped = [t for t in log if t.status == "protective stop"]
-        assert log[KILL_AT].status == "protective stop"
-        assert stopped and all(t.reason for t in stopped)
-        first_stop = stopped[0].k
-        resumed = next(t.k for t in log[KILL_AT:] if t.status != "protective stop")
-        assert resumed > RESTART_AT
-        held = np.array([t.q for t in log[first_stop:resumed]])
-        assert np.array_equal(held, np.broadcast_to(log[first_stop - 1].q, held.shape))
-        assert all(t.status == "protective stop" for t in log[first_stop:resumed])
-        assert reconnects > 0  # Lazy Pirate: fresh sockets after the lost replies
-        # after the restart: on to the goal
-        assert log[-1].status == "reached"
-        assert np.allclose(log[-1].q, crane_q(crane, 150), atol=1e-12)
-        assert all(t.status != "protective stop" for t in log[resumed:])
-        # the restarted server has the same scene and never repeats a sequence number
+        log = simulate(sc, server=ServerOptions(endpoint, deadline=DEADLINE), on_tick=chaos)
+        for thread in restarter:
+            thread.join()
         after = _describe(endpoint)
-        assert after.robots == before.robots and after.pairs == before.pairs
-        assert [(o.name, o.source, o.robot, o.link) for o in after.objects] == [
-            (o.name, o.source, o.robot, o.link) for o in before.objects
-        ]
-        for a, b in zip(after.objects, before.objects, strict=True):
-            assert a.cloud is not None and b.cloud is not None
-            np.testing.assert_array_equal(a.cloud, b.cloud)
-            np.testing.assert_array_equal(a.pose, b.pose)
-        assert min(t.sequence for t in log[resumed:]) > max(
-            sequence_before, *(t.sequence for t in log[:KILL_AT])
-        )
     finally:
-        for t in restarter:
-            t.join()
+        for thread in restarter:
+            thread.join()
         statuses = [p.stop() for p in procs]
     assert statuses[0] == -9  # the one we killed
     assert statuses[1:] == [0], (workdir / "server.log").read_text()
+
+    state = log.state["crane"]
+    cmd = log.command["crane"]
+    q = log.q["crane"]
+    # before the kill: valid answers, moving
+    assert all(valid for _, _, valid, _ in answers[: KILL_AT + 1])
+    assert set(state[: KILL_AT + 1]) == {"moving"}
+    assert np.abs(cmd[KILL_AT]).max() > 0.01
+    # the kill: missing data at the very next tick, a protective stop with its reason
+    stop = KILL_AT + 1
+    assert not answers[stop][2] and "no reply" in answers[stop][3]
+    resumed = next(k for k in range(stop, len(answers)) if answers[k][2])
+    assert resumed > stop + STOP_TICKS  # the outage outlasts the stop ramp
+    assert set(state[stop:resumed]) == {"protective_stop"}
+    stops = [e for e in log.events if e.kind == "protective_stop"]
+    assert len(stops) == 1 and math.isclose(stops[0].t, log.t[stop])
+    assert "missing distance data" in stops[0].text and "no reply" in stops[0].text
+    # zero commanded velocity within the configured ticks: a linear ramp down, then 0
+    speed = np.abs(cmd).max(axis=1)
+    ramp = speed[stop - 1 : stop + STOP_TICKS]
+    assert np.all(np.diff(ramp) < 0)
+    for j in range(1, STOP_TICKS):
+        np.testing.assert_allclose(
+            cmd[stop - 1 + j], cmd[stop - 1] * (STOP_TICKS - j) / STOP_TICKS, atol=1e-15
+        )
+    assert np.all(cmd[stop - 1 + STOP_TICKS : resumed] == 0.0)
+    # and the robot stands still from then on (kinematic plant)
+    still = q[stop + STOP_TICKS : resumed + 1]
+    assert np.array_equal(still, np.broadcast_to(still[0], still.shape))
+    # after the restart: the same scene, fresh sequence numbers, on to the goal
+    b = before[0]
+    assert after.robots == b.robots and after.pairs == b.pairs
+    assert [(o.name, o.source, o.robot, o.link) for o in after.objects] == [
+        (o.name, o.source, o.robot, o.link) for o in b.objects
+    ]
+    for x, y in zip(after.objects, b.objects, strict=True):
+        assert x.cloud is not None and y.cloud is not None
+        np.testing.assert_array_equal(x.cloud, y.cloud)
+        np.testing.assert_array_equal(x.pose, y.pose)
+    seq_before = [s for _, s, _, _ in answers[: KILL_AT + 1]]
+    seq_after = [s for _, s, valid, _ in answers[resumed:] if valid]
+    assert all(valid for _, _, valid, _ in answers[resumed:])
+    assert min(seq_after) > max(seq_before)
+    assert np.all(np.diff(seq_after) > 0)
+    assert "protective_stop" not in set(state[resumed:])
+    assert log.all_goals_reached, log.goals
+    assert log.goals[0].reached_at is not None and log.goals[0].reached_at > log.t[resumed]
+    assert log.first_collision is None

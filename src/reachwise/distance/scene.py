@@ -14,11 +14,22 @@ Pose sources of an object: fixed in world, attached to a robot link (the link's 
 pose from ``robot.fk_all(q)`` times a fixed offset), or set at run time
 (:meth:`Scene.set_pose`). The environment cloud can be replaced at run time
 (:meth:`Scene.replace_cloud`, e.g. after a new scan); its index is rebuilt at once.
+
+Every answer carries what a safety layer needs to trust it (controller issue; the
+collision server's results carry the same): ``sequence`` (1, 2, … per answer),
+``measured_at`` — the time stamp of the oldest input it depends on (joint states and
+run-time poses take an optional ``stamp=``, the time they were measured, s) —,
+``computed_at`` (s, when the answer was ready) and ``valid``/``reason`` (an in-process
+answer is always valid; a remote one may stand for missing data). The scene reads no
+clock of its own: give it one (``Scene(clock=...)``) to stamp unstamped inputs and the
+computation; without one those times are NaN ("unknown").
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+import math
+import numbers
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Protocol, runtime_checkable
@@ -119,11 +130,23 @@ class PairResult:
 
 @dataclass(frozen=True)
 class SceneResult:
-    """Every watched pair's answer from one :meth:`Scene.query_all` call;
-    ``sequence`` counts the calls (1, 2, …)."""
+    """Every watched pair's answer from one :meth:`Scene.query_all` call.
+
+    ``sequence`` numbers the answers (1, 2, …; it only grows); ``measured_at`` (s) is
+    the time stamp of the oldest input the answer depends on (joint states and run-time
+    poses of the answered pairs' objects, and the query itself when the scene has a
+    clock), NaN when one of them is unknown; ``computed_at`` (s) when the answer was
+    ready (NaN without a clock). ``valid`` False with a ``reason`` marks missing data
+    (a remote scene whose server did not answer: every distance is then NaN); the
+    controller makes a protective stop on it.
+    """
 
     sequence: int
     pairs: tuple[PairResult, ...]
+    measured_at: float = math.nan
+    computed_at: float = math.nan
+    valid: bool = True
+    reason: str = ""
 
     def at_risk(self) -> tuple[PairResult, ...]:
         """Pairs within their margin, nearest first."""
@@ -141,19 +164,85 @@ class SceneResult:
         raise KeyError(f"pair ({a!r}, {b!r}) is not watched")
 
 
-class Scene:
-    """Objects, robots and watched pairs; :meth:`query_all` answers every pair."""
+@runtime_checkable
+class SceneLike(Protocol):
+    """The scene interface a controller and a simulation use: :class:`Scene` in
+    process, :class:`reachwise.server.client.SceneClient` over the network."""
 
-    def __init__(self, strategy: str = "default") -> None:
+    @property
+    def objects(self) -> dict[str, SceneObject]: ...
+
+    @property
+    def pairs(self) -> tuple[WatchedPair, ...]: ...
+
+    def add_robot(
+        self, robot: RobotLike, q: ArrayLike | None = None, *, stamp: float | None = None
+    ) -> None: ...
+
+    def set_joints(self, robot: str, q: ArrayLike, *, stamp: float | None = None) -> None: ...
+
+    def add_object(
+        self,
+        name: str,
+        cloud: PointCloud | ArrayLike,
+        pose: ArrayLike | None = None,
+        *,
+        robot: str | None = None,
+        link: str | None = None,
+        dynamic: bool = False,
+    ) -> SceneObject: ...
+
+    def set_pose(self, name: str, pose: ArrayLike, *, stamp: float | None = None) -> None: ...
+
+    def replace_cloud(self, name: str, cloud: PointCloud | ArrayLike) -> None: ...
+
+    def watch(self, a: str, b: str, margin: float, kind: str = "custom") -> WatchedPair: ...
+
+    def unwatch(self, a: str, b: str) -> None: ...
+
+    def watch_self(
+        self, robot: str, margin: float, exclude: Iterable[tuple[str, str]] = ()
+    ) -> tuple[WatchedPair, ...]: ...
+
+    def watch_environment(
+        self, robot: str, margin: float, objects: Iterable[str] | None = None
+    ) -> tuple[WatchedPair, ...]: ...
+
+    def watch_robots(
+        self, robot_a: str, robot_b: str, margin: float
+    ) -> tuple[WatchedPair, ...]: ...
+
+    def robot_objects(self, robot: str) -> tuple[SceneObject, ...]: ...
+
+    def poses(self) -> dict[str, NDArray[np.float64]]: ...
+
+    def query_all(self) -> SceneResult: ...
+
+
+class Scene:
+    """Objects, robots and watched pairs; :meth:`query_all` answers every pair.
+
+    ``clock`` (optional, s): stamps inputs given without ``stamp=``, the query and its
+    end (:attr:`SceneResult.measured_at`, :attr:`SceneResult.computed_at`); a
+    simulation passes its simulated time.
+    """
+
+    def __init__(
+        self, strategy: str = "default", *, clock: Callable[[], float] | None = None
+    ) -> None:
         if strategy not in STRATEGIES:
             raise InputError(
                 "strategy", "", f"unknown strategy {strategy!r}; choose one of {list(STRATEGIES)}"
             )
         self.strategy = strategy
+        self.clock = clock
         self._objects: dict[str, SceneObject] = {}
         self._robots: dict[str, RobotLike] = {}
         self._q: dict[str, NDArray[np.float64] | None] = {}
         self._runtime: dict[str, NDArray[np.float64]] = {}
+        # time stamps (s) of the joint states and run-time poses; NaN = unknown
+        self._q_stamp: dict[str, float] = {}
+        self._pose_stamp: dict[str, float] = {}
         self._pairs: dict[tuple[str, str], WatchedPair] = {}
         self._queries: dict[tuple[str, str], PairQuery] = {}
         self._sequence = 0
@@ -176,8 +265,11 @@ class Scene:
         """How many times :meth:`query_all` has answered."""
         return self._sequence
 
-    def add_robot(self, robot: RobotLike, q: ArrayLike | None = None) -> None:
-        """Register ``robot`` under ``robot.name``, optionally with its joint state."""
+    def add_robot(
+        self, robot: RobotLike, q: ArrayLike | None = None, *, stamp: float | None = None
+    ) -> None:
+        """Register ``robot`` under ``robot.name``, optionally with its joint state
+        measured at ``stamp``."""
         if not isinstance(robot, RobotLike):
             raise InputError("robot", "", "needs name, link_names and fk_all(q)")
         if robot.name in self._robots:
@@ -185,15 +277,18 @@ class Scene:
         self._robots[robot.name] = robot
         self._q[robot.name] = None
         if q is not None:
-            self.set_joints(robot.name, q)
+            self.set_joints(robot.name, q, stamp=stamp)
 
-    def set_joints(self, robot: str, q: ArrayLike) -> None:
-        """The joint state of ``robot`` (one value per non-fixed joint)."""
+    def set_joints(self, robot: str, q: ArrayLike, *, stamp: float | None = None) -> None:
+        """The joint state of ``robot`` (one value per non-fixed joint), measured at
+        ``stamp`` (s; default: the scene's clock, or unknown)."""
         self._robot(robot)
         arr = np.array(q, dtype=np.float64, copy=True).reshape(-1)
         if not np.isfinite(arr).all():
             raise InputError(f"robot {robot!r}", "q", "contains NaN or inf")
+        t = self._stamp(stamp, f"robot {robot!r}")
         self._q[robot] = arr
+        self._q_stamp[robot] = t
 
     def add_object(
         self,
@@ -232,6 +327,7 @@ class Scene:
         elif dynamic:
             source = Runtime()
             self._runtime[name] = P
+            self._pose_stamp[name] = self._stamp(None, f"object {name!r}")
         else:
             source = Fixed(P)
         cloud_tree(c)
@@ -239,12 +335,16 @@ class Scene:
         self._objects[name] = obj
         return obj
 
-    def set_pose(self, name: str, pose: ArrayLike) -> None:
-        """The world pose of a run-time (``dynamic``) object."""
+    def set_pose(self, name: str, pose: ArrayLike, *, stamp: float | None = None) -> None:
+        """The world pose of a run-time (``dynamic``) object, measured at ``stamp``
+        (s; default: the scene's clock, or unknown)."""
         obj = self._object(name)
         if not isinstance(obj.source, Runtime):
             raise InputError("scene", f"object {name!r}", "its pose is not set at run time")
-        self._runtime[name] = check_pose(pose, f"pose of {name!r}").copy()
+        P = check_pose(pose, f"pose of {name!r}").copy()
+        t = self._stamp(stamp, f"object {name!r}")
+        self._runtime[name] = P
+        self._pose_stamp[name] = t
 
     def replace_cloud(self, name: str, cloud: PointCloud | ArrayLike) -> None:
         """Swap object ``name``'s cloud (e.g. a new scan); its index is rebuilt now and
@@ -346,20 +446,54 @@ class Scene:
         return {name: self._pose(obj, fk) for name, obj in self._objects.items()}
 
     def query_all(self) -> SceneResult:
-        """Answer every watched pair at the current joint states and poses."""
+        """Answer every watched pair at the current joint states and poses; the result
+        carries its sequence number and time stamps (see :class:`SceneResult`)."""
+        clock = self.clock
+        measured = clock() if clock is not None else math.inf
         fk: dict[str, NDArray[np.float64]] = {}
         cache: dict[str, NDArray[np.float64]] = {}
         out = []
         for key, pair in self._pairs.items():
             for n in key:
                 if n not in cache:
-                    cache[n] = self._pose(self._objects[n], fk)
+                    obj = self._objects[n]
+                    cache[n] = self._pose(obj, fk)
+                    t = self._input_stamp(obj)
+                    if t != t or t < measured:  # unknown (NaN, then kept) or older
+                        measured = t
             res = self._queries[key](cache[pair.a], cache[pair.b])
             out.append(PairResult(pair.a, pair.b, pair.margin, pair.kind, res))
         self._sequence += 1
-        return SceneResult(self._sequence, tuple(out))
+        computed = clock() if clock is not None else math.nan
+        return SceneResult(
+            self._sequence,
+            tuple(out),
+            measured_at=measured if measured != math.inf else math.nan,
+            computed_at=computed,
+        )
 
     # ------------------------------------------------------------------ helpers
+    def _stamp(self, stamp: float | None, source: str) -> float:
+        """A checked measurement time stamp (s), the clock's reading, or NaN."""
+        if stamp is None:
+            return self.clock() if self.clock is not None else math.nan
+        if (
+            isinstance(stamp, bool)
+            or not isinstance(stamp, numbers.Real)
+            or not math.isfinite(stamp)
+        ):
+            raise InputError(source, "stamp", f"must be a finite time in s, got {stamp!r}")
+        return float(stamp)
+
+    def _input_stamp(self, obj: SceneObject) -> float:
+        """Time stamp of the input ``obj``'s pose comes from (+inf for a fixed one)."""
+        src = obj.source
+        if isinstance(src, OnLink):
+            return self._q_stamp.get(src.robot, math.nan)
+        if isinstance(src, Runtime):
+            return self._pose_stamp.get(obj.name, math.nan)
+        return math.inf
+
     def _make_query(self, pair: WatchedPair) -> PairQuery:
         return PairQuery(
             self._objects[pair.a].cloud,
@@ -420,6 +554,7 @@ __all__ = [
     "RobotLike",
     "Runtime",
     "Scene",
+    "SceneLike",
     "SceneObject",
     "SceneResult",
     "WatchedPair",

@@ -35,6 +35,13 @@ What the network adds, and how the client reports it:
 ``batch_inputs=True`` holds joint states and poses until the next ``query_all`` and
 sends them with it, atomically: one round trip per control tick.
 
+``mirror=True`` is for a client that *owns* the server's scene, as a simulator does
+(:func:`owned_scene`): it keeps a local copy of everything it registers and sends, so
+``objects``, ``robots``, ``pairs``, ``robot_objects`` and ``poses()`` are answered
+without a round trip (and without waiting on a server that may be gone); the
+distance queries still go to the server, and a reply whose pair list differs from the
+local copy is reported as invalid.
+
 A client belongs to one thread (one REQ socket); give each thread its own.
 """
 
@@ -45,7 +52,7 @@ import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol, TypeVar, runtime_checkable
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 import zmq
@@ -64,6 +71,8 @@ from reachwise.distance.scene import (
     PairResult,
     RobotLike,
     Runtime,
+    Scene,
+    SceneLike,
     SceneObject,
     SceneResult,
     WatchedPair,
@@ -75,9 +84,6 @@ from reachwise.kinematics.robot import Robot
 from reachwise.server import protocol as P
 from reachwise.server.security import ClientKeys, load_client_keys, secure_client_socket
 
-if TYPE_CHECKING:
-    from reachwise.distance.scene import Scene
-
 #: Default deadline of the per-tick calls (s): one 10 ms control cycle of P-V.
 TICK_DEADLINE = 0.010
 #: Default deadline of setup calls (s): building a large cloud's index takes a while.
@@ -88,67 +94,35 @@ CLIENT_LIMITS = P.Limits(max_message_bytes=4 * P.MAX_MESSAGE_BYTES)
 _R = TypeVar("_R", bound=P.Reply)
 
 
-@runtime_checkable
-class SceneLike(Protocol):
-    """The scene interface a controller uses: :class:`reachwise.distance.Scene` in
-    process, :class:`SceneClient` over the network."""
+@dataclass(frozen=True)
+class ServerSceneResult(SceneResult):
+    """A :class:`~reachwise.distance.scene.SceneResult` from the server. The fields a
+    controller reads are the in-process result's: ``sequence``, ``measured_at`` (s,
+    the oldest joint state or run-time pose the answer depends on, and the query's
+    own stamp), ``computed_at`` (s, when the reply arrived), both on the client's
+    clock, and ``valid`` False with a ``reason`` when the data is missing (then every
+    distance is NaN and ``sequence`` is the last one received). Added:
+    ``compute_time`` (s, the computation on the server)."""
 
-    def add_robot(self, robot: RobotLike, q: ArrayLike | None = None) -> None: ...
+    compute_time: float = math.nan
 
-    def set_joints(self, robot: str, q: ArrayLike) -> None: ...
 
-    def add_object(
-        self,
-        name: str,
-        cloud: PointCloud | ArrayLike,
-        pose: ArrayLike | None = None,
-        *,
-        robot: str | None = None,
-        link: str | None = None,
-        dynamic: bool = False,
-    ) -> SceneObject: ...
-
-    def set_pose(self, name: str, pose: ArrayLike) -> None: ...
-
-    def replace_cloud(self, name: str, cloud: PointCloud | ArrayLike) -> None: ...
-
-    def watch(self, a: str, b: str, margin: float, kind: str = "custom") -> WatchedPair: ...
-
-    def unwatch(self, a: str, b: str) -> None: ...
-
-    def watch_self(
-        self, robot: str, margin: float, exclude: Iterable[tuple[str, str]] = ()
-    ) -> tuple[WatchedPair, ...]: ...
-
-    def watch_environment(
-        self, robot: str, margin: float, objects: Iterable[str] | None = None
-    ) -> tuple[WatchedPair, ...]: ...
-
-    def watch_robots(
-        self, robot_a: str, robot_b: str, margin: float
-    ) -> tuple[WatchedPair, ...]: ...
-
-    def robot_objects(self, robot: str) -> tuple[SceneObject, ...]: ...
-
-    def poses(self) -> dict[str, NDArray[np.float64]]: ...
-
-    def query_all(self) -> SceneResult: ...
+#: Default per-tick deadline of a simulation on a server (s): in simulated time a
+#: late reply only has to be told from a lost one.
+SIMULATION_DEADLINE = 0.1
 
 
 @dataclass(frozen=True)
-class ServerSceneResult(SceneResult):
-    """A :class:`~reachwise.distance.scene.SceneResult` with what a safety layer needs
-    of remote data: ``measured_at`` (s, the oldest joint state or run-time pose the
-    answer depends on), ``computed_at`` (s, when the reply arrived), ``compute_time``
-    (s, on the server), both times on the client's clock; ``valid`` False with a
-    ``reason`` when the data is missing (then every distance is NaN and ``sequence``
-    is the last one received)."""
+class ServerOptions:
+    """How a simulation reaches its collision server: ``address``, the per-tick
+    ``deadline`` (s; a reply later than that is missing data), CURVE ``keys`` (a
+    ``reachwise serve keygen`` folder) and how long to wait for the server to be
+    ready at the start (``ready_timeout``, s)."""
 
-    measured_at: float = math.nan
-    computed_at: float = math.nan
-    compute_time: float = math.nan
-    valid: bool = True
-    reason: str = ""
+    address: str
+    deadline: float = SIMULATION_DEADLINE
+    keys: str | Path | None = None
+    ready_timeout: float = 30.0
 
 
 def _nan3() -> NDArray[np.float64]:
@@ -199,6 +173,7 @@ class SceneClient:
 
     ``keys``: a ``reachwise serve keygen`` folder (or :class:`ClientKeys`) for a CURVE
     server. ``clock`` stamps measurements and results (s). ``name`` is sent in hello.
+    ``batch_inputs`` and ``mirror``: see the module docstring.
     """
 
     def __init__(
@@ -210,6 +185,7 @@ class SceneClient:
         keys: str | Path | ClientKeys | None = None,
         clock: Callable[[], float] = time.monotonic,
         batch_inputs: bool = False,
+        mirror: bool = False,
         name: str = "reachwise",
     ) -> None:
         for label, value in (("deadline", deadline), ("setup_deadline", setup_deadline)):
@@ -224,6 +200,7 @@ class SceneClient:
         self.name = name
         self._ctx: zmq.Context[zmq.Socket[bytes]] = zmq.Context()
         self._sock: zmq.Socket[bytes] | None = None
+        self._poller = zmq.Poller()  # one per socket, not one per call
         self._next_id = 0
         self._reconnects = 0
         self._pending_joints: dict[str, tuple[NDArray[np.float64], float]] = {}
@@ -234,6 +211,7 @@ class SceneClient:
         self._layout: tuple[str, tuple[P.PairInfo, ...]] | None = None
         self._last_pairs: tuple[P.PairInfo, ...] = ()
         self._robot_cache: dict[str, Robot] = {}
+        self._mirror: Scene | None = Scene() if mirror else None
 
     # ------------------------------------------------------------------ transport
     @property
@@ -251,6 +229,8 @@ class SceneClient:
                 secure_client_socket(sock, self.keys)
             sock.connect(self.address)
             self._sock = sock
+            self._poller = zmq.Poller()
+            self._poller.register(sock, zmq.POLLIN)
         return self._sock
 
     def _reset(self) -> None:
@@ -279,7 +259,7 @@ class SceneClient:
             self._reset()
             raise ServerUnavailable(f"cannot send {request.OP} to {self.address}") from None
         wait_ms = max(1, math.ceil((end - time.monotonic()) * 1e3))
-        if not sock.poll(wait_ms, zmq.POLLIN):
+        if not self._poller.poll(wait_ms):
             self._reset()
             raise ServerUnavailable(
                 f"no reply to {request.OP} from {self.address} within {limit * 1e3:.1f} ms"
@@ -381,7 +361,10 @@ class SceneClient:
 
     @property
     def robots(self) -> dict[str, Robot]:
-        """Registered robots, rebuilt from the YAML mappings the server holds."""
+        """Registered robots, rebuilt from the YAML mappings the server holds (with
+        ``mirror``: the ones this client registered)."""
+        if self._mirror is not None:
+            return dict(self._robot_cache)
         out = {}
         for name, model in self.describe().robots.items():
             robot = self._robot_cache.get(name)
@@ -393,12 +376,17 @@ class SceneClient:
 
     @property
     def objects(self) -> dict[str, SceneObject]:
-        """Every object with its cloud and pose source (downloads the clouds)."""
+        """Every object with its cloud and pose source (downloads the clouds; with
+        ``mirror``: the local copy)."""
+        if self._mirror is not None:
+            return self._mirror.objects
         return {o.name: _scene_object(o) for o in self.describe(clouds=True).objects}
 
     @property
     def pairs(self) -> tuple[WatchedPair, ...]:
-        """Watched pairs in query order."""
+        """Watched pairs in query order (with ``mirror``: the local copy)."""
+        if self._mirror is not None:
+            return self._mirror.pairs
         return tuple(_watched(p) for p in self.describe().pairs)
 
     def add_robot(
@@ -418,6 +406,8 @@ class SceneClient:
         t = None if qa is None else (self.clock() if stamp is None else float(stamp))
         self._setup(P.AddRobot(robot_to_dict(robot), qa, t), P.RobotReply, deadline)
         self._robot_cache[robot.name] = robot
+        if self._mirror is not None:
+            self._mirror.add_robot(robot, qa, stamp=t)
 
     def set_joints(
         self,
@@ -431,6 +421,8 @@ class SceneClient:
         deadline does not raise: the next :meth:`query_all` result is invalid."""
         arr = _vector(q, robot)
         t = self.clock() if stamp is None else float(stamp)
+        if self._mirror is not None:
+            self._mirror.set_joints(robot, arr, stamp=t)
         if self.batch_inputs:
             self._pending_joints[robot] = (arr, t)
             return
@@ -447,6 +439,8 @@ class SceneClient:
         """The world pose of run-time object ``name`` measured at ``stamp``."""
         P_ = check_pose(pose, f"pose of {name!r}")
         t = self.clock() if stamp is None else float(stamp)
+        if self._mirror is not None:
+            self._mirror.set_pose(name, P_, stamp=t)
         if self.batch_inputs:
             self._pending_poses[name] = (P_, t)
             return
@@ -491,6 +485,10 @@ class SceneClient:
         self._setup(
             P.AddObject(name, c.points, pose_arr, robot, link, dynamic), P.ObjectReply, deadline
         )
+        if self._mirror is not None:
+            return self._mirror.add_object(
+                name, c, pose_arr, robot=robot, link=link, dynamic=dynamic
+            )
         source: Fixed | OnLink | Runtime
         if robot is not None and link is not None:
             source = OnLink(robot, link, pose_arr)
@@ -506,6 +504,8 @@ class SceneClient:
         """Swap object ``name``'s cloud (e.g. a new scan); the server rebuilds its index."""
         c = as_cloud(cloud, name)
         self._setup(P.ReplaceCloud(name, c.points), P.ObjectReply, deadline)
+        if self._mirror is not None:
+            self._mirror.replace_cloud(name, c)
 
     def watch(
         self,
@@ -518,10 +518,31 @@ class SceneClient:
     ) -> WatchedPair:
         """Watch ``a`` and ``b`` with ``margin`` metres."""
         rep = self._setup(P.Watch(a, b, check_margin(margin), kind), P.PairsReply, deadline)
-        return _watched(rep.pairs[0])
+        return self._watched(rep)[0]
 
     def unwatch(self, a: str, b: str, *, deadline: float | None = None) -> None:
         self._setup(P.Unwatch(a, b), P.Ack, deadline)
+        if self._mirror is not None:
+            self._mirror.unwatch(a, b)
+
+    def clear(self, *, deadline: float | None = None) -> None:
+        """Remove every robot, object and pair from the server's scene (and its saved
+        state): for a client that owns the scene, before it registers its own."""
+        self._setup(P.Clear(), P.Ack, deadline)
+        self._robot_cache = {}
+        self._layout = None
+        self._last_pairs = ()
+        self._pending_joints, self._pending_poses = {}, {}
+        if self._mirror is not None:
+            self._mirror = Scene()
+
+    def _watched(self, rep: P.PairsReply) -> tuple[WatchedPair, ...]:
+        """The pairs a watch request made (copied into the mirror, in the same order)."""
+        out = tuple(_watched(p) for p in rep.pairs)
+        if self._mirror is not None:
+            for w in out:
+                self._mirror.watch(w.a, w.b, w.margin, w.kind)
+        return out
 
     def watch_self(
         self,
@@ -534,7 +555,7 @@ class SceneClient:
         """Self-collision pairs of ``robot`` (see :meth:`Scene.watch_self`)."""
         ex = tuple((str(x), str(y)) for x, y in exclude)
         rep = self._setup(P.WatchSelf(robot, check_margin(margin), ex), P.PairsReply, deadline)
-        return tuple(_watched(p) for p in rep.pairs)
+        return self._watched(rep)
 
     def watch_environment(
         self,
@@ -549,7 +570,7 @@ class SceneClient:
         rep = self._setup(
             P.WatchEnvironment(robot, check_margin(margin), objs), P.PairsReply, deadline
         )
-        return tuple(_watched(p) for p in rep.pairs)
+        return self._watched(rep)
 
     def watch_robots(
         self, robot_a: str, robot_b: str, margin: float, *, deadline: float | None = None
@@ -558,10 +579,12 @@ class SceneClient:
         rep = self._setup(
             P.WatchRobots(robot_a, robot_b, check_margin(margin)), P.PairsReply, deadline
         )
-        return tuple(_watched(p) for p in rep.pairs)
+        return self._watched(rep)
 
     def robot_objects(self, robot: str) -> tuple[SceneObject, ...]:
         """Objects attached to ``robot``'s links, base to tool."""
+        if self._mirror is not None:
+            return self._mirror.robot_objects(robot)
         d = self.describe(clouds=True)
         model = d.robots.get(robot)
         if model is None:
@@ -573,7 +596,10 @@ class SceneClient:
         return tuple(_scene_object(o) for o in sorted(mine, key=lambda o: order[str(o.link)]))
 
     def poses(self) -> dict[str, NDArray[np.float64]]:
-        """Current world pose of every object."""
+        """Current world pose of every object (with ``mirror``: computed locally from
+        what this client sent)."""
+        if self._mirror is not None:
+            return self._mirror.poses()
         return self._setup(P.Poses(), P.PosesReply).poses
 
     # ------------------------------------------------------------------ queries
@@ -623,6 +649,14 @@ class SceneClient:
         if len(infos) != rep.rows.shape[0]:
             self._layout = None
             return self._missing("reply rows do not match the pair list")
+        if self._mirror is not None and pairs is None and infos is not self._last_pairs:
+            mine = tuple(P.PairInfo(w.a, w.b, w.margin, w.kind) for w in self._mirror.pairs)
+            if infos != mine:
+                self._layout = None
+                return self._missing(
+                    f"the server watches {len(infos)} pairs that differ from the "
+                    f"{len(mine)} this client registered (was its state lost?)"
+                )
         self._pending_joints, self._pending_poses = {}, {}
         self._last_sequence = rep.sequence
         self._last_measured = rep.measured_at
@@ -640,9 +674,12 @@ class SceneClient:
 
     def _missing(self, reason: str) -> ServerSceneResult:
         """The invalid result that stands for data that did not arrive."""
+        pairs: tuple[P.PairInfo | WatchedPair, ...] = self._last_pairs
+        if self._mirror is not None:
+            pairs = self._mirror.pairs
         return ServerSceneResult(
             self._last_sequence,
-            tuple(PairResult(p.a, p.b, p.margin, p.kind, MISSING) for p in self._last_pairs),
+            tuple(PairResult(p.a, p.b, p.margin, p.kind, MISSING) for p in pairs),
             measured_at=self._last_measured,
             valid=False,
             reason=reason,
@@ -683,6 +720,34 @@ def _pair_results(infos: tuple[P.PairInfo, ...], rep: P.QueryReply) -> tuple[Pai
     return tuple(out)
 
 
+def owned_scene(
+    server: str | ServerOptions, clock: Callable[[], float] = time.monotonic
+) -> SceneClient:
+    """A client that owns the server's scene, as a simulator does: it waits until the
+    server is ready, clears its scene, mirrors what it registers (``mirror``), sends
+    joint states and poses with the query (``batch_inputs``) and stamps with ``clock``
+    (a simulation's simulated time). Raises :class:`ServerUnavailable` if the server
+    does not become ready in time."""
+    opts = server if isinstance(server, ServerOptions) else ServerOptions(server)
+    client = SceneClient(
+        opts.address,
+        deadline=opts.deadline,
+        keys=opts.keys,
+        clock=clock,
+        batch_inputs=True,
+        mirror=True,
+        name="reachwise-simulate",
+    )
+    try:
+        client.wait_ready(opts.ready_timeout)
+        client.hello()
+        client.clear()
+    except BaseException:
+        client.close()
+        raise
+    return client
+
+
 if TYPE_CHECKING:
 
     def _conforms(a: Scene, b: SceneClient) -> tuple[SceneLike, SceneLike]:
@@ -692,11 +757,14 @@ if TYPE_CHECKING:
 __all__ = [
     "MISSING",
     "SETUP_DEADLINE",
+    "SIMULATION_DEADLINE",
     "TICK_DEADLINE",
     "SceneClient",
     "SceneLike",
     "ServerError",
     "ServerInputError",
+    "ServerOptions",
     "ServerSceneResult",
     "ServerUnavailable",
+    "owned_scene",
 ]

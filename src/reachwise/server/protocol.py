@@ -39,7 +39,7 @@ process on one host; clients on several hosts must share a synchronized clock).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 from typing import Any, ClassVar, Self
@@ -785,6 +785,15 @@ def _array_map(
 
 
 @dataclass(frozen=True)
+class Clear(Request):
+    """Remove every robot, object and pair (and their saved state): a simulator that
+    owns the server's scene starts each run from an empty one."""
+
+    OP: ClassVar[str] = "clear"
+    STRUCTURAL: ClassVar[bool] = True
+
+
+@dataclass(frozen=True)
 class Describe(Request):
     """The scene's contents: robots, objects (with their clouds if ``clouds``), pairs."""
 
@@ -822,6 +831,7 @@ REQUESTS: dict[str, type[Request]] = {
         WatchEnvironment,
         WatchRobots,
         Unwatch,
+        Clear,
         Query,
         Describe,
         Poses,
@@ -1254,6 +1264,7 @@ REPLIES: dict[str, type[Reply]] = {
     "watch_environment": PairsReply,
     "watch_robots": PairsReply,
     "unwatch": Ack,
+    "clear": Ack,
     "query": QueryReply,
     "describe": DescribeReply,
     "poses": PosesReply,
@@ -1321,6 +1332,8 @@ def _envelope(obj: object, keys: frozenset[str]) -> tuple[dict[str, Any], int | 
             f"version {v} not spoken; this side speaks {list(SUPPORTED_VERSIONS)}",
             rid_ok,
         )
+    if obj.keys() <= keys:
+        return obj, rid_ok
     extra = sorted(str(k) for k in obj if k not in keys)
     if extra:
         raise ProtocolError(
@@ -1344,6 +1357,117 @@ def encode_request(request_id: int, request: Request) -> bytes:
     )
 
 
+# --------------------------------------------------------------------------- hot path
+#
+# The per-tick messages (a query with the joint states it carries, its reply, a joint
+# state) are checked by hand here, without the field-by-field machinery above: the
+# fast checks accept only the common, plainly valid shape and build exactly the object
+# the full parser would; anything else (an error, an optional field, a rare form)
+# returns None and goes through the full parser, which gives the typed error.
+
+_F8 = np.dtype(FLOAT)
+_QUERY_FAST_KEYS = frozenset({"stamp", "joints", "layout"})
+_SET_JOINTS_FAST_KEYS = frozenset({"robot", "q", "stamp"})
+_QUERY_REPLY_FAST_KEYS = frozenset({"sequence", "measured_at", "compute_time", "layout", "rows"})
+
+
+def _fast_name(v: object) -> bool:
+    return type(v) is str and 0 < len(v) <= MAX_NAME_LENGTH and v.isprintable()
+
+
+def _fast_stamp(v: object) -> bool:
+    return v is None or (type(v) is float and math.isfinite(v)) or type(v) is int
+
+
+def _fast_vector(v: object) -> NDArray[np.float64] | None:
+    """A finite float64 vector ``[dtype, [n], bytes]``, or None (let the full check decide)."""
+    if type(v) is not list or len(v) != 3:
+        return None
+    dt, shp, data = v
+    if dt != FLOAT or type(shp) is not list or len(shp) != 1 or type(data) is not bytes:
+        return None
+    n = shp[0]
+    if type(n) is not int or n < 0 or len(data) != 8 * n:
+        return None
+    arr = np.frombuffer(data, dtype=_F8)
+    if not all(map(math.isfinite, arr.tolist())):
+        return None
+    return arr
+
+
+def _fast_query(body: object) -> Query | None:
+    if type(body) is not dict or not body.keys() <= _QUERY_FAST_KEYS:
+        return None
+    stamp = body.get("stamp")
+    layout = body.get("layout")
+    joints = body.get("joints")
+    if not _fast_stamp(stamp) or not (layout is None or type(layout) is str):
+        return None
+    if layout is not None and len(layout) > MAX_NAME_LENGTH:
+        return None
+    arrays = None
+    if joints is not None:
+        if type(joints) is not dict or len(joints) > MAX_LIST:
+            return None
+        arrays = {}
+        for name, item in joints.items():
+            q = _fast_vector(item)
+            if q is None or not _fast_name(name):
+                return None
+            arrays[name] = q
+    return Query(None if stamp is None else float(stamp), arrays, None, None, layout)
+
+
+def _fast_set_joints(body: object) -> SetJoints | None:
+    if type(body) is not dict or not body.keys() <= _SET_JOINTS_FAST_KEYS:
+        return None
+    robot = body.get("robot")
+    stamp = body.get("stamp")
+    q = _fast_vector(body.get("q"))
+    if q is None or not _fast_name(robot) or not _fast_stamp(stamp):
+        return None
+    return SetJoints(robot, q, None if stamp is None else float(stamp))  # type: ignore[arg-type]
+
+
+_FAST_REQUESTS: dict[str, Callable[[object], Request | None]] = {
+    "query": _fast_query,
+    "set_joints": _fast_set_joints,
+}
+
+
+def _fast_query_reply(body: object) -> QueryReply | None:
+    if type(body) is not dict or not body.keys() == _QUERY_REPLY_FAST_KEYS:
+        return None
+    seq, measured, compute, layout, rows = (
+        body["sequence"],
+        body["measured_at"],
+        body["compute_time"],
+        body["layout"],
+        body["rows"],
+    )
+    if type(seq) is not int or seq < 0 or type(measured) is not float or type(compute) is not float:
+        return None
+    if not (math.isfinite(measured) and math.isfinite(compute) and compute >= 0.0):
+        return None
+    if type(layout) is not str or len(layout) > MAX_NAME_LENGTH:
+        return None
+    if type(rows) is not list or len(rows) != 3:
+        return None
+    dt, shp, data = rows
+    if dt != FLOAT or type(shp) is not list or len(shp) != 2 or type(data) is not bytes:
+        return None
+    n, m = shp
+    if type(n) is not int or n < 0 or m != ROW_COLUMNS or len(data) != 8 * ROW_COLUMNS * n:
+        return None
+    arr = np.frombuffer(data, dtype=_F8).reshape(n, ROW_COLUMNS)
+    for ia, ib, flag in arr[:, 10:13].tolist():
+        if not (ia.is_integer() and ib.is_integer() and ia >= -1.0 and ib >= -1.0):
+            return None
+        if flag != 0.0 and flag != 1.0:
+            return None
+    return QueryReply(seq, measured, compute, layout, None, arr)
+
+
 def decode_request(raw: bytes | memoryview, limits: Limits = DEFAULT_LIMITS) -> tuple[int, Request]:
     """Check and decode one request frame; raises :class:`ProtocolError` (with the
     request id when it could be read)."""
@@ -1351,6 +1475,11 @@ def decode_request(raw: bytes | memoryview, limits: Limits = DEFAULT_LIMITS) -> 
     if rid is None:
         raise ProtocolError(ErrorCode.BAD_MESSAGE, "id", "missing or not an integer in [0, 2**63)")
     op = obj.get("op")
+    fast = _FAST_REQUESTS.get(op) if type(op) is str else None
+    if fast is not None:
+        req_fast = fast(obj.get("body"))
+        if req_fast is not None:
+            return rid, req_fast
     cls = REQUESTS.get(op) if isinstance(op, str) else None
     if cls is None:
         raise ProtocolError(
@@ -1409,6 +1538,10 @@ def decode_reply(
     if ok is True:
         if "error" in obj:
             raise ProtocolError(ErrorCode.BAD_MESSAGE, "error", "a success reply carries no error")
+        if reply_type is QueryReply:
+            rep_fast = _fast_query_reply(obj.get("body"))
+            if rep_fast is not None:
+                return DecodedReply(rid, reply=rep_fast)
         r = Reader(obj.get("body"), "body")
         rep = reply_type.parse(r)
         r.done()
@@ -1449,6 +1582,7 @@ __all__ = [
     "Ack",
     "AddObject",
     "AddRobot",
+    "Clear",
     "DecodedReply",
     "Describe",
     "DescribeReply",

@@ -10,7 +10,8 @@ watched pairs every control cycle (10 ms in P-V). This module is that server:
   The *initialization phase* of P-V Table 1 (robots, clouds and their spatial indices,
   pair rules) happens in ``add_robot``, ``add_object``, ``replace_cloud`` and ``watch*``;
   the *calculation phase* in ``set_joints`` (link poses by forward kinematics on the
-  server), ``set_pose`` and ``query``. With a state directory every change of the
+  server), ``set_pose`` and ``query``; ``clear`` empties the scene (a simulator that
+  owns it starts each run from an empty one). With a state directory every change of the
   initialization phase is persisted before it is acknowledged, and restored at start
   (:mod:`reachwise.server.state`).
 - :class:`CollisionServer` — the transport: one ZeroMQ ROUTER socket, bound locally or
@@ -61,7 +62,7 @@ import zmq.auth.thread
 from numpy.typing import NDArray
 
 from reachwise import __version__
-from reachwise.distance._common import check_pose, cloud_tree
+from reachwise.distance._common import NO_RISK, check_pose, cloud_tree
 from reachwise.distance.scene import Fixed, OnLink, Scene
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
@@ -239,6 +240,7 @@ class SceneService:
             P.WatchEnvironment: self._watch_environment,
             P.WatchRobots: self._watch_robots,
             P.Unwatch: self._unwatch,
+            P.Clear: self._clear,
             P.Query: self._query,
             P.Describe: self._describe,
             P.Poses: self._poses,
@@ -621,6 +623,20 @@ class SceneService:
         self._persist(manifest)
         return P.Ack()
 
+    def _clear(self, req: P.Clear) -> P.Reply:
+        with self.lock:
+            dropped = [m.cloud_file for m in self._meta.values()]
+            self.scene = Scene(self.strategy)
+            self._models, self._robots, self._meta = {}, {}, {}
+            self._joints, self._runtime = {}, {}
+            self._pairs_changed()
+            self._live_dirty = True
+            manifest = self._manifest()
+        self._persist(manifest)
+        for f in dropped:
+            self._drop_file(f)
+        return P.Ack()
+
     # ------------------------------------------------------------------ persistence
     def _manifest(self) -> Manifest | None:
         """The initialization-phase state to persist (call under the lock); None
@@ -784,22 +800,31 @@ def _query_reply(
     infos: tuple[P.PairInfo, ...] | None,
     pairs: tuple[Any, ...],
 ) -> P.QueryReply:
-    rows = np.array(
-        [
-            [
-                r.distance,
-                *r.point_a.tolist(),
-                *r.point_b.tolist(),
-                *r.direction.tolist(),
-                r.index_a,
-                r.index_b,
-                1.0 if r.no_risk else 0.0,
-            ]
-            for r in (p.result for p in pairs)
-        ],
-        dtype=np.float64,
-    ).reshape(len(pairs), P.ROW_COLUMNS)
+    flat: list[float] = []
+    for p in pairs:
+        r = p.result
+        if r.no_risk:
+            flat += _NO_RISK_ROW
+        else:
+            flat.append(r.distance)
+            flat += r.point_a.tolist()
+            flat += r.point_b.tolist()
+            flat += r.direction.tolist()
+            flat += (r.index_a, r.index_b, 0.0)
+    rows = np.array(flat, dtype=np.float64).reshape(len(pairs), P.ROW_COLUMNS)
     return P.QueryReply(seq, measured, compute, layout, infos, rows)
+
+
+#: The row of a pair beyond its margin (as the in-process ``NO_RISK`` result).
+_NO_RISK_ROW = [
+    NO_RISK.distance,
+    *NO_RISK.point_a.tolist(),
+    *NO_RISK.point_b.tolist(),
+    *NO_RISK.direction.tolist(),
+    float(NO_RISK.index_a),
+    float(NO_RISK.index_b),
+    1.0,
+]
 
 
 def _answer(service: SceneService, rid: int, req: P.Request) -> tuple[bytes, P.Reply | None]:
