@@ -144,7 +144,9 @@ def crop(
 
 
 def scan(
-    scene: str = typer.Argument(..., help="Built-in scene name: p5-floor-obstacle."),
+    scene: str = typer.Argument(
+        ..., help="Built-in scene name: p5-floor-obstacle or p5-occlusion."
+    ),
     out: Path = _OUT,
     noise: float = typer.Option(0.0, "--noise", help="Range noise standard deviation (m)."),
     seed: int = typer.Option(0, "--seed", help="Random seed for the range noise."),
@@ -154,20 +156,43 @@ def scan(
     coarsen: float = typer.Option(
         1.0, "--coarsen", help="Multiply beam and line spacing (quick previews)."
     ),
+    occlusion_depth: float | None = typer.Option(
+        None,
+        "--occlusion-depth",
+        min=0.0,
+        help="Occlusion-aware: fill the unseen space up to this depth (m) behind every "
+        "return with virtual points (treated as occupied).",
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
     ascii: bool = _ASCII,
 ) -> None:
     """Simulate the P-V laser scanner over a scene and write the cloud.
 
     By default the scan is cropped to the scene's working area and downsampled to
-    3 cm voxels, as in P-V §IV (about 5500 points for p5-floor-obstacle).
+    3 cm voxels, as in P-V §IV (about 5500 points for p5-floor-obstacle). With
+    ``--occlusion-depth`` the space behind the scanned surfaces that no beam saw is
+    filled with virtual points (P-V Fig. 5's occlusion gap closed), at the cloud's
+    resolution, down to the scene's floor.
     """
-    from reachwise.geometry.scanner import get_scene, scan_scene
+    import numpy as np
+
+    from reachwise.geometry.cloud import PointCloud
+    from reachwise.geometry.scanner import OcclusionFill, get_scene, scan_scene
     from reachwise.io.clouds import save_cloud
 
     sc = get_scene(scene)
-    raw_scan, processed = scan_scene(sc, seed, noise=noise, coarsen=coarsen)
-    cloud = raw_scan.cloud if raw else processed
+    fill = OcclusionFill(occlusion_depth) if occlusion_depth else None
+    raw_scan, processed = scan_scene(sc, seed, noise=noise, coarsen=coarsen, occlusion=fill)
+    virtual = 0
+    if raw:
+        cloud = raw_scan.cloud
+        if fill is not None:
+            extra = sc.virtual_points(raw_scan, fill)
+            virtual = len(extra)
+            if virtual:
+                cloud = PointCloud(np.concatenate([cloud.points, extra]), name=cloud.name)
+    else:
+        cloud = processed
     path = save_cloud(cloud, out, ascii=ascii)
     summary: dict[str, Any] = {
         "scene": sc.name,
@@ -181,10 +206,15 @@ def scan(
         "crop_min": sc.crop_min.tolist(),
         "crop_max": sc.crop_max.tolist(),
         "voxel": sc.voxel,
+        "occlusion_depth": occlusion_depth if fill is not None else None,
     }
+    if raw and fill is not None:
+        summary["virtual"] = virtual
     if as_json:
         typer.echo(json.dumps(summary))
         return
     what = "raw returns" if raw else f"cropped, {sc.voxel * 100:g} cm voxels"
+    if fill is not None:
+        what += f", occlusion fill {fill.depth:g} m"
     typer.echo(f"scanned {sc.name}: {raw_scan.n_rays} beams, {len(raw_scan.cloud)} returns")
     _wrote(path, cloud, what)

@@ -5,8 +5,10 @@ module is its arithmetic, on plain arrays, compiled once and cached on disk.
 Avoidance point arrays (``m`` rows): ``a_link`` frame index of the robot part,
 ``a_pt`` its closest point (world); ``b_link`` the other part's frame index on the same
 robot (self-collision: the Jacobian is the relative one ``J_a − J_b``) or ``-1``;
-``normal`` unit collision-line vector pointing away from the other part; ``dist``,
-``rho0`` distance and margin; ``task_pt`` True for a tool part handled in task space.
+``normal`` unit collision-line vector pointing away from the other part; ``vobs`` the
+world velocity of the other part's closest point (a moving obstacle; zero if static);
+``dist``, ``rho0`` distance and margin; ``task_pt`` True for a tool part handled in
+task space.
 
 ``diag`` out: 0 position error, 1 orientation error (rad), 2 σ_min, 3 λ, 4 task scale
 ``s``, 5 limit scale ``α``, 6 active avoidance points, 7 guard scale, 8 min distance.
@@ -172,6 +174,7 @@ def control_step(  # type: ignore[no-untyped-def]
     b_link,
     b_pt,
     normal,
+    vobs,
     dist,
     rho0,
     mu,
@@ -181,6 +184,7 @@ def control_step(  # type: ignore[no-untyped-def]
     guard_on,
     rho_stop,
     xi,
+    t_react,
     qdot,
     diag,
 ):
@@ -216,6 +220,25 @@ def control_step(  # type: ignore[no-untyped-def]
     m = dist.shape[0]
     active = np.zeros(m, dtype=np.bool_)
     vrep = np.zeros(m)
+    # a moving obstacle's approach speed along the collision line (0 if it recedes),
+    # and the feed-forward velocity u/|v_B| v_B that carries the point along with it
+    approach = np.zeros(m)
+    ff = np.zeros((m, 3))
+    deff = np.empty(m)
+    for i in range(m):
+        u = 0.0
+        sp = 0.0
+        for j in range(3):
+            u += normal[i, j] * vobs[i, j]
+            sp += vobs[i, j] * vobs[i, j]
+        approach[i] = max(u, 0.0)
+        # the distance left after the obstacle's travel during the robot's reaction
+        deff[i] = dist[i] - approach[i] * t_react
+        if approach[i] > 0.0:
+            sp = math.sqrt(sp)
+            wgt = min(2.0 * approach[i] / sp, 1.0)
+            for j in range(3):
+                ff[i, j] = wgt * vobs[i, j]
     JO = np.zeros((m, 3, n))
     Ja = np.empty((6, n))
     Jb = np.empty((6, n))
@@ -225,11 +248,11 @@ def control_step(  # type: ignore[no-untyped-def]
     for i in range(m):
         if dist[i] < dmin:
             dmin = dist[i]
-        if not (dist[i] <= rho0[i]):
+        if not (deff[i] <= rho0[i]):
             continue
         active[i] = True
         n_active += 1
-        rho = max(dist[i], 1e-6)
+        rho = max(deff[i], 1e-6)
         v = mu[i] * (1.0 / rho - 1.0 / rho0[i]) / (rho * rho)
         vrep[i] = min(v, vrep_max)
         if task_pt[i]:
@@ -257,7 +280,7 @@ def control_step(  # type: ignore[no-untyped-def]
                         JO[i, j, k] = Ja[j, k]
             if avoid_on:
                 for j in range(3):
-                    pR[j] += vrep[i] * normal[i, j]
+                    pR[j] += vrep[i] * normal[i, j] + ff[i, j]
         else:
             point_jacobian_rows(
                 kind, qidx, classic, F, a_link[i], a_pt[i, 0], a_pt[i, 1], a_pt[i, 2], Ja
@@ -285,11 +308,13 @@ def control_step(  # type: ignore[no-untyped-def]
                 if not (active[i] and task_pt[i]):
                     continue
                 span = max(rho0[i] - rho_stop, 1e-9)
-                frac = min(max((dist[i] - rho_stop) / span, 0.0), 1.0)
+                frac = min(max((deff[i] - rho_stop) / span, 0.0), 1.0)
                 rate = 0.0
                 for j in range(3):
                     rate += normal[i, j] * (pG[j] + pR[j])
                 lo = -xi * frac
+                if approach[i] > 0.0:
+                    lo = _moving_bound(deff[i], rho0[i], rho_stop, xi, approach[i])
                 if rate < lo:
                     for j in range(3):
                         pG[j] += (lo - rate) * normal[i, j]
@@ -343,8 +368,8 @@ def control_step(  # type: ignore[no-untyped-def]
                 for k in range(n):
                     acc = 0.0
                     for j in range(3):
-                        acc += MO[k, j] * normal[i, j]
-                    zsum[k] += vrep[i] * acc
+                        acc += MO[k, j] * (vrep[i] * normal[i, j] + ff[i, j])
+                    zsum[k] += acc
             for k in range(n):
                 acc = 0.0
                 for j in range(n):
@@ -387,6 +412,7 @@ def control_step(  # type: ignore[no-untyped-def]
     if guard_on and n_active > 0:
         g = np.zeros((m, n))
         lo_rate = np.zeros(m)
+        lo_static = np.zeros(m)
         for i in range(m):
             if not active[i]:
                 continue
@@ -396,9 +422,16 @@ def control_step(  # type: ignore[no-untyped-def]
                     acc += normal[i, j] * JO[i, j, k]
                 g[i, k] = acc
             span = max(rho0[i] - rho_stop, 1e-9)
-            frac = min(max((dist[i] - rho_stop) / span, 0.0), 1.0)
-            lo_rate[i] = -xi * frac
+            frac = min(max((deff[i] - rho_stop) / span, 0.0), 1.0)
+            lo_static[i] = -xi * frac
+            lo_rate[i] = lo_static[i]
+            if approach[i] > 0.0:
+                lo_rate[i] = _moving_bound(deff[i], rho0[i], rho_stop, xi, approach[i])
         qs = np.empty(n)
+        moving = False
+        for i in range(m):
+            if active[i] and approach[i] > 0.0:
+                moving = True
         # feasibility of a task scale: every active pair's rate above its bound
         lo_s = 0.0
         hi_s = 1.0
@@ -411,6 +444,9 @@ def control_step(  # type: ignore[no-untyped-def]
                     acc += M[k, j] * (xd[j] - xrec[j])
                 qs[k] = w[k] * (acc + unull[k]) + rec[k]
             ok = True
+            # a moving obstacle's pair is checked on the command actually sent, after
+            # the joint-speed scaling (scaling slows a retreat down as well)
+            a_s = _limit_scale(qs, 1.0, rec, q, lower, upper, vmax, k_lim) if moving else 1.0
             for i in range(m):
                 if not active[i]:
                     continue
@@ -418,6 +454,9 @@ def control_step(  # type: ignore[no-untyped-def]
                 for k in range(n):
                     rate += g[i, k] * qs[k]
                 if rate < lo_rate[i] - 1e-12:
+                    ok = False
+                    break
+                if approach[i] > 0.0 and a_s * rate < lo_rate[i] - 1e-12:
                     ok = False
                     break
             if it == 0:
@@ -441,23 +480,46 @@ def control_step(  # type: ignore[no-untyped-def]
             for j in range(r):
                 acc += M[k, j] * (xd[j] - xrec[j])
             qd1[k] = w[k] * (acc + unull[k]) + rec[k]
-        # still closing in too fast with no task left: slow the whole motion down
+        # still closing in too fast with no task left: slow the whole motion down. Only
+        # the robot's own approach can be slowed (the static damper); a robot too slow
+        # to outrun an approaching obstacle keeps retreating as fast as it can
         for i in range(m):
             if not active[i]:
                 continue
             rate = 0.0
             for k in range(n):
                 rate += g[i, k] * qd1[k]
-            if rate < lo_rate[i]:
-                f = lo_rate[i] / rate if rate < 0.0 else 0.0
+            if rate < lo_static[i]:
+                f = lo_static[i] / rate if rate < 0.0 else 0.0
                 guard = min(guard, max(f, 0.0))
     diag[4] = s
     diag[7] = guard
 
     # ---- limits: scale the whole vector (never clip one joint into another direction)
-    alpha = guard
+    alpha = _limit_scale(qd1, guard, rec, q, lower, upper, vmax, k_lim)
     for k in range(n):
-        v = qd1[k] * guard
+        qdot[k] = alpha * qd1[k]
+    diag[5] = alpha / guard if guard > 0.0 else 0.0
+
+
+@njit(cache=True)
+def _moving_bound(rho, rho0, rho_stop, xi, u):  # type: ignore[no-untyped-def]
+    """Lowest rate ``n_iᵀ J_Oi q̇`` allowed against an obstacle approaching at ``u``:
+    the velocity damper on the true distance rate, ``u − ξ (ρ − ρ_s)/(ρ_O − ρ_s)``,
+    continued below ``ρ_s`` (down to ``u + ξ`` at ``2ρ_s − ρ_O``) so that a point the
+    obstacle pushed inside ``ρ_s`` must open the gap again, not only hold it."""
+    span = max(rho0 - rho_stop, 1e-9)
+    frac = min(max((rho - rho_stop) / span, -1.0), 1.0)
+    return u - xi * frac
+
+
+@njit(cache=True)
+def _limit_scale(qd, guard, rec, q, lower, upper, vmax, k_lim):  # type: ignore[no-untyped-def]
+    """The factor ``α ≤ guard`` that brings ``guard · qd`` within every joint's speed
+    bound and position-limit damper (a recovering joint may only move inward)."""
+    alpha = guard
+    for k in range(qd.shape[0]):
+        v = qd[k] * guard
         if rec[k] != 0.0:
             hi = vmax[k] if rec[k] > 0.0 else 0.0
             lo = -vmax[k] if rec[k] < 0.0 else 0.0
@@ -468,10 +530,7 @@ def control_step(  # type: ignore[no-untyped-def]
             alpha = min(alpha, guard * hi / v if v > 0.0 else 0.0)
         elif v < lo:
             alpha = min(alpha, guard * lo / v if v < 0.0 else 0.0)
-    alpha = max(alpha, 0.0)
-    for k in range(n):
-        qdot[k] = alpha * qd1[k]
-    diag[5] = alpha / guard if guard > 0.0 else 0.0
+    return max(alpha, 0.0)
 
 
 def warm_up() -> None:
@@ -491,7 +550,8 @@ def warm_up() -> None:
                 np.zeros(n, np.bool_), 2.0,
                 np.full(n, 0.1),
                 np.zeros(m, np.int64), np.zeros((m, 3)), np.full(m, -1, np.int64),
-                np.zeros((m, 3)), np.zeros((m, 3)), np.full(m, 0.1), np.full(m, 0.2),
-                np.full(m, 1e-3), 1.0, np.zeros(m, np.bool_), True, True, 0.03, 0.5,
+                np.zeros((m, 3)), np.zeros((m, 3)), np.zeros((m, 3)), np.full(m, 0.1),
+                np.full(m, 0.2),
+                np.full(m, 1e-3), 1.0, np.zeros(m, np.bool_), True, True, 0.03, 0.5, 0.0,
                 np.empty(n), np.empty(DIAG),
             )  # fmt: skip

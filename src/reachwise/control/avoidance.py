@@ -17,20 +17,26 @@ distance and the margin ``ρ_O``:
   repulsion is added to the task velocity (P-V Eq. 6) unless the other object is on
   the same robot.
 
+A moving object (its twist given per call) also gives each point the velocity of the
+object's closest point, for the controller's velocity-aware repulsion and guard.
+
 Pairs answered "no risk" (beyond the margin) give no point. A pair whose answer holds
 NaN or infinite numbers while claiming to be within the margin is kept, so the
-controller's safety check sees it and stops.
+controller's safety check sees it and stops. An answer marked invalid (missing data:
+a collision server that did not answer in time) gives points marked invalid with its
+reason, on which the controller stops too.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
-from reachwise.distance.scene import OnLink, Scene, SceneResult
+from reachwise.distance.scene import OnLink, SceneLike, SceneResult
 from reachwise.errors import InputError
 from reachwise.kinematics.robot import Robot
 
@@ -48,6 +54,9 @@ class AvoidancePoints:
     ``-1``/NaN; ``normal`` the unit collision-line vector pointing away from the
     other object; ``distance`` and ``margin`` (m); ``task_space`` True for a tool part
     handled in task space (P-V Eq. 6); ``pairs`` the object names ``"a|b"``.
+    ``valid`` False (with a ``reason``) stands for missing distance data.
+    ``obstacle_velocity`` (m, 3): world velocity of the other object's closest point
+    when that object moves (zeros: static, the default).
     """
 
     sequence: int
@@ -62,6 +71,9 @@ class AvoidancePoints:
     margin: NDArray[np.float64]
     task_space: NDArray[np.bool_]
     pairs: tuple[str, ...] = field(default=())
+    valid: bool = True
+    reason: str = ""
+    obstacle_velocity: NDArray[np.float64] | None = None
 
     @classmethod
     def empty(cls, sequence: int, stamp: float, computed: float | None = None) -> AvoidancePoints:
@@ -75,12 +87,15 @@ class AvoidancePoints:
 
     def __post_init__(self) -> None:
         m = int(np.asarray(self.distance).shape[0])
+        if self.obstacle_velocity is None:
+            object.__setattr__(self, "obstacle_velocity", np.zeros((m, 3)))
         shapes = {
             "a_link": (m,),
             "a_point": (m, 3),
             "b_link": (m,),
             "b_point": (m, 3),
             "normal": (m, 3),
+            "obstacle_velocity": (m, 3),
             "margin": (m,),
             "task_space": (m,),
         }
@@ -95,7 +110,7 @@ class AvoidancePoints:
         for name in ("a_link", "b_link"):
             object.__setattr__(self, name, np.ascontiguousarray(getattr(self, name), np.int64))
         object.__setattr__(self, "task_space", np.ascontiguousarray(self.task_space, np.bool_))
-        for name in ("a_point", "b_point", "normal", "distance", "margin"):
+        for name in ("a_point", "b_point", "normal", "distance", "margin", "obstacle_velocity"):
             v = np.ascontiguousarray(getattr(self, name), np.float64)
             object.__setattr__(self, name, v)
 
@@ -125,7 +140,7 @@ class SceneConverter:
 
     def __init__(
         self,
-        scene: Scene,
+        scene: SceneLike,
         robot: Robot,
         tool_links: Iterable[int | str] | None = None,
         margins: Mapping[tuple[str, str], float] | None = None,
@@ -144,8 +159,29 @@ class SceneConverter:
             self._margins[(b, a)] = float(v)
 
     def __call__(
-        self, result: SceneResult, stamp: float, computed: float | None = None
+        self,
+        result: SceneResult,
+        stamp: float | None = None,
+        computed: float | None = None,
+        *,
+        twists: Mapping[str, tuple[ArrayLike, ArrayLike, ArrayLike]] | None = None,
     ) -> AvoidancePoints:
+        """The avoidance points of ``result``. ``stamp`` (s): the time of the inputs it
+        describes, by default the result's ``measured_at`` (an older ``measured_at``
+        wins over a given ``stamp``: data is never made younger than it is);
+        ``computed``: by default the result's ``computed_at``, else ``stamp``. An
+        invalid result gives empty points marked invalid, with its reason.
+        ``twists`` ``{object: (v, ω, origin)}`` (world, m/s, rad/s, m) give the motion
+        of moving objects: their closest points' velocities ``v + ω × (p − origin)``
+        become the points' ``obstacle_velocity``."""
+        measured = result.measured_at
+        if stamp is None or measured < stamp:
+            stamp = measured
+        if computed is None:
+            computed = result.computed_at if math.isfinite(result.computed_at) else stamp
+        if not result.valid:
+            empty = AvoidancePoints.empty(result.sequence, stamp, computed)
+            return replace(empty, valid=False, reason=result.reason or "missing distance data")
         a_link: list[int] = []
         a_pt: list[NDArray[np.float64]] = []
         b_link: list[int] = []
@@ -155,7 +191,10 @@ class SceneConverter:
         margin: list[float] = []
         task: list[bool] = []
         names: list[str] = []
+        vel: list[NDArray[np.float64]] = []
         nan3 = np.full(3, np.nan)
+        zero3 = np.zeros(3)
+        tw = twists or {}
         for p in result.pairs:
             r = p.result
             if r.no_risk:
@@ -165,7 +204,10 @@ class SceneConverter:
             if la is None and lb is None:
                 continue
             rho0 = self._margins.get((p.a, p.b), p.margin)
-            if r.distance > rho0:
+            # a moving object's pair counts out to the scene's margin: the controller
+            # brings it in by the obstacle's travel during its reaction time
+            other_moves = (la is not None and p.b in tw) or (lb is not None and p.a in tw)
+            if r.distance > rho0 and not (other_moves and r.distance <= p.margin):
                 continue
             if la is not None and lb is not None:
                 a_link.append(la)
@@ -174,6 +216,7 @@ class SceneConverter:
                 b_pt.append(r.point_b)
                 normal.append(r.direction)
                 task.append(False)
+                vel.append(zero3)
             elif la is not None:
                 a_link.append(la)
                 a_pt.append(r.point_a)
@@ -181,6 +224,7 @@ class SceneConverter:
                 b_pt.append(nan3)
                 normal.append(r.direction)
                 task.append(la in self.tool_links)
+                vel.append(_point_velocity(tw.get(p.b), r.point_b, zero3))
             else:
                 lbi = -1 if lb is None else lb
                 a_link.append(lbi)
@@ -189,6 +233,7 @@ class SceneConverter:
                 b_pt.append(nan3)
                 normal.append(-np.asarray(r.direction))
                 task.append(lbi in self.tool_links)
+                vel.append(_point_velocity(tw.get(p.a), r.point_a, zero3))
             dist.append(r.distance)
             margin.append(rho0)
             names.append(f"{p.a}|{p.b}")
@@ -207,4 +252,17 @@ class SceneConverter:
             np.array(margin, float),
             np.array(task, np.bool_),
             tuple(names),
+            obstacle_velocity=np.array(vel, float).reshape(-1, 3),
         )
+
+
+def _point_velocity(
+    twist: tuple[ArrayLike, ArrayLike, ArrayLike] | None,
+    point: NDArray[np.float64],
+    zero: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """``v + ω × (p − origin)`` of a moving object's point (``zero`` if it is static)."""
+    if twist is None:
+        return zero
+    v, w, origin = (np.asarray(x, dtype=float) for x in twist)
+    return np.asarray(v + np.cross(w, np.asarray(point, dtype=float) - origin), dtype=float)

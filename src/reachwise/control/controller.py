@@ -34,7 +34,22 @@ One tick, ``Controller.step(q, goal, distances, now) -> (q̇, status)``:
    largest ``s ∈ [0, 1]`` that satisfies it (the tool deviates or slows down), and if
    even ``s = 0`` does not, the whole motion is slowed down (the robot stops before
    ``ρ_s``).
-6. **Safety and status** (``safety``): missing, repeated, old or non-finite distance
+6. **Moving obstacles** (our addition; the thesis, §6.3, and P-V leave them to future
+   work). Eq. 3.16–3.17 and the guard treat the other object as still. When it moves,
+   the distance changes at ``ρ̇_i = n_iᵀ (J_Oi q̇ − v_Bi)``, with ``v_Bi`` the velocity
+   of the obstacle's closest point; its approach speed ``u_i = max(0, n_iᵀ v_Bi)``
+   (the part of that velocity along the collision line toward the robot) is added to
+   the repulsive speed, ``ẋ_Oi = (min(Khatib, v_rep_max) + u_i) n_i`` — the robot part
+   backs away at least as fast as the obstacle comes, so the Khatib term keeps its
+   static meaning relative to the obstacle — and the guard's damper bound becomes
+   ``n_iᵀ J_Oi q̇ ≥ −ξ (ρ_i − ρ_s)/(ρ_O − ρ_s) + u_i``, which is the static damper on
+   the true rate ``ρ̇_i``. When even ``s = 0`` cannot back away fast enough, the robot
+   is only slowed down for its own approach, never for the obstacle's (stopping
+   would not help). The retreat is bounded by ``v_max`` (Eq. 3.12) and the joint
+   speeds: the margin ``ρ_O`` must cover the obstacle's speed times the time the
+   robot needs to reach it (``reachwise.control.safety.protective_separation``).
+   ``velocity_aware=False`` ignores the obstacles' velocities (the static law).
+7. **Safety and status** (``safety``): missing, repeated, old or non-finite distance
    data ⇒ protective stop; per tick the state is ``moving``, ``reached``, ``locked``,
    ``protective_stop`` (with the reason) or ``stalled`` (no progress toward the goal
    for ``stall_time`` — the local minimum of thesis Fig. 3.3, reported, not hidden).
@@ -54,7 +69,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from reachwise.control import _kernel as K
 from reachwise.control.avoidance import AvoidancePoints
-from reachwise.control.safety import SafetyConfig, check_data, stop_ramp
+from reachwise.control.safety import DataCheck, SafetyConfig, check_data, stop_ramp
 from reachwise.errors import InputError
 from reachwise.kinematics.robot import Robot
 from reachwise.kinematics.transforms import check_pose
@@ -78,7 +93,8 @@ class ControllerConfig:
     conventional controller (no avoidance, no distance data needed);
     ``position_tolerance`` (m), ``orientation_tolerance`` (rad): goal reached;
     ``stall_time`` (s), ``stall_progress`` (m, orientation counted 1 m/rad): stall
-    detection; ``safety``: data freshness and protective stop.
+    detection; ``velocity_aware``: use moving obstacles' velocities (item 6 above);
+    ``safety``: data freshness and protective stop.
     """
 
     kv: float = 1.0
@@ -99,6 +115,8 @@ class ControllerConfig:
     orientation_tolerance: float = 0.01
     stall_time: float = 3.0
     stall_progress: float = 0.01
+    velocity_aware: bool = True
+    reaction_time: float = 0.0
     safety: SafetyConfig = field(default_factory=SafetyConfig)
 
     def __post_init__(self) -> None:
@@ -111,7 +129,7 @@ class ControllerConfig:
             v = getattr(self, f.name)
             if f.name in positive and not (isinstance(v, int | float) and v > 0):
                 raise InputError("controller", f.name, f"must be > 0, got {v!r}")
-        for name in ("lambda_max", "mu", "stop_distance"):
+        for name in ("lambda_max", "mu", "stop_distance", "reaction_time"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise InputError("controller", name, f"must be finite and >= 0, got {v!r}")
@@ -251,12 +269,15 @@ class Controller:
         if cfg.avoidance:
             if distances is None:
                 chk = check_data(None, None, self._last_seq, now, cfg.safety)
+            elif not distances.valid:
+                chk = DataCheck(False, f"missing distance data: {distances.reason}")
             else:
                 values = (distances.distance, distances.a_point, distances.normal)
                 chk = check_data(
                     distances.sequence, distances.stamp, self._last_seq, now, cfg.safety, values
                 )
             if not chk.ok or distances is None:
+                self._best_t = now  # the stall clock does not run while stopped
                 return self._stop(chk.reason)
             self._last_seq = distances.sequence
         pts = distances if (cfg.avoidance and distances is not None) else _NO_POINTS
@@ -313,9 +334,12 @@ class Controller:
             c.kind, c.qidx, c.dh, c.classic, c.base, c.tool, q, goal.pose, goal.dims == 6,
             cfg.kv, cfg.kw, cfg.v_max, cfg.w_max, cfg.lambda_max, cfg.epsilon,
             r.lower, r.upper, r.vmax, self._usable, self._passive, cfg.k_limit, self._zone,
-            p.a_link, p.a_point, p.b_link, p.b_point, p.normal, p.distance, p.margin,
+            p.a_link, p.a_point, p.b_link, p.b_point, p.normal,
+            p.obstacle_velocity if cfg.velocity_aware else np.zeros_like(p.normal),
+            p.distance, p.margin,
             np.full(len(p), cfg.mu), cfg.v_rep_max, p.task_space, avoid,
-            cfg.guard and avoid, cfg.stop_distance, cfg.approach_speed, qdot, diag,
+            cfg.guard and avoid, cfg.stop_distance, cfg.approach_speed, cfg.reaction_time,
+            qdot, diag,
         )  # fmt: skip
         return qdot, diag
 

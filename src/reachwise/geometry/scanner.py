@@ -32,6 +32,19 @@ Ray casting uses trimesh: Embree when it is installed, the pure-Python
 triangle; the hit distance is then recomputed in float64 from that triangle's plane,
 so both give the same points to rounding.
 
+**Occlusion-aware clouds** (beyond P-V; P-V Fig. 5: the missing points behind the
+obstacle made the return path wrong). A beam that hits a surface observes the free
+space in front of the hit, nothing behind it: everything farther along the beam is
+unknown. :func:`shadow_points` fills that unknown space with *virtual* points: each
+return ``h = o + r d`` is extended along its own beam to ``o + (r + s) d`` for
+``s = spacing, 2 spacing, … ≤ depth``, stopping at the ground (nothing enters the
+ground) — so the occluded space up to ``depth`` behind every observed surface counts
+as occupied. ``depth`` is the thickness the caller is willing to assume for unseen
+objects (a longer depth is more conservative). The virtual points never lie in front
+of any surface a beam observed: each lies on its own beam, behind its own hit.
+:class:`OcclusionFill` holds the settings; :func:`scan_scene` and
+:meth:`ScanScene.process` take one.
+
 This module is pure math: meshes and a random Generator in, arrays out.
 """
 
@@ -47,7 +60,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from reachwise.errors import CloudError, InputError
-from reachwise.geometry.cloud import DEFAULT_VOXEL, PointCloud, crop, voxel_downsample
+from reachwise.geometry.cloud import (
+    DEFAULT_VOXEL,
+    PointCloud,
+    crop,
+    crop_mask,
+    voxel_downsample,
+    voxel_keys,
+)
 
 if TYPE_CHECKING:
     from typing import TypeAlias
@@ -60,12 +80,15 @@ if TYPE_CHECKING:
 __all__ = [
     "SCENES",
     "LaserScanner",
+    "OcclusionFill",
     "Scan",
     "ScanScene",
     "cast_rays",
     "get_scene",
     "p5_floor_obstacle",
+    "p5_occlusion",
     "scan_scene",
+    "shadow_points",
 ]
 
 Engine = Literal["auto", "embree", "triangle"]
@@ -302,6 +325,85 @@ class Scan:
         """The measured points, world frame, shape (M, 3)."""
         return self.cloud.points
 
+    def shadow(
+        self, depth: float, spacing: float = DEFAULT_VOXEL, ground: float | None = None
+    ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+        """Virtual points filling the space behind every return (see
+        :func:`shadow_points`): ``(points (V, 3), index of the return (V,))``."""
+        return shadow_points(self.origin, self.points, depth, spacing, ground)
+
+
+def shadow_points(
+    origin: ArrayLike,
+    hits: ArrayLike,
+    depth: float,
+    spacing: float = DEFAULT_VOXEL,
+    ground: float | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Virtual points in the occluded space behind each hit, seen from ``origin``.
+
+    Each hit ``h`` (range ``r = |h − o| > 0``, beam direction ``d = (h − o)/r``) gets
+    the points ``h + s d`` for ``s = spacing, 2 spacing, …`` up to ``depth``: the beam
+    observed the space in front of ``h`` to be free and nothing behind it, so the
+    unknown space up to ``depth`` behind the surface is taken as occupied. With
+    ``ground`` (world z, m), a point below it is dropped, and so is the rest of its
+    beam (the ground is solid; nothing needs to be avoided under it); ``-inf`` or
+    ``None`` keeps them all. Hits at the origin (no direction) give no point.
+
+    Returns ``(points (V, 3), ray (V,))``: ``ray[k]`` is the index of the hit that
+    point ``k`` extends. Every point lies on its hit's beam, farther than the hit.
+    """
+    o = np.asarray(origin, dtype=np.float64).reshape(-1)
+    h = np.asarray(hits, dtype=np.float64)
+    if o.shape != (3,) or not np.isfinite(o).all():
+        raise InputError(_SRC, "origin", "expected 3 finite coordinates")
+    if h.ndim != 2 or h.shape[1] != 3 or not np.isfinite(h).all():
+        raise InputError(_SRC, "hits", f"expected finite (N, 3) points, got shape {h.shape}")
+    D = _finite(depth, "depth", positive=True)
+    step = _finite(spacing, "spacing", positive=True)
+    if D / step > 10_000:
+        raise InputError(_SRC, "spacing", f"depth/spacing = {D / step:.0f} samples per beam")
+    v = h - o
+    r = np.linalg.norm(v, axis=1)
+    ok = r > 0.0
+    d = np.zeros_like(v)
+    d[ok] = v[ok] / r[ok, None]
+    s_max = np.where(ok, D, 0.0)
+    if ground is not None and ground != -math.inf:
+        g = _finite(ground, "ground")
+        down = d[:, 2] < 0.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            to_ground = np.where(down, (h[:, 2] - g) / -d[:, 2], np.inf)
+        s_max = np.where(h[:, 2] >= g, np.minimum(s_max, to_ground), 0.0)
+    count = np.floor(s_max / step + 1e-9).astype(np.int64)
+    count = np.maximum(count, 0)
+    ray = np.repeat(np.arange(len(h), dtype=np.int64), count)
+    if ray.size == 0:
+        return np.zeros((0, 3)), ray
+    first = np.cumsum(count) - count
+    k = np.arange(ray.size, dtype=np.int64) - np.repeat(first, count) + 1
+    pts = h[ray] + (k * step)[:, None] * d[ray]
+    return pts, ray
+
+
+@dataclass(frozen=True)
+class OcclusionFill:
+    """Settings of the occlusion fill (:func:`shadow_points`): ``depth`` (m) behind
+    each return; ``spacing`` (m) between virtual points along a beam (``None``: the
+    scene's voxel, so the fill is as dense as the cloud); ``ground`` (world z, m)
+    below which no virtual point is kept (``None``: the scene's ground, if any)."""
+
+    depth: float = 1.0
+    spacing: float | None = None
+    ground: float | None = None
+
+    def __post_init__(self) -> None:
+        _finite(self.depth, "occlusion depth", positive=True)
+        if self.spacing is not None:
+            _finite(self.spacing, "occlusion spacing", positive=True)
+        if self.ground is not None and self.ground != -math.inf:
+            _finite(self.ground, "occlusion ground")
+
 
 def _as_meshes(meshes: object) -> list[tuple[NDArray[np.float64], NDArray[np.int64]]]:
     """Validated ``(vertices, faces)`` of each mesh: Trimesh objects or array pairs."""
@@ -434,12 +536,52 @@ class ScanScene:
     voxel: float = DEFAULT_VOXEL
     obstacles: tuple[NDArray[np.float64], ...] = ()
     description: str = ""
+    ground: float | None = None
 
-    def process(self, cloud: PointCloud) -> PointCloud:
-        """Crop to the working area, then voxel-downsample (P-V §IV)."""
-        return voxel_downsample(
+    def process(self, cloud: PointCloud, virtual: NDArray[np.float64] | None = None) -> PointCloud:
+        """Crop to the working area, then voxel-downsample (P-V §IV).
+
+        ``virtual`` points (an occlusion fill) are cropped and downsampled on the same
+        grid, and kept only in voxels that hold no measured point (a measured surface
+        is never replaced by a virtual point) and that lie on the boundary of the
+        occupied voxels (the inside of a filled shadow adds points but no distance).
+        """
+        measured = voxel_downsample(
             crop(cloud, self.crop_min, self.crop_max), self.voxel, self.crop_min
         )
+        if virtual is None or len(virtual) == 0:
+            return measured
+        inside = crop_mask(virtual, self.crop_min, self.crop_max)
+        if not inside.any():
+            return measured
+        virt = voxel_downsample(virtual[inside], self.voxel, self.crop_min)
+        seen = {tuple(k) for k in voxel_keys(measured, self.voxel, self.crop_min).tolist()}
+        keys = [tuple(k) for k in voxel_keys(virt, self.voxel, self.crop_min).tolist()]
+        occupied = seen.union(keys)
+        # keep the virtual voxels on the boundary of the occupied region: one whose six
+        # face neighbours are all occupied is inside it and never the nearest point to
+        # anything outside by more than a voxel
+        steps = ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1))
+        keep = np.array(
+            [
+                k not in seen
+                and not all((k[0] + a, k[1] + b, k[2] + c) in occupied for a, b, c in steps)
+                for k in keys
+            ],
+            dtype=bool,
+        )
+        if not keep.any():
+            return measured
+        pts = np.concatenate([measured.points, virt.points[keep]])
+        return PointCloud(pts, frame=measured.frame, name=measured.name)
+
+    def virtual_points(self, scan: Scan, fill: OcclusionFill) -> NDArray[np.float64]:
+        """The occlusion fill of ``scan`` with this scene's voxel and ground as the
+        defaults of ``fill``."""
+        spacing = self.voxel if fill.spacing is None else fill.spacing
+        ground = self.ground if fill.ground is None else fill.ground
+        pts, _ = scan.shadow(fill.depth, spacing, ground)
+        return pts
 
 
 def p5_floor_obstacle(
@@ -503,11 +645,68 @@ def p5_floor_obstacle(
         voxel=DEFAULT_VOXEL,
         obstacles=(np.array([[cx - sx / 2, cy - sy / 2, 0.0], [cx + sx / 2, cy + sy / 2, sz]]),),
         description="P-V stand-in: a floor with a box obstacle, nodding scanner 2.5 m up",
+        ground=0.0,
+    )
+
+
+def p5_occlusion(
+    *,
+    scanner: LaserScanner | None = None,
+    obstacle_size: tuple[float, float, float] = (0.7, 0.8, 1.0),
+    obstacle_center: tuple[float, float] = (2.7, 0.0),
+) -> ScanScene:
+    """A variant of :func:`p5_floor_obstacle` whose scan misses the obstacle's far half.
+
+    Our choice, for the occlusion study of issue 9 (P-V Fig. 5: the return path went
+    wrong behind the obstacle, where the scan had no points): the same floor and a
+    taller box, 0.70 (x) x 0.80 (y) x 1.00 (z) m centred at (2.7, 0) m, scanned by the
+    P-V scanner (same resolutions) standing low in front of it, behind the crane,
+    optical centre at (-1.0, 0, 0.8) m, below the box's top: every beam that reaches
+    the box hits its front face (x = 2.35 m); its top, its sides, its back and the
+    floor behind it are in shadow. Beams from -30° to +30° azimuth, tilt from 10°
+    above to 30° below the horizon (an 8 s sweep). Working area (crop): x 1.5–4.0 m, y ±1.5 m,
+    z -0.1–1.5 m, 3 cm voxels anchored at its min corner. So the cloud is the floor
+    around the obstacle and one face of it: whatever passes behind that face sees
+    nothing, which :func:`shadow_points` fills.
+    """
+    import trimesh
+
+    sx, sy, sz = (_finite(v, "obstacle_size", positive=True) for v in obstacle_size)
+    cx, cy = (_finite(v, "obstacle_center") for v in obstacle_center)
+    half = 8.0
+    floor = trimesh.Trimesh(
+        vertices=[[-half, -half, 0.0], [half, -half, 0.0], [half, half, 0.0], [-half, half, 0.0]],
+        faces=[[0, 1, 2], [0, 2, 3]],
+        process=False,
+    )
+    box = trimesh.creation.box(extents=(sx, sy, sz))
+    box.apply_translation((cx, cy, sz / 2.0))
+    if scanner is None:
+        pose = np.eye(4)
+        pose[:3, 3] = (-1.0, 0.0, 0.8)
+        scanner = LaserScanner(
+            pose=pose,
+            azimuth_range=(math.radians(-30.0), math.radians(30.0)),
+            tilt_range=(math.radians(-10.0), math.radians(30.0)),
+        )
+    return ScanScene(
+        name="p5-occlusion",
+        meshes=(floor, box),
+        scanner=scanner,
+        crop_min=np.array([1.5, -1.5, -0.1]),
+        crop_max=np.array([4.0, 1.5, 1.5]),
+        voxel=DEFAULT_VOXEL,
+        obstacles=(np.array([[cx - sx / 2, cy - sy / 2, 0.0], [cx + sx / 2, cy + sy / 2, sz]]),),
+        description="P-V occlusion variant: a 1 m box seen only from the front, scanner 0.8 m up",
+        ground=0.0,
     )
 
 
 #: Built-in scenes by name.
-SCENES: dict[str, Callable[[], ScanScene]] = {"p5-floor-obstacle": p5_floor_obstacle}
+SCENES: dict[str, Callable[[], ScanScene]] = {
+    "p5-floor-obstacle": p5_floor_obstacle,
+    "p5-occlusion": p5_occlusion,
+}
 
 
 def get_scene(name: str) -> ScanScene:
@@ -524,11 +723,14 @@ def scan_scene(
     noise: float | None = None,
     coarsen: float = 1.0,
     engine: Engine = "auto",
+    occlusion: OcclusionFill | None = None,
 ) -> tuple[Scan, PointCloud]:
     """Scan ``scene`` once; return the raw scan and the cropped, downsampled cloud.
 
     ``noise`` overrides the scanner's range noise (m, standard deviation); ``coarsen``
-    multiplies its beam and line spacing (see :meth:`LaserScanner.coarsened`).
+    multiplies its beam and line spacing (see :meth:`LaserScanner.coarsened`);
+    ``occlusion`` adds the occlusion fill (:func:`shadow_points`) to the processed
+    cloud (the raw scan keeps the measured returns only).
     """
     sc = get_scene(scene) if isinstance(scene, str) else scene
     scanner = sc.scanner
@@ -537,4 +739,6 @@ def scan_scene(
     if coarsen != 1.0:
         scanner = scanner.coarsened(coarsen)
     raw = scanner.scan(list(sc.meshes), rng, engine=engine, name=sc.name)
-    return raw, sc.process(raw.cloud)
+    if occlusion is None:
+        return raw, sc.process(raw.cloud)
+    return raw, sc.process(raw.cloud, sc.virtual_points(raw, occlusion))

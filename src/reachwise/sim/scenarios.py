@@ -26,10 +26,19 @@ robots:
     plant: {kind: hydraulic, time_constant: 0.1}    # PlantConfig fields
     goals:                  # in order; q: the tool pose at those joint values, or xyz (+ quat
       - {q: [...], mirror_y: true, dims: 6}       #  (x, y, z, w) or rpy_deg); work: s locked
-objects:                    # clouds not on a robot: scanner, mesh or file
+objects:                    # clouds not on a robot: scanner, mesh, box or file
   - {name: scan, scanner: p5-floor-obstacle, seed: 0}
+  - {name: scan2, scanner: p5-floor-obstacle, noise: 0.01,  # range noise (m)
+     occlusion: {fill: true, depth: 1.0},   # unseen space behind returns is occupied
+     rescan: {every: 1.0}}                  # re-scanned every 1 s (new seed)
   - {name: rock, mesh: rock.stl, points: 1000, pose: {xyz: [3, 0, 0]}}
   - {name: wall, file: wall.ply, pose: {xyz: [0, 0, 0]}}
+  - name: person            # a moving box: poses at times (linear + slerp), or
+    box: [0.5, 0.5, 1.8]    #   motion: {velocity: [0.5, 0, 0], start: 1, stop: 9}
+    points: 2000
+    motion: {waypoints: [{t: 0, xyz: [3, -3, 0.9]}, {t: 12, xyz: [3, 3, 0.9],
+             rpy_deg: [0, 0, 90]}], loop: false}
+  - {name: heap, file: heap0.ply, clouds: [{t: 5, file: heap1.ply}]}  # deforming
 watch:                      # pairs and their collision margins rho_O
   - {self: boom, margin: 0.3, pairs: [[link_8, link_2]]}
   - {robot: crane, environment: [scan], links: [link_6], margin: 0.3}
@@ -38,11 +47,13 @@ jobs:                       # shared work list (P-IV): each idle robot takes the
   robots: [a, b]            # free one, in order, and is locked for `work` seconds there
   work: 3.0
   goals: [{xyz: [8, 0, 1], rpy_deg: [0, 90, 0]}]
+escape: {planner: ompl, time_limit: 5.0}   # or `escape: ompl`: plan out of a stall
 ```
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 from importlib import resources
 from pathlib import Path
@@ -50,23 +61,37 @@ from typing import Any, Literal
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 from scipy.spatial.transform import Rotation
 
 from reachwise.errors import InputError
 from reachwise.io._builtin import builtin_names
 from reachwise.io.robot_file import FrameModel
+from reachwise.sim.motion import ConstantVelocity, Trajectory, WaypointTrajectory
 
 __all__ = [
+    "CloudAtSpec",
     "ControllerSpec",
+    "EscapeSpec",
     "GoalSpec",
     "JobsSpec",
+    "MotionSpec",
     "ObjectSpec",
+    "OcclusionSpec",
     "PlantSpec",
+    "RescanSpec",
     "RobotSpec",
     "Scenario",
     "ScenarioSpec",
     "WatchSpec",
+    "WaypointSpec",
     "builtin_scenarios",
     "load_scenario",
     "scenario_from_dict",
@@ -148,6 +173,8 @@ class ControllerSpec(BaseModel):
     stall_progress: float | None = None
     max_age_ticks: float | None = None
     stop_ticks: int | None = None
+    velocity_aware: bool | None = None
+    reaction_time: float | None = None
 
 
 class PlantSpec(BaseModel):
@@ -182,21 +209,146 @@ class RobotSpec(BaseModel):
     goals: list[GoalSpec] = []
 
 
+class WaypointSpec(FrameModel):
+    """A pose of a moving object at time ``t`` (s): ``xyz`` and ``rpy``/``rpy_deg``."""
+
+    t: float = Field(ge=0.0)
+
+
+class MotionSpec(BaseModel):
+    """How an object moves (:mod:`reachwise.sim.motion`): ``waypoints`` (world poses at
+    times; linear position, slerp orientation; ``loop`` repeats them) or a constant
+    ``velocity`` (m/s) and ``angular_velocity_deg`` (deg/s, world axes) from the
+    object's ``pose``, between ``start`` and ``stop`` (s)."""
+
+    model_config = _STRICT
+    waypoints: list[WaypointSpec] | None = Field(default=None, min_length=1)
+    loop: bool = False
+    velocity: V3 | None = None
+    angular_velocity_deg: V3 | None = None
+    start: float = Field(default=0.0, ge=0.0)
+    stop: float | None = None
+
+    @model_validator(mode="after")
+    def _kind(self) -> MotionSpec:
+        constant = self.velocity is not None or self.angular_velocity_deg is not None
+        if (self.waypoints is not None) == constant:
+            raise ValueError("give waypoints or velocity/angular_velocity_deg, not both")
+        if self.waypoints is not None:
+            if "start" in self.model_fields_set or self.stop is not None:
+                raise ValueError("start and stop are for a constant velocity")
+            ts = [w.t for w in self.waypoints]
+            if any(b <= a for a, b in itertools.pairwise(ts)):
+                raise ValueError(f"waypoint times must increase strictly, got {ts}")
+        elif self.loop:
+            raise ValueError("loop is for waypoints")
+        if self.stop is not None and not self.stop > self.start:
+            raise ValueError(f"stop ({self.stop}) must be after start ({self.start})")
+        return self
+
+    def trajectory(self, pose: np.ndarray) -> Trajectory:
+        """The trajectory; ``pose`` is the object's pose (the start of a constant
+        velocity; waypoints give their own poses)."""
+        if self.waypoints is not None:
+            mats = [w.matrix() for w in self.waypoints]
+            return WaypointTrajectory(
+                np.array([w.t for w in self.waypoints]),
+                np.array([m[:3, 3] for m in mats]),
+                Rotation.from_matrix(np.array([m[:3, :3] for m in mats])).as_quat(),
+                loop=self.loop,
+            )
+        w = np.radians(self.angular_velocity_deg or (0.0, 0.0, 0.0))
+        stop = math.inf if self.stop is None else self.stop
+        return ConstantVelocity(
+            pose, np.array(self.velocity or (0.0, 0.0, 0.0)), w, self.start, stop
+        )
+
+
+class CloudAtSpec(BaseModel):
+    """A cloud that replaces an object's cloud from time ``t`` (s) on (a deforming
+    obstacle): ``file``, ``mesh`` (``points`` samples) or ``box`` (size, m)."""
+
+    model_config = _STRICT
+    t: float = Field(gt=0.0)
+    file: str | None = None
+    mesh: str | None = None
+    box: V3 | None = None
+    points: int = Field(default=1000, gt=0)
+
+    @model_validator(mode="after")
+    def _one(self) -> CloudAtSpec:
+        if sum(getattr(self, k) is not None for k in ("file", "mesh", "box")) != 1:
+            raise ValueError("give exactly one source: file, mesh or box")
+        if self.box is not None and not min(self.box) > 0:
+            raise ValueError("box sizes must be > 0")
+        return self
+
+
+class RescanSpec(BaseModel):
+    """Re-run the object's scanner every ``every`` seconds (new seed each time)."""
+
+    model_config = _STRICT
+    every: float = Field(gt=0.0)
+
+
+class OcclusionSpec(BaseModel):
+    """Occlusion fill of a scanned object (:func:`reachwise.geometry.scanner.shadow_points`):
+    the unseen space up to ``depth`` (m) behind every return counts as occupied;
+    ``spacing`` (m, default the scan's voxel) between virtual points; ``ground`` (world
+    z, default the scene's floor) below which none is kept."""
+
+    model_config = _STRICT
+    fill: bool = True
+    depth: float = Field(default=1.0, gt=0.0)
+    spacing: float | None = Field(default=None, gt=0.0)
+    ground: float | None = None
+
+
 class ObjectSpec(BaseModel):
+    """A cloud not on a robot: ``scanner`` (a built-in scan scene; ``noise`` m,
+    ``occlusion`` fill, ``rescan``), ``mesh`` or ``box`` (``points`` surface samples,
+    the box centred on the object frame) or ``file``; placed at ``pose``, moving by
+    ``motion``, its cloud replaced by ``clouds`` at given times."""
+
     model_config = _STRICT
     name: str = Field(min_length=1)
     scanner: str | None = None
     mesh: str | None = None
     file: str | None = None
+    box: V3 | None = None
     points: int = Field(default=1000, gt=0)
     seed: int = 0
     pose: FrameSpec = FrameSpec()
+    noise: float | None = Field(default=None, ge=0.0)
+    occlusion: OcclusionSpec | None = None
+    motion: MotionSpec | None = None
+    rescan: RescanSpec | None = None
+    clouds: list[CloudAtSpec] = []
 
     @model_validator(mode="after")
     def _one(self) -> ObjectSpec:
-        given = [k for k in ("scanner", "mesh", "file") if getattr(self, k) is not None]
+        given = [k for k in ("scanner", "mesh", "file", "box") if getattr(self, k) is not None]
         if len(given) != 1:
-            raise ValueError("give exactly one source: scanner, mesh or file")
+            raise ValueError("give exactly one source: scanner, mesh, box or file")
+        if self.box is not None and not min(self.box) > 0:
+            raise ValueError("box sizes must be > 0")
+        if self.scanner is None:
+            for k in ("noise", "occlusion", "rescan"):
+                if getattr(self, k) is not None:
+                    raise ValueError(f"{k} is for scanned objects (scanner: ...)")
+        if self.rescan is not None and self.clouds:
+            raise ValueError("give rescan or clouds, not both")
+        if self.scanner is not None and self.motion is not None:
+            raise ValueError("a scan is in world coordinates: it cannot move (use rescan)")
+        ts = [c.t for c in self.clouds]
+        if any(b <= a for a, b in itertools.pairwise(ts)):
+            raise ValueError(f"cloud times must increase strictly, got {ts}")
+        if (
+            self.motion is not None
+            and self.motion.waypoints is not None
+            and "pose" in self.model_fields_set
+        ):
+            raise ValueError("waypoints give the object's poses: leave out pose")
         return self
 
 
@@ -232,6 +384,24 @@ class WatchSpec(BaseModel):
         return "robot-environment" if self.environment is not None else "robot-robot"
 
 
+class EscapeSpec(BaseModel):
+    """Local-minimum escape (issue 9, :mod:`reachwise.sim.escape`): when a robot's
+    controller reports ``stalled``, plan a joint path with ``planner`` (OMPL
+    RRT-Connect, the ``plan`` extra) within ``time_limit`` s of planning, follow it with
+    the same controller at ``speed`` × the joint, tool and angular speed bounds, then
+    resume; at most ``attempts`` plans per goal. ``step`` (m): the most a watched point
+    moves between two checked states (default half the smallest margin); ``seed``:
+    OMPL's random seed. ``escape: ompl`` takes every default."""
+
+    model_config = _STRICT
+    planner: Literal["ompl"] = "ompl"
+    time_limit: float = Field(default=5.0, gt=0.0)
+    speed: float = Field(default=0.5, gt=0.0, le=1.0)
+    attempts: int = Field(default=2, ge=1)
+    step: float | None = Field(default=None, gt=0.0)
+    seed: int = Field(default=1, ge=1, lt=2**32)
+
+
 class JobsSpec(BaseModel):
     model_config = _STRICT
     robots: list[str] = Field(min_length=1)
@@ -251,6 +421,12 @@ class ScenarioSpec(BaseModel):
     objects: list[ObjectSpec] = []
     watch: list[WatchSpec] = []
     jobs: JobsSpec | None = None
+    escape: EscapeSpec | None = None
+
+    @field_validator("escape", mode="before")
+    @classmethod
+    def _escape(cls, v: Any) -> Any:
+        return {"planner": v} if isinstance(v, str) else v
 
     @model_validator(mode="after")
     def _names(self) -> ScenarioSpec:

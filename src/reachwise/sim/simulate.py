@@ -3,8 +3,9 @@
 ``simulate(scenario, avoidance=True) -> SimulationLog`` runs, at a fixed sample time
 ``dt`` (default 10 ms, P-V §V) in *simulated* time (no clock is read):
 
-1. every robot's joint state goes into the distance scene, which answers every
-   watched pair (P-IV/P-V collision server);
+1. every robot's joint state, and every moving object's pose and cloud (objects
+   with ``motion``, ``clouds`` or ``rescan``: :mod:`reachwise.sim.motion`), go into
+   the distance scene, which answers every watched pair (P-IV/P-V collision server);
 2. the answer (sequence number, stamped with the time of that joint state) is
    converted into each robot's avoidance points and fed, with the robot's current
    goal, to its :class:`~reachwise.control.Controller`;
@@ -27,7 +28,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,13 +36,26 @@ from numpy.typing import NDArray
 from reachwise.control.avoidance import SceneConverter
 from reachwise.control.controller import Controller, ControllerConfig, ControlStatus, Goal
 from reachwise.control.safety import SafetyConfig
-from reachwise.distance.scene import Scene, SceneResult
+from reachwise.distance.scene import OnLink, Scene, SceneResult
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
 from reachwise.kinematics.robot import Robot
 from reachwise.sim.contact import Solid, solid_of_geometry, solid_of_mesh
+from reachwise.sim.motion import Trajectory
 from reachwise.sim.plant import Plant, PlantConfig
-from reachwise.sim.scenarios import GoalSpec, RobotSpec, Scenario, load_scenario
+from reachwise.sim.scenarios import (
+    EscapeSpec,
+    GoalSpec,
+    ObjectSpec,
+    RobotSpec,
+    Scenario,
+    load_scenario,
+)
+
+if TYPE_CHECKING:
+    from reachwise.server.client import ServerOptions
+    from reachwise.sim.escape import Escape
+    from reachwise.sim.mujoco_plant import MujocoPlant
 
 __all__ = ["Event", "GoalRecord", "SimulationLog", "World", "build_world", "simulate"]
 
@@ -79,7 +93,8 @@ class SimulationLog:
     (T,); per pair (``pairs`` names ``"a|b"``): ``distance`` (T, P) cloud distance
     (``inf`` beyond margin + monitor range), ``signed`` (T, P) the same or ``−depth``
     when the solids overlap, ``margins`` (P,) the collision margins ρ_O. ``events``,
-    ``goals``; ``first_collision`` (s) and its pair, or ``None``.
+    ``goals``; ``first_collision`` (s) and its pair, or ``None``. ``object_poses``:
+    per moving object (``motion``), its world pose at each tick (T, 4, 4), for replay.
     """
 
     scenario: str
@@ -105,6 +120,7 @@ class SimulationLog:
     first_collision: float | None = None
     first_collision_pair: str | None = None
     extras: dict[str, Any] = field(default_factory=dict)
+    object_poses: dict[str, NDArray[np.float64]] = field(default_factory=dict)
 
     @property
     def min_distance(self) -> NDArray[np.float64]:
@@ -177,6 +193,7 @@ class SimulationLog:
             "limits_held": self.limits_held(),
             "speeds_held": self.speeds_held(),
             "stalls": [{"t": e.t, "robot": e.robot, "text": e.text} for e in stalls],
+            "extras": self.extras,
             "events": [
                 {"t": e.t, "robot": e.robot, "kind": e.kind, "text": e.text} for e in self.events
             ],
@@ -202,6 +219,8 @@ class SimulationLog:
             arrays[f"{r}.tool"] = self.tool[r]
             arrays[f"{r}.state"] = self.state[r]
             arrays[f"{r}.goal_index"] = self.goal_index[r]
+        for name, poses in self.object_poses.items():
+            arrays[f"object.{name}.pose"] = poses
         np.savez_compressed(out / "log.npz", **arrays)
         with (out / "log.csv").open("w", newline="") as fh:
             w = csv.writer(fh)
@@ -235,7 +254,7 @@ class _Agent:
     name: str
     robot: Robot
     controller: Controller
-    plant: Plant
+    plant: Plant | MujocoPlant
     converter: SceneConverter
     own: list[tuple[Goal, GoalSpec]]
     jobs: bool
@@ -260,6 +279,7 @@ class World:
     margins: NDArray[np.float64]
     solids: dict[str, tuple[Solid, str, str]]  # object -> (solid, robot, link)
     jobs: list[tuple[Goal, GoalSpec]]
+    movers: list[_Mover] = field(default_factory=list)
 
 
 def _robot_of(spec: RobotSpec, scenario: Scenario) -> Robot:
@@ -280,13 +300,26 @@ def _controller_config(spec: RobotSpec, dt: float, avoidance: bool) -> Controlle
     return ControllerConfig(avoidance=avoidance, safety=SafetyConfig(dt=dt, **safety), **c)
 
 
-def build_world(scenario: Scenario | str | Path, avoidance: bool = True) -> World:
-    """Robots, clouds (links, meshes, files, the scanner), scene, controllers, plants."""
+def build_world(
+    scenario: Scenario | str | Path,
+    avoidance: bool = True,
+    plant: str = "scenario",
+    *,
+    server: str | ServerOptions | None = None,
+    clock: Callable[[], float] | None = None,
+) -> World:
+    """Robots, clouds (links, meshes, files, the scanner), scene, controllers, plants
+    (``plant``: ``"scenario"`` — each robot's own — or ``"mujoco"``, see
+    :mod:`reachwise.sim.mujoco_plant`). The scene is in process, or with ``server``
+    (an address or :class:`~reachwise.server.client.ServerOptions`) on a collision
+    server (:func:`_server_scene`); ``clock`` stamps its inputs and answers."""
+    if plant not in ("scenario", "mujoco"):
+        raise InputError("simulate", "plant", f"scenario or mujoco, got {plant!r}")
     from reachwise.io.robot_clouds import link_cloud, link_mesh
 
     sc = load_scenario(scenario)
     spec = sc.spec
-    scene = Scene()
+    scene = Scene(clock=clock) if server is None else _server_scene(server, clock)
     robots: dict[str, Robot] = {}
     solids: dict[str, tuple[Solid, str, str]] = {}
     for rs in spec.robots:
@@ -331,8 +364,17 @@ def build_world(scenario: Scenario | str | Path, avoidance: bool = True) -> Worl
                 solid = solid_of_geometry(g, link_mesh(robot, link) if g.shape == "mesh" else None)
             scene.add_object(obj, cloud, robot=rs.name, link=link)
             solids[obj] = (solid, rs.name, link)
+    movers: list[_Mover] = []
     for os_ in spec.objects:
-        scene.add_object(os_.name, _object_cloud(os_, sc), os_.pose.matrix())
+        mover = _mover(os_, sc)
+        moving = mover is not None and mover.trajectory is not None
+        pose = mover.trajectory.pose(0.0) if moving else os_.pose.matrix()  # type: ignore[union-attr]
+        scene.add_object(os_.name, _object_cloud(os_, sc), pose, dynamic=moving)
+        box_solid = _box_solid(os_.box)
+        if box_solid is not None:
+            solids[os_.name] = (box_solid, "", "")
+        if mover is not None:
+            movers.append(mover)
     # watched pairs: scene margin = rho_O + monitor range; the controller uses rho_O
     control: dict[tuple[str, str], float] = {}
     for i, w in enumerate(spec.watch):
@@ -386,7 +428,7 @@ def build_world(scenario: Scenario | str | Path, avoidance: bool = True) -> Worl
                 rs.name,
                 robot,
                 Controller(robot, cfg),
-                Plant(robot, rs.q0, pc),
+                _make_plant(plant, robot, rs.q0, pc),
                 conv,
                 own,
                 rs.name in job_robots,
@@ -402,7 +444,45 @@ def build_world(scenario: Scenario | str | Path, avoidance: bool = True) -> Worl
         ]
     pairs = tuple(f"{p.a}|{p.b}" for p in scene.pairs)
     margins = np.array([control[(p.a, p.b)] for p in scene.pairs], dtype=float)
-    return World(sc, scene, robots, agents, pairs, margins, solids, jobs)
+    return World(sc, scene, robots, agents, pairs, margins, solids, jobs, movers)
+
+
+def _server_scene(server: str | ServerOptions, clock: Callable[[], float] | None) -> Scene:
+    """A client of the collision server at ``server`` that owns its scene (cleared,
+    mirrored locally, inputs sent with each query; :func:`reachwise.server.client.
+    owned_scene`). It has the in-process scene's interface (``SceneLike``), so the
+    world, the converters and the controllers use it unchanged; a reply that misses
+    its deadline is an invalid result (missing data: a protective stop)."""
+    import time
+
+    from reachwise.server.client import owned_scene
+
+    return cast(Scene, owned_scene(server, clock or time.monotonic))
+
+
+def _close_scene(scene: object) -> None:
+    """Disconnect from a collision server (an in-process scene has nothing to close)."""
+    close = getattr(scene, "close", None)
+    if callable(close):
+        close()
+
+
+class _SimClock:
+    """The simulated time (s); the scene stamps joint states and answers with it."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def _make_plant(kind: str, robot: Robot, q0: list[float], pc: PlantConfig) -> Plant | MujocoPlant:
+    if kind == "mujoco":
+        from reachwise.sim.mujoco_plant import MujocoPlant, MujocoPlantConfig
+
+        return MujocoPlant(robot, q0, MujocoPlantConfig.like(pc))
+    return Plant(robot, q0, pc)
 
 
 def _robot_objects(
@@ -429,24 +509,123 @@ def _goal(g: GoalSpec, robot: Robot) -> Goal:
     )
 
 
-def _object_cloud(spec: Any, sc: Scenario) -> PointCloud:
+def _object_cloud(
+    spec: Any, sc: Scenario, name: str | None = None, seed: int | None = None
+) -> PointCloud:
+    """The cloud of an object spec (or of a scheduled :class:`CloudAtSpec` of object
+    ``name``); ``seed`` overrides the spec's (a re-scan)."""
     from reachwise.io.clouds import load_cloud, load_mesh_cloud
 
-    where = f"objects.{spec.name}"
-    if spec.scanner is not None:
-        from reachwise.geometry.scanner import scan_scene
+    name = name or spec.name
+    seed = getattr(spec, "seed", 0) if seed is None else seed
+    where = f"objects.{name}"
+    if getattr(spec, "scanner", None) is not None:
+        from reachwise.geometry.scanner import OcclusionFill, scan_scene
 
+        occ = spec.occlusion
+        fill = (
+            OcclusionFill(occ.depth, occ.spacing, occ.ground)
+            if occ is not None and occ.fill
+            else None
+        )
         try:
-            _, cloud = scan_scene(spec.scanner, rng=spec.seed)
+            _, cloud = scan_scene(spec.scanner, rng=seed, noise=spec.noise, occlusion=fill)
         except InputError as exc:
             raise InputError(sc.source, f"{where}.scanner", str(exc)) from None
-        return PointCloud(cloud.points, name=spec.name)
+        return PointCloud(cloud.points, name=name)
+    if spec.box is not None:
+        import trimesh
+
+        from reachwise.geometry.cloud import sample_mesh_surface
+
+        box = trimesh.creation.box(extents=spec.box)
+        return sample_mesh_surface(box, n=spec.points, seed=seed, name=name)
     try:
         if spec.mesh is not None:
-            return load_mesh_cloud(sc.path(spec.mesh), spec.points, spec.seed, name=spec.name)
+            return load_mesh_cloud(sc.path(spec.mesh), spec.points, seed, name=name)
         return load_cloud(sc.path(spec.file))
     except InputError as exc:
         raise InputError(sc.source, where, str(exc)) from None
+
+
+# --------------------------------------------------------------------------- moving objects
+
+
+@dataclass(eq=False)
+class _Mover:
+    """An object that moves (``trajectory``) or changes its cloud (``clouds`` at
+    times, or a re-scan every ``rescan`` s) during the run."""
+
+    spec: ObjectSpec
+    trajectory: Trajectory | None
+    clouds: list[tuple[float, PointCloud, Solid | None]]
+    rescan: float | None
+    next_cloud: int = 0
+    scans: int = 0
+
+
+def _mover(spec: ObjectSpec, sc: Scenario) -> _Mover | None:
+    if spec.motion is None and spec.rescan is None and not spec.clouds:
+        return None
+    traj = spec.motion.trajectory(spec.pose.matrix()) if spec.motion is not None else None
+    clouds = [
+        (c.t, _object_cloud(c, sc, spec.name, spec.seed + k + 1), _box_solid(c.box))
+        for k, c in enumerate(spec.clouds)
+    ]
+    every = spec.rescan.every if spec.rescan is not None else None
+    return _Mover(spec, traj, clouds, every)
+
+
+def _box_solid(box: Any) -> Solid | None:
+    """The solid of a ``box`` object (centred on its frame), for the contact check."""
+    return None if box is None else Solid("box", np.eye(4), 0.5 * np.asarray(box, dtype=float))
+
+
+def _move_objects(
+    world: World, t: float
+) -> dict[str, tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]]:
+    """Per tick, before the distance query: each moving object's pose at ``t``, and
+    the clouds due by ``t`` (scheduled, or a re-scan with the next seed). Returns the
+    moving objects' twists ``{name: (v, ω, origin)}`` for the controllers."""
+    scene = world.scene
+    twists = {}
+    for m in world.movers:
+        name = m.spec.name
+        if m.trajectory is not None:
+            pose = m.trajectory.pose(t)
+            scene.set_pose(name, pose, stamp=t)
+            twists[name] = (*m.trajectory.twist(t), pose[:3, 3])
+        due = None
+        while m.next_cloud < len(m.clouds) and m.clouds[m.next_cloud][0] <= t + 1e-9:
+            _, due, solid = m.clouds[m.next_cloud]
+            m.next_cloud += 1
+            world.solids.pop(name, None)
+            if solid is not None:  # the contact check follows the new shape
+                world.solids[name] = (solid, "", "")
+        if m.rescan is not None and t >= (m.scans + 1) * m.rescan - 1e-9:
+            m.scans += 1
+            due = _object_cloud(m.spec, world.scenario, seed=m.spec.seed + m.scans)
+        if due is not None:
+            scene.replace_cloud(name, due)
+    return twists
+
+
+def _frozen_scene(scene: Scene) -> Scene:
+    """A copy of ``scene`` in which every object not on a robot stays where it is now,
+    with its current cloud: the world a static-world controller believes in."""
+    frozen = Scene(scene.strategy)
+    for r in scene.robots.values():
+        frozen.add_robot(r)
+    now = scene.poses()
+    for name, obj in scene.objects.items():
+        src = obj.source
+        if isinstance(src, OnLink):
+            frozen.add_object(name, obj.cloud, src.offset, robot=src.robot, link=src.link)
+        else:
+            frozen.add_object(name, obj.cloud, now[name])
+    for pair in scene.pairs:
+        frozen.watch(pair.a, pair.b, pair.margin, pair.kind)
+    return frozen
 
 
 # --------------------------------------------------------------------------- run
@@ -459,13 +638,32 @@ def simulate(
     duration: float | None = None,
     progress: Callable[[float, float], None] | None = None,
     on_tick: Callable[[float, dict[str, NDArray[np.float64]], SceneResult], None] | None = None,
+    plant: str = "scenario",
+    static_world: bool = False,
+    server: str | ServerOptions | None = None,
+    escape: bool | EscapeSpec | None = None,
 ) -> SimulationLog:
     """Run ``scenario`` (a built-in name, a file or a :class:`Scenario`) in simulated
     time; ``avoidance=False`` runs the conventional controller (the baseline).
     ``duration`` overrides the scenario's; ``progress(t, duration)`` is called each
     tick; ``on_tick(t, {robot: q}, distances)`` too, after the distance query (a live
-    viewer attaches here)."""
-    world = build_world(scenario, avoidance)
+    viewer attaches here). ``plant="mujoco"`` runs every robot on its MuJoCo model
+    (:mod:`reachwise.sim.mujoco_plant`, the ``sim`` extra) instead of the scenario's
+    plants and records each robot's tracking error in ``extras["tracking"]``.
+    ``static_world=True`` is the static-world baseline for moving obstacles: the
+    controllers see every object where it was at the start, while the logged
+    distances and the contact check follow the objects' true motion.
+    ``server`` (an address or :class:`~reachwise.server.client.ServerOptions`) runs
+    the distance queries on that collision server instead of in process: the
+    simulation clears the server's scene and registers its own; a reply that misses
+    its deadline (a server lost or restarting) reaches the controllers as missing
+    data (protective stop), and the run goes on when the server answers again.
+    ``escape`` (default: the scenario's ``escape:`` block; True: on, with its options
+    or the defaults; False: off; or an :class:`EscapeSpec`): a robot whose controller
+    stalls plans a path out with OMPL and follows it (:mod:`reachwise.sim.escape`);
+    the plans are in ``extras["escape"]``."""
+    clock = _SimClock()
+    world = build_world(scenario, avoidance, plant, server=server, clock=clock)
     spec = world.scenario.spec
     dt = spec.dt
     T_end = spec.duration if duration is None else float(duration)
@@ -483,12 +681,15 @@ def simulate(
     st_log = {a.name: np.empty(ticks, dtype="<U16") for a in agents}
     gi_log = {a.name: np.full(ticks, -1, dtype=np.int64) for a in agents}
     events: list[Event] = []
+    esc = _escape(world, escape, events)
     records: list[GoalRecord] = []
     job_taken = [False] * len(world.jobs)
     first: float | None = None
     first_pair: str | None = None
     pair_objs = [(p.a, p.b) for p in scene.pairs]
     check = spec.contact_check
+    obj_log = {m.spec.name: np.empty((ticks, 4, 4)) for m in world.movers if m.trajectory}
+    seen = _frozen_scene(scene) if static_world and world.movers else scene
 
     def next_goal(a: _Agent, t: float) -> None:
         a.goal = None
@@ -519,10 +720,21 @@ def simulate(
     k = 0
     for k in range(ticks):
         t = k * dt
+        clock.now = t
         t_log[k] = t
         for a in agents:
-            scene.set_joints(a.name, a.plant.q)
+            scene.set_joints(a.name, a.plant.q, stamp=t)
+        twists = _move_objects(world, t)
+        for m in world.movers:
+            if m.trajectory is not None:
+                obj_log[m.spec.name][k] = m.trajectory.pose(t)
         res = scene.query_all()
+        seen_res = res
+        if seen is not scene:  # static-world baseline: the controllers' frozen view
+            for a in agents:
+                seen.set_joints(a.name, a.plant.q)
+            seen_res = seen.query_all()
+            twists = {}
         if on_tick is not None:
             on_tick(t, {a.name: a.plant.q.copy() for a in agents}, res)
         poses: dict[str, NDArray[np.float64]] | None = None
@@ -563,10 +775,14 @@ def simulate(
                 state = "done"
             else:
                 all_done = False
-                pts = a.converter(res, stamp=t) if avoidance else None
-                cmd, st = a.controller.step(q, a.goal, pts, t)
+                pts = a.converter(seen_res, stamp=t, twists=twists) if avoidance else None
+                goal = a.goal if esc is None else esc.goal(a, q, dt)
+                cmd, st = a.controller.step(q, goal, pts, t)  # type: ignore[arg-type]
                 state = st.state
                 _note(a, st, t, events)
+                if esc is not None:  # hybrid: plan out of a stall, follow, resume
+                    st = esc.status(a, q, st, t)
+                    state = st.state
                 if st.state == "reached" and not a.controller.locked:
                     rec = records[a.record]
                     records[a.record] = replace(
@@ -599,6 +815,7 @@ def simulate(
         if all_done:
             break
     n = k + 1
+    _close_scene(scene)
     return SimulationLog(
         scenario=spec.name,
         avoidance=avoidance,
@@ -622,7 +839,31 @@ def simulate(
         goals=tuple(records),
         first_collision=first,
         first_collision_pair=first_pair,
+        object_poses={k_: v[:n] for k_, v in obj_log.items()},
+        extras={"plant": plant, "static_world": static_world}
+        | (
+            {"tracking": {a.name: a.plant.tracking() for a in agents}}  # type: ignore[union-attr]
+            if plant == "mujoco"
+            else {}
+        )
+        | ({"escape": esc.summary()} if esc is not None else {}),
     )
+
+
+def _escape(world: World, escape: bool | EscapeSpec | None, events: list[Event]) -> Escape | None:
+    """The run's local-minimum escape (:mod:`reachwise.sim.escape`), or None when off."""
+    spec = world.scenario.spec.escape
+    if isinstance(escape, EscapeSpec):
+        spec = escape
+    elif escape is True:
+        spec = spec or EscapeSpec()
+    elif escape is False:
+        spec = None
+    if spec is None:
+        return None
+    from reachwise.sim.escape import Escape
+
+    return Escape(world, spec, events)
 
 
 def _note(a: _Agent, st: ControlStatus, t: float, events: list[Event]) -> None:
@@ -656,3 +897,122 @@ def _overlap(
         pts = src.cloud.points @ Po[:3, :3].T + Po[:3, 3]
         best = max(best, solid.depth(pts, poses[mine]))
     return best
+
+
+# --------------------------------------------------------------------------- reading
+
+
+def load_log(folder: str | Path, scenario: Scenario | str | Path | None = None) -> SimulationLog:
+    """Read a log written by :meth:`SimulationLog.save` (``log.npz`` and
+    ``summary.json`` in ``folder``) back into a :class:`SimulationLog`.
+
+    The joint limits and speed bounds come from ``log.npz`` when it has them
+    (``<robot>.lower``, ``.upper``, ``.vmax``), else from the robots of ``scenario``
+    (default: the scenario the log names, when it is a built-in one); without either
+    they are unbounded (``±inf``) and ``extras["limits"]`` says so. Missing or
+    unreadable files raise :class:`~reachwise.errors.InputError` naming the file.
+    """
+    src = Path(folder)
+    npz_path, sum_path = src / "log.npz", src / "summary.json"
+    for p in (npz_path, sum_path):
+        if not p.is_file():
+            raise InputError(str(p), "", "missing: not a simulation log folder")
+    try:
+        meta = json.loads(sum_path.read_text())
+    except (OSError, ValueError) as exc:
+        raise InputError(str(sum_path), "", f"unreadable: {exc}") from None
+    for key in ("scenario", "avoidance", "dt"):
+        if not isinstance(meta, dict) or key not in meta:
+            raise InputError(str(sum_path), key, "missing")
+    try:
+        with np.load(npz_path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except (OSError, ValueError) as exc:
+        raise InputError(str(npz_path), "", f"unreadable: {exc}") from None
+    for key in ("t", "distance", "signed", "margins", "pairs"):
+        if key not in arrays:
+            raise InputError(str(npz_path), key, "missing")
+    robots = tuple(k[: -len(".q")] for k in arrays if k.endswith(".q"))
+    per: dict[str, dict[str, NDArray[Any]]] = {}
+    for field_ in ("q", "qdot", "command", "tool", "state", "goal_index"):
+        per[field_] = {}
+        for r in robots:
+            key = f"{r}.{field_}"
+            if key not in arrays:
+                raise InputError(str(npz_path), key, "missing")
+            per[field_][r] = arrays[key]
+    objects = {
+        k[len("object.") : -len(".pose")]: arrays[k]
+        for k in arrays
+        if k.startswith("object.") and k.endswith(".pose")
+    }
+    extras: dict[str, Any] = dict(meta.get("extras") or {})
+    lower: dict[str, NDArray[np.float64]] = {}
+    upper: dict[str, NDArray[np.float64]] = {}
+    vmax: dict[str, NDArray[np.float64]] = {}
+    robot_models: dict[str, Robot] = {}
+    sc: Scenario | None = None
+    from reachwise.sim.scenarios import builtin_scenarios
+
+    if scenario is not None:
+        sc = load_scenario(scenario)
+    elif meta["scenario"] in builtin_scenarios():
+        sc = load_scenario(meta["scenario"])
+    if sc is not None:
+        robot_models = {rs.name: _robot_of(rs, sc) for rs in sc.spec.robots}
+    for r in robots:
+        n = per["q"][r].shape[1] if per["q"][r].ndim == 2 else 0
+        model = robot_models.get(r)
+        if all(f"{r}.{k}" in arrays for k in ("lower", "upper", "vmax")):  # saved in the log
+            lower[r], upper[r] = arrays[f"{r}.lower"], arrays[f"{r}.upper"]
+            vmax[r] = arrays[f"{r}.vmax"]
+        elif model is not None and model.n == n:
+            lower[r], upper[r] = np.asarray(model.lower), np.asarray(model.upper)
+            vmax[r] = np.asarray(model.vmax)
+        else:
+            lower[r], upper[r] = np.full(n, -np.inf), np.full(n, np.inf)
+            vmax[r] = np.full(n, np.inf)
+            extras["limits"] = "unknown: the log's scenario was not found; limits are ±inf"
+    events = tuple(
+        Event(float(e["t"]), str(e["robot"]), str(e["kind"]), str(e["text"]))
+        for e in meta.get("events", [])
+    )
+    goals = tuple(
+        GoalRecord(
+            str(g["robot"]),
+            int(g["index"]),
+            str(g["name"]),
+            float(g["work"]),
+            None if g["reached_at"] is None else float(g["reached_at"]),
+            float(g["position_error"]),
+            float(g["orientation_error"]),
+        )
+        for g in meta.get("goals", [])
+    )
+    fc = meta.get("first_collision")
+    return SimulationLog(
+        scenario=str(meta["scenario"]),
+        avoidance=bool(meta["avoidance"]),
+        dt=float(meta["dt"]),
+        t=arrays["t"],
+        robots=robots,
+        q=per["q"],
+        qdot=per["qdot"],
+        command=per["command"],
+        tool=per["tool"],
+        state=per["state"],
+        goal_index=per["goal_index"],
+        pairs=tuple(str(p) for p in arrays["pairs"]),
+        distance=arrays["distance"],
+        signed=arrays["signed"],
+        margins=arrays["margins"],
+        lower=lower,
+        upper=upper,
+        vmax=vmax,
+        events=events,
+        goals=goals,
+        first_collision=None if fc is None else float(fc),
+        first_collision_pair=meta.get("first_collision_pair"),
+        extras=extras,
+        object_poses=objects,
+    )

@@ -131,3 +131,107 @@ def save_figures(
         fig.savefig(p, dpi=110)
         paths.append(p)
     return paths
+
+
+def _leg_metrics(
+    p: NDArray[np.float64], a: NDArray[np.float64], b: NDArray[np.float64]
+) -> tuple[float, float]:
+    """Length of the polyline ``p`` and its largest distance from the line ``a``–``b``."""
+    length = float(np.sum(np.linalg.norm(np.diff(p, axis=0), axis=1))) if len(p) > 1 else 0.0
+    d = (b - a) / np.linalg.norm(b - a)
+    r = p - a
+    perp = r - np.outer(r @ d, d)
+    return length, float(np.max(np.linalg.norm(perp, axis=1))) if len(p) else 0.0
+
+
+def occlusion_paths_figure(
+    runs: list[tuple[str, SimulationLog, NDArray[np.float64] | None]],
+    robot: str | None = None,
+    outward: tuple[int, ...] = (0, 1),
+    back: tuple[int, ...] = (2, 3),
+    obstacle: NDArray[np.float64] | None = None,
+) -> Figure:
+    """Outward and return tool paths, top view, one panel per run (P-V Fig. 5): e.g.
+    the scan without and with the occlusion fill. ``runs``: ``(title, log, cloud)``
+    with the cloud's points (world) or ``None``; ``outward``/``back``: the goal indices
+    of each leg; ``obstacle``: ``[min, max]`` corners of the true obstacle, drawn as a
+    box outline. The legend gives each leg's length and its peak deviation from the
+    straight line between the outward leg's first and last point."""
+    fig = _figure(1, len(runs), (5.2 * len(runs), 5.0))
+    for ax, (title, log, cloud) in zip(fig.axes, runs, strict=True):
+        name = robot or log.robots[0]
+        tool = log.tool[name][:, :3, 3]
+        gi = log.goal_index[name]
+        legs = [tool[np.isin(gi, outward)], tool[np.isin(gi, back)]]
+        if cloud is not None and len(cloud):
+            above = cloud[cloud[:, 2] > 0.05]
+            ax.scatter(above[:, 0], above[:, 1], s=1, c="0.55", label="cloud (above floor)")
+        if obstacle is not None:
+            lo, hi = np.asarray(obstacle, dtype=float)
+            xs = [lo[0], hi[0], hi[0], lo[0], lo[0]]
+            ys = [lo[1], lo[1], hi[1], hi[1], lo[1]]
+            ax.plot(xs, ys, "k-", lw=1.0, label="true obstacle")
+        if len(legs[0]) > 1:
+            a, b = legs[0][0], legs[0][-1]
+            ax.plot([a[0], b[0]], [a[1], b[1]], ":", color="0.3", lw=0.8)
+            for leg, color, label in (
+                (legs[0], "tab:blue", "outward"),
+                (legs[1], "tab:red", "return"),
+            ):
+                if len(leg) < 2:
+                    continue
+                length, dev = _leg_metrics(leg, a, b)
+                ax.plot(leg[:, 0], leg[:, 1], color=color, lw=1.6,
+                        label=f"{label}: {length:.2f} m, peak deviation {dev:.2f} m")  # fmt: skip
+            ax.plot(a[0], a[1], "ko", ms=4)
+            ax.plot(b[0], b[1], "ks", ms=4)
+        coll = f", collides at {log.first_collision:.1f} s" if log.first_collision else ""
+        ax.set_title(f"{title}{coll}", fontsize=9)
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="lower left")
+    return fig
+
+
+def moving_obstacle_figure(log: SimulationLog, baseline: SimulationLog | None = None) -> Figure:
+    """A run with moving obstacles: top view of the tool paths and of the moving
+    objects' paths (``log.object_poses``), and the minimum distance against time
+    with the baseline's (e.g. the static-world controller) dashed."""
+    fig = _figure(1, 2, (12.0, 4.8))
+    top, dist = fig.axes
+    for run, ls in ((log, "-"), (baseline, "--")):
+        if run is None:
+            continue
+        for name in run.robots:
+            p = run.tool[name][:, :3, 3]
+            top.plot(p[:, 0], p[:, 1], ls, lw=1.4, label=f"{name} tool ({_mode(run)})")
+        md = run.min_distance
+        dist.plot(run.t, np.where(np.isfinite(md), md, np.nan), ls, lw=1.2, label=_mode(run))
+        if run.first_collision is not None:
+            dist.axvline(run.first_collision, color="k", lw=0.7, ls="--")
+    for obj, poses in log.object_poses.items():
+        top.plot(poses[:, 0, 3], poses[:, 1, 3], ":", lw=1.2, label=f"{obj} (centre)")
+    dist.axhline(0.0, color="k", lw=0.8)
+    dist.axhline(0.02, color="0.5", lw=0.7, ls=":")
+    top.set_xlabel("x (m)")
+    top.set_ylabel("y (m)")
+    top.set_aspect("equal", adjustable="datalim")
+    top.legend(fontsize=7)
+    top.set_title("paths, top view", fontsize=9)
+    dist.set_xlabel("t (s)")
+    dist.set_ylabel("minimum distance (m)")
+    dist.set_title("minimum distance (dotted: 2 cm)", fontsize=9)
+    dist.grid(alpha=0.3)
+    dist.legend(fontsize=8)
+    return fig
+
+
+def _mode(run: SimulationLog) -> str:
+    if not run.avoidance:
+        return "without avoidance"
+    return "static world" if run.extras.get("static_world") else "live"
+
+
+__all__ += ["moving_obstacle_figure", "occlusion_paths_figure"]
