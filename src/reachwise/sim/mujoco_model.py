@@ -1,0 +1,298 @@
+"""A MuJoCo model of a reachwise robot, built with ``mujoco.MjSpec`` (issue 9: dynamics).
+
+One body per frame of the DH chain: ``link_0`` is welded to the world at the robot's
+base pose, ``link_i`` (i = 1 … N) is the child of ``link_{i-1}``. Its body frame *is*
+reachwise's frame ``i``, so after ``mj_kinematics`` the body poses equal
+``Robot.fk_all`` and the ``tool`` site equals ``Robot.fk``:
+
+- modified DH (thesis P-I Eq. 2–3, Craig), ``T_i = Rx(α) Tx(a) Rz(θ) Tz(d)``: the body
+  sits at ``Rx(α) Tx(a) Rz(θ) Tz(d)`` (the offsets) in its parent and the joint acts at
+  the body origin about (hinge) or along (slide) the body's z axis — a rotation about z
+  commutes with ``Tz(d)``, so ``Rz(θ) Tz(d) Rz(q) = Rz(θ + q) Tz(d)``;
+- classic DH, ``T_i = Rz(θ) Tz(d) Tx(a) Rx(α)`` with the joint about z of the *parent*
+  frame: the body sits at ``M = Rz(θ) Tz(d) Tx(a) Rx(α)`` and the joint axis and anchor
+  are the parent's z axis and origin expressed in the body, ``Mᵀ e_z`` and ``−Rᵀ p``,
+  because ``Rz(q) M = M (M⁻¹ Rz(q) M)``;
+- a fixed row is a body without a joint; the tool frame is a site on the last body.
+
+Joint ranges are the robot's limits in radians (metres for prismatic joints; a joint
+without finite limits is unlimited). Every actuated joint gets a velocity servo —
+MuJoCo's ``<velocity>`` actuator: gain ``kv`` (fixed), bias ``−kv q̇`` (affine), so its
+force is ``kv (u − q̇)`` — with ``ctrlrange = ±v_max`` (commands beyond are
+saturated); passive joints get no actuator, only viscous ``damping`` (they swing under
+gravity). Link inertias come from the link geometry at a uniform ``density``
+(boxes and cylinders as MuJoCo geoms, meshes by their convex hull via trimesh), with
+``min_mass`` / ``min_inertia`` as lower bounds (links without geometry get exactly
+those). Contacts are disabled (geoms do not collide and the contact stage is off):
+collisions are what the reachwise distance scene checks, not MuJoCo.
+
+MuJoCo is the optional ``sim`` extra: it is imported here only when a model is built.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from reachwise.errors import InputError
+from reachwise.kinematics.robot import Robot
+from reachwise.kinematics.transforms import Pose, rot_x, rot_z, translation
+
+__all__ = ["MujocoRobot", "dh_body_transform", "mujoco_model", "require_mujoco"]
+
+MISSING = 'MuJoCo is not installed; it is the optional "sim" extra: pip install -e ".[sim]"'
+
+
+def require_mujoco() -> Any:
+    """The ``mujoco`` module, or an :class:`InputError` naming the missing extra."""
+    try:
+        import mujoco
+    except ImportError:
+        raise InputError("plant", "mujoco", MISSING) from None
+    return mujoco
+
+
+def dh_body_transform(classic: bool, a: float, alpha: float, d: float, theta: float) -> Pose:
+    """The fixed part of one DH row, ``Rx(α) Tx(a) Rz(θ) Tz(d)`` (modified) or
+    ``Rz(θ) Tz(d) Tx(a) Rx(α)`` (classic), with ``θ``, ``d`` the offsets (P-I Eq. 2)."""
+    if classic:
+        return rot_z(theta) @ translation(z=d) @ translation(x=a) @ rot_x(alpha)
+    return rot_x(alpha) @ translation(x=a) @ rot_z(theta) @ translation(z=d)
+
+
+@dataclass(frozen=True, eq=False)
+class MujocoRobot:
+    """A compiled MuJoCo model of ``robot`` and where each reachwise quantity lives in it.
+
+    ``body`` holds the body id of ``link_0`` … ``link_N``; ``site`` the tool site;
+    ``qpos`` / ``dof`` the address of each entry of reachwise's ``q`` (base to tool);
+    ``actuator`` the velocity servo of each entry (``-1`` for a passive joint).
+    """
+
+    robot: Robot
+    spec: Any  # mujoco.MjSpec
+    model: Any  # mujoco.MjModel
+    body: NDArray[np.int64]
+    site: int
+    qpos: NDArray[np.int64]
+    dof: NDArray[np.int64]
+    actuator: NDArray[np.int64]
+
+    def frames(self, q: ArrayLike, data: Any = None) -> NDArray[np.float64]:
+        """World pose of every frame, ``(N+2, 4, 4)`` in ``Robot.link_names`` order, from
+        MuJoCo's ``mj_kinematics`` at joint values ``q`` (the rows of ``Robot.fk_all``)."""
+        mujoco = require_mujoco()
+        qq = np.asarray(q, dtype=float)
+        if qq.shape != (self.robot.n,) or not np.isfinite(qq).all():
+            raise InputError(self.robot.name, "q", f"expected {self.robot.n} finite values")
+        d = mujoco.MjData(self.model) if data is None else data
+        d.qpos[self.qpos] = qq
+        mujoco.mj_kinematics(self.model, d)
+        F = np.zeros((self.body.size + 1, 4, 4))
+        F[:, 3, 3] = 1.0
+        F[:-1, :3, :3] = d.xmat[self.body].reshape(-1, 3, 3)
+        F[:-1, :3, 3] = d.xpos[self.body]
+        F[-1, :3, :3] = d.site_xmat[self.site].reshape(3, 3)
+        F[-1, :3, 3] = d.site_xpos[self.site]
+        return F
+
+
+def _quat(mujoco: Any, T: Pose) -> NDArray[np.float64]:
+    q = np.empty(4)
+    mujoco.mju_mat2Quat(q, np.ascontiguousarray(T[:3, :3]).ravel())
+    return q
+
+
+def _mesh_inertia(robot: Robot, link: str, density: float, base_dir: str | Path | None) -> Any:
+    """Mass, centre and inertia (at the centre, link frame) of a mesh link's convex hull."""
+    from reachwise.io.robot_clouds import link_mesh
+
+    hull = link_mesh(robot, link, base_dir).convex_hull
+    hull.density = density
+    return float(hull.mass), np.asarray(hull.center_mass), np.asarray(hull.moment_inertia)
+
+
+def mujoco_model(
+    robot: Robot,
+    *,
+    kv: float | ArrayLike = 1.0,
+    force_limit: float | ArrayLike = math.inf,
+    passive_damping: float | ArrayLike = 0.0,
+    density: float = 1000.0,
+    min_mass: float = 0.1,
+    min_inertia: float = 1e-4,
+    timestep: float = 0.001,
+    gravity: bool = True,
+    base_dir: str | Path | None = None,
+) -> MujocoRobot:
+    """Build and compile the MuJoCo model of ``robot`` (see the module docstring).
+
+    ``kv`` (N·s/rad or N·s/m) and ``force_limit`` (N·m or N, ``inf`` = none) per actuated
+    joint or one value for all; ``passive_damping`` (N·m·s/rad) per passive joint or one
+    value; ``density`` (kg/m³) of the link geometry; ``timestep`` (s) of the integrator
+    (``implicitfast``, which treats the servo's velocity feedback implicitly, so a
+    stiff servo stays stable); ``base_dir`` for mesh paths (default: the robot file's
+    folder).
+    """
+    mujoco = require_mujoco()
+    src = robot.source or robot.name
+    act = np.asarray(robot.actuated, dtype=bool)
+    n_act, n_pas = int(act.sum()), int((~act).sum())
+
+    def per(value: float | ArrayLike, count: int, field: str, lo: float) -> NDArray[np.float64]:
+        v = np.broadcast_to(np.asarray(value, dtype=float), (count,)) if count else np.empty(0)
+        if np.isnan(v).any() or (v < lo).any():
+            raise InputError(src, field, f"must be >= {lo}, got {value!r}")
+        return np.array(v, dtype=float)
+
+    kv_a = per(kv, n_act, "kv", 0.0)
+    flim = per(force_limit, n_act, "force_limit", 0.0)
+    damp = per(passive_damping, n_pas, "passive_damping", 0.0)
+    if not (kv_a > 0).all():
+        raise InputError(src, "kv", "servo gains must be > 0")
+    for name, v in (("density", density), ("min_mass", min_mass), ("timestep", timestep)):
+        if not (math.isfinite(v) and v > 0):
+            raise InputError(src, name, f"must be a finite value > 0, got {v}")
+    if not (math.isfinite(min_inertia) and min_inertia >= 0):
+        raise InputError(src, "min_inertia", f"must be >= 0, got {min_inertia}")
+
+    spec = mujoco.MjSpec()
+    spec.modelname = robot.name
+    spec.compiler.degree = False
+    spec.compiler.boundmass = min_mass
+    spec.compiler.boundinertia = min_inertia
+    spec.option.timestep = timestep
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.option.gravity = [0.0, 0.0, -9.81 if gravity else 0.0]
+    spec.option.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+
+    classic = robot.convention == "classic"
+    bodies = [
+        spec.worldbody.add_body(
+            name="link_0", pos=robot.base[:3, 3], quat=_quat(mujoco, np.asarray(robot.base))
+        )
+    ]
+    joint_names: list[str] = []
+    used: set[str] = set()
+    k = 0  # index into q
+    for i, j in enumerate(robot.joints):
+        M = dh_body_transform(classic, j.a, j.alpha, j.d, j.theta)
+        body = bodies[-1].add_body(name=f"link_{i + 1}", pos=M[:3, 3], quat=_quat(mujoco, M))
+        bodies.append(body)
+        if j.movable:
+            R, p = M[:3, :3], M[:3, 3]
+            axis, anchor = (R.T[:, 2], -R.T @ p) if classic else (np.eye(3)[2], np.zeros(3))
+            name = j.name if j.name and j.name not in used else f"q{k + 1}"
+            used.add(name)
+            lo, hi = j.limits
+            limited = math.isfinite(lo) and math.isfinite(hi)
+            body.add_joint(
+                name=name,
+                type=mujoco.mjtJoint.mjJNT_HINGE
+                if j.type == "revolute"
+                else mujoco.mjtJoint.mjJNT_SLIDE,
+                axis=axis,
+                pos=anchor,
+                limited=mujoco.mjtLimited.mjLIMITED_TRUE
+                if limited
+                else mujoco.mjtLimited.mjLIMITED_FALSE,
+                range=[lo, hi] if limited else [0.0, 0.0],
+                damping=float(damp[int((~act[:k]).sum())]) if j.passive else 0.0,
+            )
+            joint_names.append(name)
+            k += 1
+    T_tool = np.asarray(robot.tool)
+    bodies[-1].add_site(name="tool", pos=T_tool[:3, 3], quat=_quat(mujoco, T_tool))
+
+    for link, g in robot.geometry.items():
+        idx = robot.link_index(link)
+        body = bodies[min(idx, len(bodies) - 1)]
+        G = (T_tool if link == "tool" else np.eye(4)) @ g.origin_matrix
+        if g.shape in ("box", "cylinder"):
+            if g.shape == "box":
+                if g.size is None:
+                    raise InputError(src, f"geometry.{link}", "box without size")
+                gtype, size = mujoco.mjtGeom.mjGEOM_BOX, [s / 2 for s in g.size]
+            else:
+                if g.radius is None or g.length is None:
+                    raise InputError(src, f"geometry.{link}", "cylinder without radius/length")
+                gtype, size = mujoco.mjtGeom.mjGEOM_CYLINDER, [g.radius, g.length / 2, 0.0]
+            body.add_geom(
+                name=f"{link}_geom",
+                type=gtype,
+                size=size,
+                pos=G[:3, 3],
+                quat=_quat(mujoco, G),
+                density=density,
+                contype=0,
+                conaffinity=0,
+            )
+        else:  # mesh: the convex hull's mass properties, as the body's explicit inertia
+            if link == "tool":
+                raise InputError(src, "geometry.tool", "a mesh on the tool frame is not supported")
+            mass, com, inertia = _mesh_inertia(robot, link, density, base_dir)
+            body.explicitinertial = True
+            body.mass = max(mass, min_mass)
+            body.ipos = com
+            body.fullinertia = [
+                inertia[0, 0],
+                inertia[1, 1],
+                inertia[2, 2],
+                inertia[0, 1],
+                inertia[0, 2],
+                inertia[1, 2],
+            ]
+
+    a = 0
+    for k, name in enumerate(joint_names):
+        if not act[k]:
+            continue
+        vmax = float(robot.vmax[k])
+        actuator = spec.add_actuator(
+            name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT, gear=[1, 0, 0, 0, 0, 0]
+        )
+        actuator.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+        actuator.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+        gain = np.zeros(10)
+        gain[0] = kv_a[a]
+        bias = np.zeros(10)
+        bias[2] = -kv_a[a]
+        actuator.gainprm = gain
+        actuator.biasprm = bias
+        if math.isfinite(vmax):
+            actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            actuator.ctrlrange = [-vmax, vmax]
+        else:
+            actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        if math.isfinite(flim[a]):
+            actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            actuator.forcerange = [-flim[a], flim[a]]
+        else:
+            actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        a += 1
+
+    try:
+        model = spec.compile()
+    except ValueError as exc:
+        raise InputError(src, "mujoco", f"the MuJoCo model does not compile: {exc}") from None
+    body_ids = np.array([model.body(f"link_{i}").id for i in range(len(bodies))], dtype=np.int64)
+    jids = [model.joint(nm).id for nm in joint_names]
+    actuator_ids = np.full(robot.n, -1, dtype=np.int64)
+    for k, name in enumerate(joint_names):
+        if act[k]:
+            actuator_ids[k] = model.actuator(name).id
+    return MujocoRobot(
+        robot=robot,
+        spec=spec,
+        model=model,
+        body=body_ids,
+        site=int(model.site("tool").id),
+        qpos=np.array([model.jnt_qposadr[j] for j in jids], dtype=np.int64),
+        dof=np.array([model.jnt_dofadr[j] for j in jids], dtype=np.int64),
+        actuator=actuator_ids,
+    )
