@@ -5,7 +5,7 @@ from __future__ import annotations
 import typer
 
 from reachwise import __version__
-from reachwise.cli import bench, cloud, demo, robot, serve, synth, task, topology
+from reachwise.cli import bench, cloud, demo, robot, serve, synth, task, topology, view
 from reachwise.cli import simulate as sim_cli
 
 app = typer.Typer(
@@ -25,6 +25,7 @@ app.add_typer(serve.app, name="serve")
 app.command("bench")(bench.bench)
 app.command("demo")(demo.demo)
 app.command("scan")(cloud.scan)
+app.command("view")(view.view)
 
 
 def _version(value: bool) -> None:

@@ -6,12 +6,20 @@ from __future__ import annotations
 import csv
 import json
 import os
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
 
 from reachwise import __version__
 from reachwise.kinematics.indices import gci, kci
 from reachwise.synthesis.synthesize import SynthesisResult
+
+if TYPE_CHECKING:
+    from reachwise.kinematics.robot import Robot
+    from reachwise.tasks.task import Task
 
 STATUSES = ("full", "position", "orientation", "neither")
 
@@ -120,3 +128,133 @@ def design_rows(result: SynthesisResult) -> list[list[str]]:
          f"{r['changed_percent']:+.2f}"]
         for r in result.table3()
     ]  # fmt: skip
+
+
+# -- reading ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class SynthesisOutput:
+    """A synthesis result read back from its folder (:func:`load_synthesis`).
+
+    ``robot`` is the best design (``design.yaml``); per task point ``k``: ``q[k]`` its
+    joint vector, ``status[k]`` (P-I Fig. 4: ``full``, ``position``, ``orientation``,
+    ``neither``), ``reached[k]`` (``status == "full"``), the target ``positions[k]``,
+    ``dims``, ``names``, ``groups``, the remaining errors and the LCI before/after.
+    ``task`` is the task itself (with orientations and envelope) when it can be found:
+    ``task.yaml`` in the folder, or the built-in task the summary names, matched point
+    by point by name and position; else ``None``.
+    """
+
+    folder: Path
+    robot: Robot
+    q: NDArray[np.float64]
+    status: tuple[str, ...]
+    positions: NDArray[np.float64]
+    dims: NDArray[np.int64]
+    names: tuple[str, ...]
+    groups: tuple[str, ...]
+    position_error: NDArray[np.float64]
+    orientation_error: NDArray[np.float64]
+    lci_initial: NDArray[np.float64]
+    lci_final: NDArray[np.float64]
+    summary: dict[str, Any]
+    task: Task | None = None
+
+    @property
+    def reached(self) -> NDArray[np.bool_]:
+        return np.array([s == "full" for s in self.status], dtype=bool)
+
+    @property
+    def target_axes(self) -> NDArray[np.float64]:
+        """Unit tool z axis wanted at every point: the task's when known, else the
+        design's tool axis at ``q[k]`` (equal to it within tolerance where reached)."""
+        if self.task is not None:
+            return self.task.axes
+        return self.robot.fk(self.q)[:, :3, 2]
+
+
+def load_synthesis(folder: str | Path) -> SynthesisOutput:
+    """Read a folder written by :func:`write_synthesis` (``design.yaml``,
+    ``points.csv``, ``summary.json``). Missing files or columns raise
+    :class:`~reachwise.errors.InputError` naming the file and field."""
+    from reachwise.errors import InputError
+    from reachwise.io.robot_file import load_robot
+
+    src = Path(folder)
+    paths = {n: src / n for n in ("design.yaml", "points.csv", "summary.json")}
+    for p in paths.values():
+        if not p.is_file():
+            raise InputError(str(p), "", "missing: not a synthesis output folder")
+    robot = load_robot(paths["design.yaml"])
+    try:
+        meta = json.loads(paths["summary.json"].read_text())
+    except ValueError as exc:
+        raise InputError(str(paths["summary.json"]), "", f"not JSON: {exc}") from None
+    with paths["points.csv"].open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    where = str(paths["points.csv"])
+    if not rows:
+        raise InputError(where, "", "no task points")
+    qcols = [f"q{i}" for i in range(robot.n)]
+    need = ["index", "name", "group", "dims", "x", "y", "z", "status", "position_error_m",
+            "orientation_error_rad", "lci_initial", "lci_final", *qcols]  # fmt: skip
+    for c in need:
+        if c not in rows[0]:
+            raise InputError(where, c, f"missing column (the design has {robot.n} joints)")
+
+    def col(name: str, cols: list[str] | None = None) -> NDArray[np.float64]:
+        try:
+            return np.array([[float(r[c]) for c in (cols or [name])] for r in rows])
+        except ValueError as exc:
+            raise InputError(where, name, f"not a number: {exc}") from None
+
+    status = tuple(r["status"] for r in rows)
+    for k, s in enumerate(status):
+        if s not in STATUSES:
+            raise InputError(where, f"points[{k}].status", f"{s!r} is not one of {STATUSES}")
+    names = tuple(r["name"] for r in rows)
+    positions = col("xyz", ["x", "y", "z"])
+    task = _find_task(src, meta.get("task"), names, positions)
+    return SynthesisOutput(
+        folder=src,
+        robot=robot,
+        q=col("q", qcols),
+        status=status,
+        positions=positions,
+        dims=col("dims")[:, 0].astype(np.int64),
+        names=names,
+        groups=tuple(r["group"] for r in rows),
+        position_error=col("position_error_m")[:, 0],
+        orientation_error=col("orientation_error_rad")[:, 0],
+        lci_initial=col("lci_initial")[:, 0],
+        lci_final=col("lci_final")[:, 0],
+        summary=meta,
+        task=task,
+    )
+
+
+def _find_task(
+    folder: Path, name: object, names: tuple[str, ...], positions: NDArray[np.float64]
+) -> Task | None:
+    """The task of a synthesis folder, when it can be found (see SynthesisOutput)."""
+    from reachwise.errors import InputError
+    from reachwise.io.task_file import builtin_tasks, load_task
+
+    candidates: list[Any] = []
+    if (folder / "task.yaml").is_file():
+        candidates.append(folder / "task.yaml")
+    if isinstance(name, str) and name in builtin_tasks():
+        candidates.append(name)
+    for c in candidates:
+        try:
+            task = load_task(c)
+        except InputError:
+            continue
+        where = {n: i for i, n in enumerate(task.names)}
+        if len(where) != len(task.names) or any(n not in where for n in names):
+            continue
+        idx = np.array([where[n] for n in names])
+        if np.allclose(task.positions[idx], positions, rtol=0.0, atol=1e-9):
+            return task if np.array_equal(idx, np.arange(len(task))) else task.subset(idx)
+    return None

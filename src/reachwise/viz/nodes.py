@@ -1,0 +1,124 @@
+"""A robot in the browser scene: link clouds on their link frames, the skeleton, the
+tool frame (thesis §3.1: the robot parts as clouds of surface points, P-III §5).
+
+Scene-node names nest as ``/robots/<name>/<link>/cloud`` under the link frame
+``/robots/<name>/<link>``: moving the robot only sets each link frame's pose (from
+``Robot.fk_all(q)``), the cloud's points are sent once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from reachwise.viz.scene_data import skeleton_segments, wxyz_position
+
+if TYPE_CHECKING:
+    from reachwise.geometry.cloud import PointCloud
+    from reachwise.kinematics.robot import Robot
+    from reachwise.viz.viewer import Viewer
+
+__all__ = ["CLOUD_RGB", "WATCHED_RGB", "RobotView", "robot_size"]
+
+#: Link clouds: plain links, and links whose clouds are watched for collisions.
+CLOUD_RGB = (120, 150, 190)
+WATCHED_RGB = (240, 130, 30)
+SKELETON_RGB = (40, 40, 40)
+
+
+def robot_size(robot: Robot, q: ArrayLike) -> float:
+    """A length scale of ``robot`` at ``q``: the diagonal of its frames' bounding box
+    (at least 0.5 m)."""
+    o = np.asarray(robot.fk_all(np.asarray(q, dtype=float)))[:, :3, 3]
+    return max(float(np.linalg.norm(o.max(axis=0) - o.min(axis=0))), 0.5)
+
+
+class RobotView:
+    """One robot in a :class:`~reachwise.viz.viewer.Viewer`: ``set_q(q)`` moves it."""
+
+    def __init__(
+        self,
+        viewer: Viewer,
+        name: str,
+        robot: Robot,
+        q: ArrayLike,
+        clouds: Mapping[str, PointCloud] | None = None,
+        watched: set[str] | frozenset[str] = frozenset(),
+        size: float | None = None,
+    ) -> None:
+        self.viewer = viewer
+        self.name = name
+        self.robot = robot
+        self.root = f"/robots/{name}"
+        q0 = np.asarray(q, dtype=float).reshape(-1)
+        scale = robot_size(robot, q0) if size is None else size
+        scene = viewer.server.scene
+        viewer.add_node(self.root, scene.add_frame(self.root, show_axes=False))
+        clouds = dict(clouds or {})
+        self.links: list[tuple[int, str]] = []
+        self.frames: dict[str, object] = {}
+        for k, link in enumerate(robot.link_names):
+            if link not in clouds and link != "tool":
+                continue
+            path = f"{self.root}/{link}"
+            is_tool = link == "tool"
+            frame = scene.add_frame(
+                path,
+                show_axes=is_tool,
+                axes_length=0.06 * scale,
+                axes_radius=0.004 * scale,
+            )
+            viewer.add_node(path, frame, "frames" if is_tool else None)
+            self.frames[link] = frame
+            self.links.append((k, link))
+            if link in clouds:
+                rgb = WATCHED_RGB if link in watched else CLOUD_RGB
+                pts = np.asarray(clouds[link].points, dtype=np.float32)
+                viewer.add_node(
+                    f"{path}/cloud",
+                    scene.add_point_cloud(
+                        f"{path}/cloud",
+                        pts,
+                        np.array(rgb, dtype=np.uint8),
+                        point_size=0.0035 * scale,
+                        precision="float32",
+                    ),
+                    "robot clouds",
+                )
+        self.skeleton = viewer.add_node(
+            f"{self.root}/skeleton",
+            scene.add_line_segments(
+                f"{self.root}/skeleton",
+                skeleton_segments(robot, q0),
+                np.array(SKELETON_RGB, dtype=np.uint8),
+                thickness=3.0,
+                thickness_units="screen",
+            ),
+            "skeleton",
+        )
+        self.q = q0.copy()
+        self.set_q(q0)
+
+    def set_q(self, q: ArrayLike) -> None:
+        """Put the robot at joint vector ``q``: every link frame to its FK pose."""
+        qv = np.asarray(q, dtype=float).reshape(-1)
+        F = np.asarray(self.robot.fk_all(qv))
+        with self.viewer.server.atomic():
+            for k, link in self.links:
+                wxyz, pos = wxyz_position(F[k])
+                h = self.frames[link]
+                h.wxyz = wxyz  # type: ignore[attr-defined]
+                h.position = pos  # type: ignore[attr-defined]
+            self.skeleton.points = _segments_f32(F[:, :3, 3])  # type: ignore[attr-defined]
+        self.q = qv.copy()
+
+    def frame_origins(self) -> NDArray[np.float64]:
+        """World positions of the robot's frames at its current ``q``."""
+        return np.asarray(self.robot.fk_all(self.q))[:, :3, 3]
+
+
+def _segments_f32(origins: NDArray[np.float64]) -> NDArray[np.float32]:
+    return np.stack([origins[:-1], origins[1:]], axis=1).astype(np.float32)
