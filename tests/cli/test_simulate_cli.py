@@ -24,3 +24,8 @@ def test_simulate_cli_writes_logs_figures_summary(tmp_path: Path) -> None:
     for f in ("summary.json", "joints.png", "tool_path.png", "min_distance.png",
               "avoidance/log.npz", "avoidance/log.csv", "baseline/log.npz"):  # fmt: skip
         assert (tmp_path / f).is_file(), f
+    # the HTML report embeds the three figures and states the baseline's collision
+    assert data["report"] == str(tmp_path / "report.html")
+    text = (tmp_path / "report.html").read_text()
+    assert text.count("data:image/png;base64,") == 3
+    assert f"{data['baseline']['first_collision']:.2f} s (" in text

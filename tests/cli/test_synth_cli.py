@@ -47,6 +47,12 @@ def test_synth_writes_every_output(tmp_path: Path) -> None:
     for r, e in zip(rows, err, strict=True):
         assert float(r["position_error_m"]) == pytest.approx(e, abs=1e-9)
     assert data["best"]["reached"] == sum(r["status"] == "full" for r in rows)
+    # the HTML report (no figures asked): the best run's reached count in its runs table
+    report = out / "report.html"
+    assert data["report"] == str(report)
+    text = report.read_text()
+    assert "<img" not in text and 'id="table3"' in text
+    assert f"<td>{data['best']['reached']}/10</td>" in text
 
 
 def test_ctrl_c_keeps_finished_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

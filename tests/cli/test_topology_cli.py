@@ -61,6 +61,13 @@ def test_topology_writes_ranked_tables_designs_and_figures(tmp_path: Path) -> No
     for d in data["designs"]:
         robot = load_robot(d["yaml"])
         assert robot.n == 6 and Path(d["urdf"]).is_file() and Path(d["figure"]).is_file()
+    # the HTML report: the ranked topologies in order, the figures embedded
+    report = Path(data["report"])
+    assert report == out / "report.html"
+    text = report.read_text()
+    assert text.count("data:image/png;base64,") == 1 + len(data["designs"])
+    ranked = [r["topology"] for r in data["final"] if r["rank"] is not None]
+    assert [text.index(f">{n}<") for n in ranked] == sorted(text.index(f">{n}<") for n in ranked)
     # the same command again: everything is in the database
     res2 = runner.invoke(app, args)
     assert res2.exit_code == 0, res2.output
@@ -83,6 +90,8 @@ def test_human_output_and_enumerate_list(tmp_path: Path) -> None:
     )  # fmt: skip
     assert res.exit_code == 0, res.output
     assert "final ranking by gci" in res.output and "runs done now" in res.output
+    assert f"report: {tmp_path / 'o' / 'report.html'}" in res.output.replace("\n", "")
+    assert "<img" not in (tmp_path / "o" / "report.html").read_text()
 
 
 @pytest.mark.parametrize(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import typer
@@ -25,44 +26,107 @@ def simulate(
     duration: float | None = typer.Option(None, "--duration", min=0.0, help="Override (s)."),
     figures: bool = typer.Option(True, "--figures/--no-figures", help="Write PNG figures."),
     json_out: bool = typer.Option(False, "--json", help="Print the summary as JSON."),
+    plant: str = typer.Option(
+        "scenario",
+        "--plant",
+        help="scenario (each robot's own kinematic/hydraulic plant) or mujoco (rigid-body "
+        "dynamics with velocity servos; the sim extra), compared with the scenario's plant.",
+    ),
+    server: str | None = typer.Option(
+        None,
+        "--server",
+        help="Run the distance queries on the collision server at this address (`reachwise "
+        "serve`), e.g. tcp://127.0.0.1:5590; its scene is replaced by the scenario's. A "
+        "reply later than --server-deadline is missing data: the robots stop safely.",
+    ),
+    server_deadline: float = typer.Option(
+        0.1, "--server-deadline", min=0.0001, help="Per-tick reply deadline on --server (s)."
+    ),
+    server_keys: Path | None = typer.Option(
+        None, "--server-keys", help="CURVE key folder (`reachwise serve keygen`) for --server."
+    ),
+    view: bool = typer.Option(
+        False,
+        "--view",
+        help="Watch each run live in the browser viewer (127.0.0.1:8080 or the next free "
+        "port), in real time, then replay the logs there; Ctrl-C stops it.",
+    ),
+    escape: bool | None = typer.Option(
+        None,
+        "--escape/--no-escape",
+        help="When a robot stalls in a local minimum, plan a way out with OMPL RRT-Connect "
+        "(the plan extra) and follow it, then resume (default: the scenario's escape: "
+        "setting).",
+    ),
 ) -> None:
     """Simulate a scenario with collision avoidance (thesis §3.3, P-III/P-IV/P-V)."""
     from reachwise.sim.scenarios import load_scenario
     from reachwise.sim.simulate import SimulationLog, build_world
     from reachwise.sim.simulate import simulate as run
 
+    if plant not in ("scenario", "mujoco"):
+        raise typer.BadParameter(f"scenario or mujoco, got {plant!r}", param_hint="--plant")
+    if plant == "mujoco":
+        from reachwise.sim.mujoco_model import require_mujoco
+
+        require_mujoco()  # a clear error naming the missing extra, before any work
     sc = load_scenario(scenario)
+    link = None
+    if server is not None:
+        from reachwise.server.client import ServerOptions
+
+        link = ServerOptions(server, deadline=server_deadline, keys=server_keys)
     console = Console(stderr=True)
+    live = None
+    if view:
+        from reachwise.viz.live import LiveSession
+
+        live = LiveSession(sc, echo=console.print)
     logs: dict[str, SimulationLog] = {}
     modes = [True, False] if baseline else [True]
+    runs = [(m, plant) for m in modes] + ([(True, "scenario")] if plant == "mujoco" else [])
     total = duration if duration is not None else sc.spec.duration
     with Progress(
         TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.fields[t]}"),
         TimeElapsedColumn(), console=console, disable=json_out,
     ) as bar:  # fmt: skip
-        for avoid in modes:
+        for avoid, kind in runs:
             label = "avoidance" if avoid else "baseline"
+            if plant == "mujoco" and kind != plant:
+                label = "reference"  # the same scenario on its own plant, for comparison
             job = bar.add_task(f"{sc.name} {label}", total=total, t="")
 
             def tick(t: float, end: float, job: TaskID = job) -> None:
                 if round(t / sc.spec.dt) % 10 == 0:
                     bar.update(job, completed=min(t, end), t=f"{t:6.2f} s")
 
-            logs[label] = run(sc, avoidance=avoid, duration=duration, progress=tick)
+            logs[label] = run(
+                sc, avoidance=avoid, duration=duration, progress=tick, plant=kind, server=link,
+                on_tick=live.hook(avoid, label) if live is not None else None, escape=escape,
+            )  # fmt: skip
             bar.update(job, completed=total)
     main = logs["avoidance"]
     base = logs.get("baseline")
+    ref = logs.get("reference")
+    if ref is not None:
+        from reachwise.sim.mujoco_plant import plant_comparison
+
+        main.extras["comparison"] = plant_comparison(main, ref)
     data = {"avoidance": main.summary()}
     if base is not None:
         data["baseline"] = base.summary()
+    if ref is not None:
+        data["reference"] = ref.summary()
     if out is not None:
         main.save(out / "avoidance")
         if base is not None:
             base.save(out / "baseline")
+        if ref is not None:
+            ref.save(out / "reference")
+        cloud, pngs = None, None
         if figures:
             from reachwise.viz.sim_plots import save_figures
 
-            cloud = None
             world = build_world(sc)
             objs = [o for o in world.scene.objects.values() if "/" not in o.name]
             if objs:
@@ -72,21 +136,30 @@ def simulate(
                 cloud = np.concatenate(
                     [o.cloud.points @ poses[o.name][:3, :3].T + poses[o.name][:3, 3] for o in objs]
                 )
-            save_figures(out, main, base, cloud)
+            pngs = {p.stem: p for p in save_figures(out, main, base, cloud)}
         (out / "summary.json").write_text(json.dumps(data, indent=2))
         data["out"] = str(out)  # type: ignore[assignment]
+        from reachwise.viz.report_simulate import write_simulation_report
+
+        report = write_simulation_report(out, sc, logs, pngs or False, cloud)
+        data["report"] = str(report)  # type: ignore[assignment]
     if json_out:
         typer.echo(json.dumps(data, indent=2))
-        return
-    _print(data, console)
+    else:
+        _print(data, console)
+    if live is not None:
+        live.replay(logs)  # until Ctrl-C
 
 
 def _print(data: dict, console: Console) -> None:  # type: ignore[type-arg]
     out = Console()
-    for label in ("avoidance", "baseline"):
+    for label in ("avoidance", "baseline", "reference"):
         s = data.get(label)
         if s is None:
             continue
+        plant = s.get("extras", {}).get("plant", "scenario")
+        if plant != "scenario" or label == "reference":
+            label = f"{label} ({plant} plant)"
         n_reached = sum(g["reached_at"] is not None for g in s["goals"])
         md = s["min_distance"]
         md_s = f"{md * 100:.1f} cm" if md is not None else "n/a"
@@ -106,5 +179,44 @@ def _print(data: dict, console: Console) -> None:  # type: ignore[type-arg]
             out.print(f"  {g['robot']}: {g['name']}: {at}")
         for st in s["stalls"]:
             out.print(f"  stalled at {st['t']:.2f} s ({st['robot']}): {st['text']}")
+        for ev in s["events"]:
+            if ev["kind"] in ("planning", "escaped", "escape_failed"):
+                out.print(f"  {ev['kind']} at {ev['t']:.2f} s ({ev['robot']}): {ev['text']}")
+        _print_tracking(s.get("extras", {}), out)
     if "out" in data:
         out.print(f"wrote {data['out']}/")
+        out.print(f"report: {data['report']}")
+
+
+def _print_tracking(extras: dict, out: Console) -> None:  # type: ignore[type-arg]
+    """The MuJoCo plant's tracking error and its comparison with the scenario's plant."""
+    for robot, tr in extras.get("tracking", {}).items():
+        if not tr.get("ticks"):
+            continue
+        line = (
+            f"  {robot}: servo tau {tr['servo_time_constant'] * 1e3:.0f} ms, velocity error "
+            f"rms {tr['velocity_error_rms']:.4f} max {tr['velocity_error_max']:.4f}, beyond "
+            f"first-order {tr['first_order_error_max']:.4f}, position lag max "
+            f"{tr['position_lag_max']:.4f} (first-order bound {tr['position_lag_bound']:.4f})"
+        )
+        if "passive_swing_max" in tr:
+            line += f", passive swing max {math.degrees(tr['passive_swing_max']):.1f} deg"
+        out.print(line)
+    comp = extras.get("comparison")
+    if comp is None:
+        return
+    for robot, c in comp["robots"].items():
+
+        def fmt(v: float | None) -> str:
+            return "n/a" if v is None else f"{v * 100:.1f} cm"
+
+        def times(ts: list[float | None]) -> str:
+            return ", ".join("-" if t is None else f"{t:.2f}" for t in ts) + " s"
+
+        out.print(
+            f"  {robot} vs {comp['plant']} plant: goals at {times(c['goals_reached_at'])} "
+            f"(reference {times(c['reference_goals_reached_at'])}), min distance "
+            f"{fmt(c['min_distance'])} (reference {fmt(c['reference_min_distance'])}), "
+            f"max joint difference {c['joint_difference_max']:.4f}, max tool difference "
+            f"{fmt(c['tool_difference_max'])}"
+        )

@@ -34,6 +34,7 @@ def synth(
     from reachwise.io.task_file import load_task
     from reachwise.synthesis.problem import SynthesisProblem, locked_from_spec
     from reachwise.synthesis.synthesize import SOLVERS, RunResult, result_of, run_once
+    from reachwise.viz.report_synthesis import write_synthesis_report
 
     if solver not in SOLVERS:
         raise typer.BadParameter(f"choose one of {SOLVERS}", param_hint="--solver")
@@ -61,9 +62,12 @@ def synth(
         raise typer.Exit(130)
     result = result_of(problem, done, solver)
     folder = write_synthesis(result, out, figures=figures)
+    pngs = {n: folder / f"{n}.png" for n in ("configurations", "lci")} if figures else False
+    report = write_synthesis_report(result, folder, pngs)
     data = summary(result)
     data["interrupted"] = interrupted
     data["out"] = str(folder)
+    data["report"] = str(report)
     if json_out:
         typer.echo(json.dumps(data, indent=2))
     else:
@@ -90,3 +94,4 @@ def _print(result: object, data: dict) -> None:  # type: ignore[type-arg]
         t.add_row(*row)
     console.print(t)
     console.print(f"wrote {data['out']}/ (design.yaml, design.urdf, summary.json, points.csv)")
+    console.print(f"report: {data['report']}")

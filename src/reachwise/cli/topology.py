@@ -86,6 +86,7 @@ def topology(
         parse_rules,
         topologies_from_specs,
     )
+    from reachwise.viz.report_topology import write_topology_report
 
     if sum(x is not None and x != [] for x in (set_name, rules, specs or None)) != 1:
         raise typer.BadParameter("give exactly one of --set, --enumerate, --spec")
@@ -158,6 +159,7 @@ def topology(
     data = write_report(result, out, figures=figures)
     data["db"] = str(db)
     data["out"] = str(out)
+    data["report"] = str(write_topology_report(result, out, data["designs"], figures))
     if json_out:
         typer.echo(json.dumps(data, indent=2))
     else:
@@ -203,6 +205,7 @@ def _print(result: Any, data: dict[str, Any]) -> None:
         f"{data['new_items']} runs done now, {data['stored_items']} found in {data['db']}; "
         f"wrote {data['out']}/ (ranking.md, ranking.csv, ranking.json, designs/)"
     )
+    console.print(f"report: {data['report']}")
 
 
 def main() -> None:

@@ -1,0 +1,32 @@
+"""Self-contained HTML reports: one file per synthesis, topology sweep and simulation
+run, and the overview of ``reachwise demo``.
+
+Each report is a single ``report.html`` written next to the run's outputs: tables of
+the run's figures, the thesis's reported figures next to ours ("thesis says / we
+measured", :mod:`reachwise.viz.report_thesis`), and the run's matplotlib figures
+embedded as base64 PNG. CSS is inline; there is no external URL and no JavaScript,
+so the file opens anywhere, offline, and can be mailed as is. Every string that can
+come from user input is HTML-escaped (:func:`reachwise.viz.report_html.esc`).
+
+* :func:`write_synthesis_report` — P-I: summary, Tables 3–4 next to the thesis's, DH
+  parameters template → found, per-run convergence, task points, Figs. 5–6;
+* :func:`write_topology_report` — P-II: ranking tables of both rounds, Table 2 next to
+  ours, GCI/KCI bar chart, the best designs' configurations;
+* :func:`write_simulation_report` — thesis §3.3: outcome with and without avoidance,
+  goals, distances, P-III Fig. 3 / P-V Figs. 4–5 style figures, the thesis's numbers;
+* :func:`write_demo_report` — the demo's overview linking the per-run reports.
+"""
+
+from __future__ import annotations
+
+from reachwise.viz.report_demo import write_demo_report
+from reachwise.viz.report_simulate import write_simulation_report
+from reachwise.viz.report_synthesis import write_synthesis_report
+from reachwise.viz.report_topology import write_topology_report
+
+__all__ = [
+    "write_demo_report",
+    "write_simulation_report",
+    "write_synthesis_report",
+    "write_topology_report",
+]
