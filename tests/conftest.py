@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import signal
+
 import numpy as np
 import pytest
 
@@ -32,3 +34,10 @@ def random_chain(rng: np.random.Generator, n_joints: int = 7, classic: bool = Fa
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20171208)
+
+
+def sigint_default() -> None:
+    """``preexec_fn`` for a child the test will Ctrl-C: a shell that starts pytest in
+    the background leaves SIGINT ignored, the child would inherit that and Python would
+    then never raise KeyboardInterrupt."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)

@@ -115,6 +115,10 @@ def test_demo_interrupted_resumes_and_writes_every_report(
     sim = json.loads((out / FOLDERS[3] / "summary.json").read_text())
     assert data["p5"]["baseline"]["first_collision_s"] == sim["baseline"]["first_collision"]
     assert data["p5"]["avoidance"]["min_distance_m"] == sim["avoidance"]["min_distance"]
+    panda = data["kinematics"]["panda"]
+    assert panda["solved"] == panda["targets"] and panda["max_position_error_m"] <= 1e-6
+    dist = data["distance"]
+    assert dist["agree_with_brute"] == dist["queries"] > 0
     ranking = json.loads((topo / "ranking.json").read_text())
     assert data["topology"]["ranked"] == [r["topology"] for r in ranking["final"] if r["rank"]]
 

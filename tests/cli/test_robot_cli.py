@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
 from typer.testing import CliRunner
 
 from reachwise import __version__, load_robot
@@ -40,20 +39,3 @@ def test_robot_check_good_and_bad(tmp_path: Path) -> None:
     assert res.exit_code == 2
     err = json.loads(res.output)
     assert not err["ok"] and "bad.yaml" in err["error"] and "joints[0].type" in err["error"]
-
-
-def test_demo_runs_the_main_job_and_writes_results(tmp_path: Path) -> None:
-    out = tmp_path / "demo"
-    res = runner.invoke(app, ["demo", "--json", "--runs", "1", "--out", str(out)])
-    assert res.exit_code == 0, res.output
-    data = json.loads(res.output[res.output.index("{") :])
-    panda = data["kinematics"]["panda"]
-    assert panda["solved"] == panda["targets"]
-    assert panda["max_position_error_m"] <= 1e-6
-    assert np.isfinite(panda["median_ik_ms"])
-    synth = data["synthesis"]
-    assert synth["best"]["reached"] == 87
-    assert (Path(synth["folder"]) / "design.yaml").is_file()
-    dist = data["distance"]
-    assert dist["agree_with_brute"] == dist["queries"]
-    assert json.loads((out / "demo.json").read_text())["seed"] == 0

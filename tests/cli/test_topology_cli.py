@@ -26,6 +26,7 @@ from reachwise.io.sweep_store import SweepStore
 from reachwise.io.task_file import load_task, save_task
 from reachwise.synthesis.sweep import SweepConfig, run_sweep
 from reachwise.synthesis.topology import topologies_from_specs
+from tests.conftest import sigint_default
 from tests.synthesis.test_sweep import generated_task
 
 runner = CliRunner()
@@ -117,7 +118,12 @@ def test_ctrl_c_exits_130_keeping_finished_runs(tmp_path: Path) -> None:
             "--runs", "2", "--workers", "2", "--db", str(db), "--out", str(tmp_path / "o"),
             "--no-figures"]  # fmt: skip
     proc = subprocess.Popen(
-        args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
+        args,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        preexec_fn=sigint_default,
     )
     try:
         stored = 0

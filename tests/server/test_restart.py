@@ -31,6 +31,7 @@ from .conftest import start_server
 KILL_AT = 60  # tick: the server dies right after answering it
 STOP_TICKS = 4  # the controller's protective-stop ramp (ticks)
 DEADLINE = 0.2  # s, per tick: a reply later than this is missing data
+RESTART_AT = KILL_AT + STOP_TICKS + 3  # tick: the restart begins (the outage outlasts the stop)
 
 
 def _scenario(folder: Path, environment: NDArray[np.float64]) -> dict[str, object]:
@@ -77,6 +78,7 @@ def test_sigkill_stops_the_robot_and_a_restart_restores_the_scene(
         if len(answers) - 1 == KILL_AT:
             before.append(_describe(endpoint))  # the scene the simulation registered
             first.kill()  # SIGKILL: no goodbye, no flush
+        if len(answers) - 1 == RESTART_AT:  # the robot has stopped: bring the server back
 
             def restart() -> None:  # the same address and state directory
                 procs.append(start_server(workdir, bind=endpoint))

@@ -34,7 +34,7 @@ from reachwise.viz.scene_data import (
     wxyz_position,
 )
 from reachwise.viz.viewer import Viewer, serve_results
-from tests.conftest import random_chain
+from tests.conftest import random_chain, sigint_default
 
 TIMEOUT = 30.0
 
@@ -388,6 +388,7 @@ def test_cli_serves_until_ctrl_c(case: str) -> None:
         stderr=subprocess.STDOUT,
         text=True,
         env=env,
+        preexec_fn=sigint_default,
     )
     try:
         assert proc.stdout is not None
