@@ -185,10 +185,14 @@ def control_step(  # type: ignore[no-untyped-def]
     rho_stop,
     xi,
     t_react,
+    vel_aware,
+    mem,
+    depth,
     qdot,
     diag,
 ):
-    """One controller tick; writes ``qdot`` (n,) and ``diag`` (see module docstring)."""
+    """One controller tick; writes ``qdot`` (n,), ``diag`` (see module docstring) and
+    updates ``mem``, the guard's remembered collision lines (see :func:`_recall`)."""
     N = kind.shape[0]
     n = q.shape[0]
     F = np.empty((N + 2, 4, 4))
@@ -215,6 +219,20 @@ def control_step(  # type: ignore[no-untyped-def]
             wG[i] = kw * eo[i]
     diag[0] = math.sqrt(ep2)
     diag[1] = ang
+
+    # ---- remembered collision lines join the guard (not the repulsion)
+    m_now = dist.shape[0]
+    loc = _local_lines(F, a_link, a_pt, b_link, b_pt, normal, dist)
+    static = _static_rows(vobs, dist, rho0, loc)
+    if not vel_aware:
+        vobs = np.zeros_like(normal)
+    if depth > 0:
+        a_link, a_pt, b_link, b_pt, normal, vobs, dist, rho0, task_pt, mu, recalled = _recall(
+            F, a_link, a_pt, b_link, b_pt, normal, vobs, dist, rho0, task_pt, mu, loc, mem, depth
+        )
+        _remember(mem, depth, a_link, b_link, loc, rho0, task_pt, static)
+    else:
+        recalled = np.zeros(m_now, dtype=np.bool_)
 
     # ---- avoidance points: Khatib speeds (Eq. 3.17), Jacobians, task-space sum (P-V Eq. 6)
     m = dist.shape[0]
@@ -244,17 +262,20 @@ def control_step(  # type: ignore[no-untyped-def]
     Jb = np.empty((6, n))
     pR = np.zeros(3)
     n_active = 0
+    n_guard = 0
     dmin = math.inf
     for i in range(m):
-        if dist[i] < dmin:
+        if i < m_now and dist[i] < dmin:
             dmin = dist[i]
         if not (deff[i] <= rho0[i]):
             continue
         active[i] = True
-        n_active += 1
-        rho = max(deff[i], 1e-6)
-        v = mu[i] * (1.0 / rho - 1.0 / rho0[i]) / (rho * rho)
-        vrep[i] = min(v, vrep_max)
+        n_guard += 1
+        if not recalled[i]:
+            n_active += 1
+            rho = max(deff[i], 1e-6)
+            v = mu[i] * (1.0 / rho - 1.0 / rho0[i]) / (rho * rho)
+            vrep[i] = min(v, vrep_max)
         if task_pt[i]:
             # a tool part moves with the tool: rigidly (its own point Jacobian), or, if
             # it hangs on passive joints, with the tool point plus the tool's rotation
@@ -278,7 +299,7 @@ def control_step(  # type: ignore[no-untyped-def]
                 for j in range(3):
                     for k in range(n):
                         JO[i, j, k] = Ja[j, k]
-            if avoid_on:
+            if avoid_on and not recalled[i]:
                 for j in range(3):
                     pR[j] += vrep[i] * normal[i, j] + ff[i, j]
         else:
@@ -358,7 +379,7 @@ def control_step(  # type: ignore[no-untyped-def]
         if avoid_on:
             zsum = np.zeros(n)
             for i in range(m):
-                if not active[i] or task_pt[i]:
+                if not active[i] or task_pt[i] or recalled[i]:
                     continue
                 PhiO = np.empty((3, n))
                 for j in range(3):
@@ -409,7 +430,7 @@ def control_step(  # type: ignore[no-untyped-def]
     # ---- guard: the task is scaled down (s < 1) before any pair closes in too fast
     s = 1.0
     guard = 1.0
-    if guard_on and n_active > 0:
+    if guard_on and n_guard > 0:
         g = np.zeros((m, n))
         lo_rate = np.zeros(m)
         lo_static = np.zeros(m)
@@ -502,6 +523,197 @@ def control_step(  # type: ignore[no-untyped-def]
     diag[5] = alpha / guard if guard > 0.0 else 0.0
 
 
+#: Columns of the guard memory ``mem`` (one remembered collision line per row): frame
+#: indices of the robot part and of the other part (-1: a static obstacle), the robot
+#: part's point in its link frame, the other end (world, or in the other link's frame),
+#: the margin, the tool-part flag and the age in ticks (0: an empty row).
+MEM_COLS = 11
+_AGE = 10
+
+
+@njit(cache=True)
+def _local_lines(F, a_link, a_pt, b_link, b_pt, normal, dist):  # type: ignore[no-untyped-def]
+    """This tick's collision lines in the form they are remembered, ``(m, 6)``: the robot
+    part's point in its link frame, then the other end — in its link frame for a
+    self-collision pair, else the obstacle point ``p_a − ρ n`` in the world."""
+    m = dist.shape[0]
+    loc = np.empty((m, 6))
+    for i in range(m):
+        A = F[a_link[i]]
+        for j in range(3):
+            acc = 0.0
+            for c in range(3):
+                acc += A[c, j] * (a_pt[i, c] - A[c, 3])
+            loc[i, j] = acc
+        if b_link[i] >= 0:
+            B = F[b_link[i]]
+            for j in range(3):
+                acc = 0.0
+                for c in range(3):
+                    acc += B[c, j] * (b_pt[i, c] - B[c, 3])
+                loc[i, 3 + j] = acc
+        else:
+            for j in range(3):
+                loc[i, 3 + j] = a_pt[i, j] - dist[i] * normal[i, j]
+    return loc
+
+
+@njit(cache=True)
+def _static_rows(vobs, dist, rho0, loc):  # type: ignore[no-untyped-def]
+    """Rows worth remembering: within their margin, finite, and against a still
+    obstacle (a moving obstacle's point has moved on by the next tick)."""
+    m = dist.shape[0]
+    out = np.zeros(m, dtype=np.bool_)
+    for i in range(m):
+        if not dist[i] <= rho0[i]:
+            continue
+        ok = True
+        for j in range(3):
+            if vobs[i, j] != 0.0:
+                ok = False
+        for j in range(6):
+            if not math.isfinite(loc[i, j]):
+                ok = False
+        out[i] = ok
+    return out
+
+
+@njit(cache=True)
+def _recall(  # type: ignore[no-untyped-def]
+    F, a_link, a_pt, b_link, b_pt, normal, vobs, dist, rho0, task_pt, mu, loc, mem, depth
+):
+    """The avoidance rows of this tick followed by the remembered collision lines.
+
+    A remembered line (a row of ``mem`` aged 1 … ``depth`` ticks) is the robot part's
+    point in its link frame and the other end: a point of a static obstacle (world) or,
+    for a self-collision pair, a point in the other link's frame. Both ends are points
+    of the clouds, so at the current joint state the remembered pair is again an exact
+    point pair: distance ``|p_a − p_b|`` and direction ``(p_a − p_b)/|p_a − p_b|``.
+    Rows within their margin that do not repeat one of this tick's pairs (``loc``, see
+    :func:`_local_lines`) or an earlier recalled one are appended (flag ``recalled``).
+    """
+    m = dist.shape[0]
+    k = mem.shape[0]
+    keep = np.zeros(k, dtype=np.bool_)
+    pa = np.empty((k, 3))
+    pb = np.empty((k, 3))
+    dd = np.empty(k)
+    extra = 0
+    for r in range(k):
+        if not 1.0 <= mem[r, _AGE] <= depth:
+            continue
+        al = int(mem[r, 0])
+        bl = int(mem[r, 1])
+        A = F[al]
+        for j in range(3):
+            pa[r, j] = A[j, 0] * mem[r, 2] + A[j, 1] * mem[r, 3] + A[j, 2] * mem[r, 4] + A[j, 3]
+        if bl >= 0:
+            B = F[bl]
+            for j in range(3):
+                pb[r, j] = B[j, 0] * mem[r, 5] + B[j, 1] * mem[r, 6] + B[j, 2] * mem[r, 7] + B[j, 3]
+        else:
+            for j in range(3):
+                pb[r, j] = mem[r, 5 + j]
+        d2 = 0.0
+        for j in range(3):
+            d2 += (pa[r, j] - pb[r, j]) ** 2
+        dd[r] = math.sqrt(d2)
+        if not (dd[r] > 1e-9 and dd[r] <= mem[r, 8]):
+            continue
+        # the same point pair as one of this tick's rows or an earlier recalled one
+        same = False
+        for i in range(m):
+            if a_link[i] != al or b_link[i] != bl:
+                continue
+            e = 0.0
+            for j in range(6):
+                e += abs(loc[i, j] - mem[r, 2 + j])
+            if e < 1e-9:
+                same = True
+                break
+        for s in range(r):
+            if same:
+                break
+            if not keep[s] or mem[s, 0] != mem[r, 0] or mem[s, 1] != mem[r, 1]:
+                continue
+            e = 0.0
+            for j in range(6):
+                e += abs(mem[s, 2 + j] - mem[r, 2 + j])
+            if e < 1e-9:
+                same = True
+        if not same:
+            keep[r] = True
+            extra += 1
+    t = m + extra
+    a_link2 = np.empty(t, dtype=np.int64)
+    b_link2 = np.empty(t, dtype=np.int64)
+    a_pt2 = np.empty((t, 3))
+    b_pt2 = np.empty((t, 3))
+    normal2 = np.empty((t, 3))
+    vobs2 = np.zeros((t, 3))
+    dist2 = np.empty(t)
+    rho02 = np.empty(t)
+    task2 = np.empty(t, dtype=np.bool_)
+    mu2 = np.zeros(t)
+    recalled = np.zeros(t, dtype=np.bool_)
+    for i in range(m):
+        a_link2[i] = a_link[i]
+        b_link2[i] = b_link[i]
+        for j in range(3):
+            a_pt2[i, j] = a_pt[i, j]
+            b_pt2[i, j] = b_pt[i, j]
+            normal2[i, j] = normal[i, j]
+            vobs2[i, j] = vobs[i, j]
+        dist2[i] = dist[i]
+        rho02[i] = rho0[i]
+        task2[i] = task_pt[i]
+        mu2[i] = mu[i]
+    i = m
+    for r in range(k):
+        if not keep[r]:
+            continue
+        a_link2[i] = int(mem[r, 0])
+        b_link2[i] = int(mem[r, 1])
+        for j in range(3):
+            a_pt2[i, j] = pa[r, j]
+            b_pt2[i, j] = pb[r, j] if mem[r, 1] >= 0 else math.nan
+            normal2[i, j] = (pa[r, j] - pb[r, j]) / dd[r]
+        dist2[i] = dd[r]
+        rho02[i] = mem[r, 8]
+        task2[i] = mem[r, 9] != 0.0
+        recalled[i] = True
+        i += 1
+    return a_link2, a_pt2, b_link2, b_pt2, normal2, vobs2, dist2, rho02, task2, mu2, recalled
+
+
+@njit(cache=True)
+def _remember(mem, depth, a_link, b_link, loc, rho0, task_pt, static):  # type: ignore[no-untyped-def]
+    """Age the remembered lines by one tick, drop those ``depth`` ticks old and store
+    this tick's ``static`` rows (the first ``loc.shape[0]`` avoidance rows) aged 1.
+    ``mem`` must hold ``depth`` × the largest number of rows per tick (the caller sees
+    to it), so every new row finds an empty one."""
+    for r in range(mem.shape[0]):
+        if mem[r, _AGE] >= depth:
+            mem[r, _AGE] = 0.0
+        elif mem[r, _AGE] > 0.0:
+            mem[r, _AGE] += 1.0
+    r = 0
+    for i in range(loc.shape[0]):
+        if not static[i]:
+            continue
+        while r < mem.shape[0] and mem[r, _AGE] != 0.0:
+            r += 1
+        if r == mem.shape[0]:
+            return
+        mem[r, 0] = a_link[i]
+        mem[r, 1] = b_link[i]
+        for j in range(6):
+            mem[r, 2 + j] = loc[i, j]
+        mem[r, 8] = rho0[i]
+        mem[r, 9] = 1.0 if task_pt[i] else 0.0
+        mem[r, _AGE] = 1.0
+
+
 @njit(cache=True)
 def _moving_bound(rho, rho0, rho_stop, xi, u):  # type: ignore[no-untyped-def]
     """Lowest rate ``n_iᵀ J_Oi q̇`` allowed against an obstacle approaching at ``u``:
@@ -553,5 +765,6 @@ def warm_up() -> None:
                 np.zeros((m, 3)), np.zeros((m, 3)), np.zeros((m, 3)), np.full(m, 0.1),
                 np.full(m, 0.2),
                 np.full(m, 1e-3), 1.0, np.zeros(m, np.bool_), True, True, 0.03, 0.5, 0.0,
+                True, np.zeros((2 * m, MEM_COLS)), 2,
                 np.empty(n), np.empty(DIAG),
             )  # fmt: skip

@@ -34,6 +34,25 @@ One tick, ``Controller.step(q, goal, distances, now) -> (q̇, status)``:
    largest ``s ∈ [0, 1]`` that satisfies it (the tool deviates or slows down), and if
    even ``s = 0`` does not, the whole motion is slowed down (the robot stops before
    ``ρ_s``).
+
+   *Guard memory.* The distance query gives one closest point pair per watched pair.
+   Near an edge or corner of a sampled cloud that pair flips between points on either
+   side from tick to tick (the normal's component across the edge changes sign), and a
+   guard that sees only this tick's pair admits a motion that slides along one
+   collision line straight into the other: each tick's constraint is met, the sideways
+   motions cancel out, and the component toward the obstacle accumulates (a drift of
+   centimetres per second through ``ρ_s``). The guard therefore also constrains the
+   collision lines of the last ``guard_memory`` ticks: each is kept as the robot part's
+   point in its link frame and the other end — a point of a static obstacle (world),
+   or of the other link for a self-collision pair — and re-measured at the current
+   joint state, ``ρ_r = ‖p_a(q) − p_b‖``, ``n_r = (p_a(q) − p_b)/ρ_r``. Both ends are
+   cloud points, so the remembered pair is an exact point pair of the same two objects:
+   ``ρ_r`` is never below the true distance, and its damper bound is as sound as the
+   current pair's (the remembered lines add guard constraints only, no repulsion:
+   Eq. 3.16–3.18 keep their single closest point). With both sides of the edge
+   constrained the tool slides along the crease between them instead of through it.
+   Pairs with a moving obstacle (nonzero obstacle velocity) are not remembered — their
+   points have moved on; the memory is cleared by a protective stop and by ``reset``.
 6. **Moving obstacles** (our addition; the thesis, §6.3, and P-V leave them to future
    work). Eq. 3.16–3.17 and the guard treat the other object as still. When it moves,
    the distance changes at ``ρ̇_i = n_iᵀ (J_Oi q̇ − v_Bi)``, with ``v_Bi`` the velocity
@@ -94,7 +113,8 @@ class ControllerConfig:
     ``position_tolerance`` (m), ``orientation_tolerance`` (rad): goal reached;
     ``stall_time`` (s), ``stall_progress`` (m, orientation counted 1 m/rad): stall
     detection; ``velocity_aware``: use moving obstacles' velocities (item 6 above);
-    ``safety``: data freshness and protective stop.
+    ``safety``: data freshness and protective stop; ``guard_memory``: how many past
+    ticks' collision lines the guard keeps constraining (item 5; 0 = this tick's only).
     """
 
     kv: float = 1.0
@@ -117,6 +137,7 @@ class ControllerConfig:
     stall_progress: float = 0.01
     velocity_aware: bool = True
     reaction_time: float = 0.0
+    guard_memory: int = 2
     safety: SafetyConfig = field(default_factory=SafetyConfig)
 
     def __post_init__(self) -> None:
@@ -133,6 +154,9 @@ class ControllerConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise InputError("controller", name, f"must be finite and >= 0, got {v!r}")
+        gm = self.guard_memory
+        if isinstance(gm, bool) or not isinstance(gm, int) or not 0 <= gm <= 10:
+            raise InputError("controller", "guard_memory", f"must be an int 0..10, got {gm!r}")
 
     @property
     def dt(self) -> float:
@@ -218,9 +242,11 @@ class Controller:
         self._passive = np.array(~np.asarray(robot.actuated), dtype=np.bool_)
         self._zone = np.full(robot.n, self.config.limit_zone)
         self._c = robot.arrays
+        self._mem = np.zeros((0, K.MEM_COLS))
         self.locked = False
         self.reset()
         self._warm_up()
+        self.reset()
 
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
@@ -232,6 +258,21 @@ class Controller:
         self._goal: Goal | None = None
         self._best = math.inf
         self._best_t = 0.0
+        self._forget()
+
+    def _forget(self) -> None:
+        """Drop the guard's remembered collision lines (rows of ``K.MEM_COLS`` columns,
+        see ``_kernel``; age 0 marks an empty row)."""
+        self._mem[:, -1] = 0.0
+
+    def _memory_for(self, rows: int) -> NDArray[np.float64]:
+        """The memory, grown to hold ``guard_memory`` ticks of ``rows`` lines each."""
+        need = self.config.guard_memory * rows
+        if self._mem.shape[0] < need:
+            grown = np.zeros((max(need, 2 * self._mem.shape[0]), K.MEM_COLS))
+            grown[: self._mem.shape[0]] = self._mem
+            self._mem = grown
+        return self._mem
 
     def _warm_up(self) -> None:
         q = np.clip(np.zeros(self.robot.n), self.robot.lower, self.robot.upper)
@@ -260,6 +301,7 @@ class Controller:
             raise InputError(self.robot.name, "q", f"expected {self.robot.n} finite values")
         cfg = self.config
         if self.locked:
+            self._forget()
             self._last_cmd = np.zeros(self.robot.n)
             return self._last_cmd.copy(), ControlStatus("locked", "locked while working")
         if goal is not self._goal:
@@ -319,6 +361,7 @@ class Controller:
     def _stop(self, reason: str) -> tuple[NDArray[np.float64], ControlStatus]:
         st = self.config.safety.stop_ticks
         self._faults += 1
+        self._forget()
         cmd = stop_ramp(self._last_cmd, st - self._faults, st)
         return cmd, ControlStatus("protective_stop", reason)
 
@@ -334,11 +377,11 @@ class Controller:
             c.kind, c.qidx, c.dh, c.classic, c.base, c.tool, q, goal.pose, goal.dims == 6,
             cfg.kv, cfg.kw, cfg.v_max, cfg.w_max, cfg.lambda_max, cfg.epsilon,
             r.lower, r.upper, r.vmax, self._usable, self._passive, cfg.k_limit, self._zone,
-            p.a_link, p.a_point, p.b_link, p.b_point, p.normal,
-            p.obstacle_velocity if cfg.velocity_aware else np.zeros_like(p.normal),
+            p.a_link, p.a_point, p.b_link, p.b_point, p.normal, p.obstacle_velocity,
             p.distance, p.margin,
             np.full(len(p), cfg.mu), cfg.v_rep_max, p.task_space, avoid,
             cfg.guard and avoid, cfg.stop_distance, cfg.approach_speed, cfg.reaction_time,
+            cfg.velocity_aware, self._memory_for(len(p)), cfg.guard_memory if avoid else 0,
             qdot, diag,
         )  # fmt: skip
         return qdot, diag
