@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from reachwise.io.robot_file import robot_to_dict
 from reachwise.kinematics.robot import Robot
 from reachwise.server import protocol as P
+from reachwise.server.protocol import codec
 
 E = P.ErrorCode
 LIMITS = P.Limits(max_message_bytes=64 * 1024, max_cloud_points=100)
@@ -414,7 +415,7 @@ def test_fast_query_parser_agrees_with_the_full_one(
     body = {"stamp": stamp, "layout": layout, "joints": joints, **extra}
     for k in drop:
         body.pop(k)
-    fast = P._fast_query(body)
+    fast = codec._fast_query(body)
     full = _full_parse(P.Query, body)
     if fast is not None:
         assert full is not None and _equal(fast, full), (fast, full)
@@ -434,7 +435,7 @@ def test_fast_set_joints_parser_agrees_with_the_full_one(
     robot: Any, q: Any, stamp: Any, extra: dict[str, Any]
 ) -> None:
     body = {"robot": robot, "q": q, "stamp": stamp, **extra}
-    fast = P._fast_set_joints(body)
+    fast = codec._fast_set_joints(body)
     full = _full_parse(P.SetJoints, body)
     if fast is not None:
         assert full is not None and _equal(fast, full)
@@ -466,7 +467,7 @@ def test_fast_query_reply_parser_agrees_with_the_full_one(
     }  # fmt: skip
     if pairs == "omit":
         del body["pairs"]
-    fast = P._fast_query_reply(body)
+    fast = codec._fast_query_reply(body)
     try:
         r = P.Reader(body)
         full: P.QueryReply | None = P.QueryReply.parse(r)

@@ -21,7 +21,7 @@ from reachwise.errors import InputError
 from reachwise.kinematics.robot import Robot
 from reachwise.server import protocol as P
 from reachwise.server.client import SceneClient, SceneLike, ServerInputError, ServerSceneResult
-from reachwise.server.service import CollisionServer
+from reachwise.server.transport import CollisionServer
 
 from .conftest import MAX_CLOUD_POINTS, MAX_MESSAGE_MB, build_scene, crane_q, start_server
 

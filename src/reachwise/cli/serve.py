@@ -73,8 +73,8 @@ def serve(
     if ctx.invoked_subcommand is not None:
         return
     from reachwise.server.protocol import Limits
-    from reachwise.server.service import CollisionServer
     from reachwise.server.state import atomic_write
+    from reachwise.server.transport import CollisionServer
 
     logging.basicConfig(
         level=logging.INFO if verbose else logging.WARNING,

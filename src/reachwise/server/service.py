@@ -3,32 +3,18 @@
 In the thesis's collision avoidance architecture (P-III §4.1 Fig. 2, P-IV, P-V §I–II) a
 *collision server* holds every point cloud, keeps their poses current from the joint
 sensors and the laser scanner, and sends the control system the shortest distances of all
-watched pairs every control cycle (10 ms in P-V). This module is that server:
+watched pairs every control cycle (10 ms in P-V). This module is that server's
+scene side; :mod:`reachwise.server.transport` puts it on the wire.
 
-- :class:`SceneService` — the scene behind the wire (:class:`reachwise.distance.Scene`):
-  validated requests in (:mod:`reachwise.server.protocol`), replies or typed errors out.
-  The *initialization phase* of P-V Table 1 (robots, clouds and their spatial indices,
-  pair rules) happens in ``add_robot``, ``add_object``, ``replace_cloud`` and ``watch*``;
-  the *calculation phase* in ``set_joints`` (link poses by forward kinematics on the
-  server), ``set_pose`` and ``query``; ``clear`` empties the scene (a simulator that
-  owns it starts each run from an empty one). With a state directory every change of the
-  initialization phase is persisted before it is acknowledged, and restored at start
-  (:mod:`reachwise.server.state`).
-- :class:`CollisionServer` — the transport: one ZeroMQ ROUTER socket, bound locally or
-  with CURVE (:mod:`reachwise.server.security`).
-
-Threads, so that one request never blocks another longer than its own work:
-
-- the *I/O thread* (the one running :meth:`CollisionServer.serve_forever`) receives,
-  checks the size, decodes and answers at once everything that is short: hello, health,
-  metrics, joint states, poses, queries, descriptions. The scene lock is held only for
-  the scene work itself.
-- the *writer thread* does, in arrival order, everything that builds or persists:
-  restoring the state directory at start, registering robots and clouds (the cloud and
-  its k-d tree are built *outside* the lock and swapped in under it), replacing scans,
-  pair rules, and the batched write of the latest joint states and poses. Its replies go
-  back to the I/O thread over an ``inproc://`` socket. The distance kernels release the
-  GIL (numba ``nogil``), so an index being built does not stall queries.
+:class:`SceneService` — the scene behind the wire (:class:`reachwise.distance.Scene`):
+validated requests in (:mod:`reachwise.server.protocol`), replies or typed errors out.
+The *initialization phase* of P-V Table 1 (robots, clouds and their spatial indices,
+pair rules) happens in ``add_robot``, ``add_object``, ``replace_cloud`` and ``watch*``;
+the *calculation phase* in ``set_joints`` (link poses by forward kinematics on the
+server), ``set_pose`` and ``query``; ``clear`` empties the scene (a simulator that
+owns it starts each run from an empty one). With a state directory every change of the
+initialization phase is persisted before it is acknowledged, and restored at start
+(:mod:`reachwise.server.state`).
 
 Until the state directory has been restored the server answers ``health`` with
 ``ready: false`` and refuses scene requests with ``not_ready``. A bad request of any kind
@@ -36,29 +22,22 @@ gets a typed error reply; the server never stops serving because of one.
 
 Sequence numbers: every query and health reply draws the next number of one counter.
 With a state directory the counter never goes back, also across crashes: the server
-reserves numbers in blocks of :data:`SEQUENCE_BLOCK` in ``sequence.json`` and starts
-after the reserved block when it restarts (numbers may skip, never repeat).
+reserves numbers in blocks (:data:`reachwise.server.counters.SEQUENCE_BLOCK`) in
+``sequence.json`` and starts after the reserved block when it restarts (numbers may
+skip, never repeat).
 """
 
 from __future__ import annotations
 
-import bisect
-import contextlib
 import logging
-import math
-import queue
 import threading
 import time
 import uuid
-from collections import Counter
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-import zmq
-import zmq.auth.thread
 from numpy.typing import NDArray
 
 from reachwise import __version__
@@ -69,7 +48,7 @@ from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_file import robot_from_dict
 from reachwise.kinematics.robot import Robot
 from reachwise.server import protocol as P
-from reachwise.server.security import DEFAULT_BIND, BindPlan, plan_bind, secure_server_socket
+from reachwise.server.counters import Metrics, SequenceCounter
 from reachwise.server.state import (
     JointState,
     LiveState,
@@ -84,12 +63,6 @@ from reachwise.server.state import (
 
 log = logging.getLogger("reachwise.server")
 
-#: Sequence numbers reserved in the state directory at a time.
-SEQUENCE_BLOCK = 1_000_000
-#: Upper bucket edges of the latency histograms, microseconds (1-2-5 series).
-LATENCY_EDGES_US: tuple[float, ...] = tuple(
-    float(m * 10**e) for e in range(0, 7) for m in (1, 2, 5) if m * 10**e <= 1_000_000
-)
 #: How often the writer thread saves the latest joint states and poses (s).
 LIVE_INTERVAL = 0.2
 
@@ -105,84 +78,6 @@ def _names(names: Iterable[str], shown: int = 10) -> str:
     all_ = sorted(names)
     more = f" … ({len(all_)} in all)" if len(all_) > shown else ""
     return f"{all_[:shown]}{more}"
-
-
-class Metrics:
-    """Request and error counts and the query latency histograms (thread-safe)."""
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self._requests: Counter[str] = Counter()
-        self._errors: Counter[str] = Counter()
-        n = len(LATENCY_EDGES_US) + 1
-        self._compute = [0] * n
-        self._handling = [0] * n
-
-    def request(self, op: str) -> None:
-        with self._lock:
-            self._requests[op] += 1
-
-    def error(self, code: P.ErrorCode) -> None:
-        with self._lock:
-            self._errors[code.value] += 1
-
-    def query(self, compute_s: float, handling_s: float) -> None:
-        with self._lock:
-            self._compute[bisect.bisect_right(LATENCY_EDGES_US, compute_s * 1e6)] += 1
-            self._handling[bisect.bisect_right(LATENCY_EDGES_US, handling_s * 1e6)] += 1
-
-    def snapshot(self, uptime: float, sequence: int) -> P.MetricsReply:
-        with self._lock:
-            return P.MetricsReply(
-                uptime,
-                sequence,
-                dict(self._requests),
-                dict(self._errors),
-                LATENCY_EDGES_US,
-                tuple(self._compute),
-                tuple(self._handling),
-            )
-
-
-class SequenceCounter:
-    """Numbers 1, 2, 3 … for query and health replies; with a store, reserved in blocks
-    so that a restarted server continues above everything it may have handed out."""
-
-    def __init__(self, store: StateStore | None, block: int = SEQUENCE_BLOCK) -> None:
-        self._store = store
-        self._block = block
-        self._lock = threading.Lock()
-        self._last = 0
-        self._reserved = math.inf
-        if store is not None:
-            self._last = store.read_reserved()
-            self._reserved = self._last + block
-            store.write_reserved(int(self._reserved))
-
-    @property
-    def last(self) -> int:
-        """The last number handed out (0 before the first)."""
-        return self._last
-
-    def take(self) -> int:
-        with self._lock:
-            self._last += 1
-            if self._last > self._reserved:  # the writer thread fell far behind
-                self._extend_locked()
-            return self._last
-
-    @property
-    def wants_extension(self) -> bool:
-        return self._last > self._reserved - self._block // 2
-
-    def extend(self) -> None:
-        with self._lock:
-            self._extend_locked()
-
-    def _extend_locked(self) -> None:
-        if self._store is not None:
-            self._reserved = max(self._reserved, self._last) + self._block
-            self._store.write_reserved(int(self._reserved))
 
 
 @dataclass(frozen=True)
@@ -827,7 +722,7 @@ _NO_RISK_ROW = [
 ]
 
 
-def _answer(service: SceneService, rid: int, req: P.Request) -> tuple[bytes, P.Reply | None]:
+def answer(service: SceneService, rid: int, req: P.Request) -> tuple[bytes, P.Reply | None]:
     """The reply frame of one request (a typed error frame on failure) and the reply."""
     try:
         reply = service.handle(req)
@@ -840,248 +735,3 @@ def _answer(service: SceneService, rid: int, req: P.Request) -> tuple[bytes, P.R
         service.metrics.error(P.ErrorCode.INTERNAL)
         err = P.ErrorReply(P.ErrorCode.INTERNAL, "", f"{type(exc).__name__}: {exc}")
         return P.encode_error(rid, err), None
-
-
-# --------------------------------------------------------------------------- transport
-
-
-@dataclass(frozen=True)
-class _Job:
-    route: list[bytes]
-    request_id: int
-    request: P.Request
-
-
-_STOP = object()
-
-
-def split_frames(frames: list[bytes]) -> tuple[list[bytes], list[bytes]]:
-    """(routing envelope, body frames) of a ROUTER message: the envelope runs up to
-    and including the first empty delimiter frame (REQ peers), else it is the peer
-    identity alone (DEALER peers)."""
-    for k in range(1, len(frames)):
-        if not frames[k]:
-            return frames[: k + 1], frames[k + 1 :]
-    return frames[:1], frames[1:]
-
-
-class CollisionServer:
-    """The collision server on one ZeroMQ ROUTER socket.
-
-    ``bind`` is checked by :func:`reachwise.server.security.plan_bind` (local by
-    default; CURVE with ``keys``; ``insecure`` to bind a non-local address without).
-    ``state_dir`` makes the scene durable. :meth:`start` binds and returns the
-    endpoint; :meth:`serve_forever` runs the I/O loop until :meth:`stop` (from any
-    thread or a signal handler) or ``max_runtime`` seconds; :meth:`close` frees the
-    port and every thread. ``with server.background() as endpoint:`` does all of that
-    on a thread.
-    """
-
-    def __init__(
-        self,
-        bind: str = DEFAULT_BIND,
-        state_dir: str | Path | None = None,
-        *,
-        keys: str | Path | None = None,
-        insecure: bool = False,
-        strategy: str = "default",
-        limits: P.Limits = P.DEFAULT_LIMITS,
-        live_interval: float = LIVE_INTERVAL,
-    ) -> None:
-        self.plan: BindPlan = plan_bind(bind, keys, insecure)
-        self.limits = limits
-        self.live_interval = live_interval
-        store = StateStore(state_dir) if state_dir is not None else None
-        self.service = SceneService(strategy, store)
-        self.endpoint: str | None = None
-        self._stop = threading.Event()
-        self._jobs: queue.Queue[object] = queue.Queue()
-        self._ctx: zmq.Context[zmq.Socket[bytes]] | None = None
-        self._router: zmq.Socket[bytes] | None = None
-        self._replies: zmq.Socket[bytes] | None = None
-        self._auth: zmq.auth.thread.ThreadAuthenticator | None = None
-        self._writer: threading.Thread | None = None
-        self._inproc = f"inproc://reachwise-replies-{uuid.uuid4().hex}"
-
-    # ------------------------------------------------------------------ life cycle
-    def start(self) -> str:
-        """Bind (CURVE if planned), start the writer thread (which restores the state
-        directory first) and return the bound endpoint."""
-        if self._ctx is not None:
-            raise RuntimeError("the server is already started")
-        ctx: zmq.Context[zmq.Socket[bytes]] = zmq.Context()
-        self._ctx = ctx
-        try:
-            if self.plan.keys is not None:
-                self._auth = zmq.auth.thread.ThreadAuthenticator(ctx, log=log)
-                self._auth.start()
-                self._auth.configure_curve(domain="*", location=str(self.plan.keys.authorized))
-            router = ctx.socket(zmq.ROUTER)
-            self._router = router
-            router.linger = 0
-            # a hard cap far above the checked one: beyond it ZeroMQ drops the peer
-            router.setsockopt(zmq.MAXMSGSIZE, 2 * self.limits.max_message_bytes + 4096)
-            if self.plan.keys is not None:
-                secure_server_socket(router, self.plan.keys)
-            router.bind(self.plan.address)
-            self.endpoint = router.getsockopt_string(zmq.LAST_ENDPOINT)
-            replies = ctx.socket(zmq.PULL)
-            replies.linger = 0
-            replies.bind(self._inproc)
-            self._replies = replies
-        except BaseException:
-            self.close()
-            raise
-        self._writer = threading.Thread(
-            target=self._write_loop, name="reachwise-writer", daemon=True
-        )
-        self._writer.start()
-        log.info(
-            "listening on %s (%s%s)",
-            self.endpoint,
-            "CURVE" if self.plan.curve else "no encryption",
-            "" if self.plan.local else ", reachable from other machines",
-        )
-        return self.endpoint
-
-    def stop(self) -> None:
-        """Ask :meth:`serve_forever` to return (thread- and signal-safe)."""
-        self._stop.set()
-
-    def close(self) -> None:
-        """Stop the writer (saving the latest joint states), close sockets, stop the
-        authenticator and terminate the context: the port is free afterwards."""
-        self._stop.set()
-        if self._writer is not None:
-            self._jobs.put(_STOP)
-            self._writer.join()
-            self._writer = None
-        for sock in (self._router, self._replies):
-            if sock is not None:
-                sock.close(linger=0)
-        self._router = self._replies = None
-        if self._auth is not None:
-            self._auth.stop()
-            self._auth = None
-        if self._ctx is not None:
-            self._ctx.term()
-            self._ctx = None
-
-    def __enter__(self) -> CollisionServer:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-    @contextlib.contextmanager
-    def background(self) -> Iterator[str]:
-        """Start, serve on a thread, yield the endpoint; stop and close on exit."""
-        endpoint = self.start()
-        thread = threading.Thread(target=self.serve_forever, name="reachwise-io", daemon=True)
-        thread.start()
-        try:
-            yield endpoint
-        finally:
-            self.stop()
-            thread.join()
-            self.close()
-
-    # ------------------------------------------------------------------ I/O thread
-    def serve_forever(self, max_runtime: float | None = None) -> None:
-        """Run the I/O loop until :meth:`stop` or ``max_runtime`` seconds."""
-        router, replies = self._router, self._replies
-        if router is None or replies is None:
-            raise RuntimeError("start() the server first")
-        poller = zmq.Poller()
-        poller.register(router, zmq.POLLIN)
-        poller.register(replies, zmq.POLLIN)
-        end = math.inf if max_runtime is None else time.monotonic() + max_runtime
-        while not self._stop.is_set() and time.monotonic() < end:
-            events = dict(poller.poll(100))
-            if replies in events:
-                while True:
-                    try:
-                        router.send_multipart(replies.recv_multipart(zmq.NOBLOCK))
-                    except zmq.Again:
-                        break
-            if router in events:
-                for _ in range(256):  # then look at the replies again
-                    try:
-                        frames = router.recv_multipart(zmq.NOBLOCK)
-                    except zmq.Again:
-                        break
-                    self._on_message(router, frames)
-                    if not int(router.get(zmq.EVENTS)) & zmq.POLLIN:
-                        break
-
-    def _on_message(self, router: zmq.Socket[bytes], frames: list[bytes]) -> None:
-        t0 = time.perf_counter()
-        route, body = split_frames(frames)
-        if len(body) != 1:
-            self._send_error(
-                router,
-                route,
-                P.ProtocolError(
-                    P.ErrorCode.BAD_MESSAGE, "frames", f"expected one body frame, got {len(body)}"
-                ),
-            )
-            return
-        try:
-            rid, req = P.decode_request(body[0], self.limits)
-        except P.ProtocolError as exc:
-            self._send_error(router, route, exc)
-            return
-        self.service.metrics.request(req.OP)
-        if req.STRUCTURAL:
-            if not self.service.ready:
-                why = P.ProtocolError(
-                    P.ErrorCode.NOT_READY, "op", f"the server is {self.service.state}", rid
-                )
-                self._send_error(router, route, why)
-            else:
-                self._jobs.put(_Job(route, rid, req))
-            return
-        payload, reply = _answer(self.service, rid, req)
-        router.send_multipart([*route, payload])
-        if isinstance(reply, P.QueryReply):
-            self.service.metrics.query(reply.compute_time, time.perf_counter() - t0)
-
-    def _send_error(
-        self, router: zmq.Socket[bytes], route: list[bytes], exc: P.ProtocolError
-    ) -> None:
-        self.service.metrics.error(exc.code)
-        router.send_multipart([*route, P.encode_error(exc.request_id, P.ErrorReply.of(exc))])
-
-    # ------------------------------------------------------------------ writer thread
-    def _write_loop(self) -> None:
-        ctx = self._ctx
-        if ctx is None:
-            return
-        push = ctx.socket(zmq.PUSH)
-        push.linger = 0
-        push.connect(self._inproc)
-        try:
-            self.service.load()
-            while True:
-                try:
-                    job = self._jobs.get(timeout=self.live_interval)
-                except queue.Empty:
-                    job = None
-                if job is _STOP:
-                    break
-                if isinstance(job, _Job):
-                    payload, _ = _answer(self.service, job.request_id, job.request)
-                    push.send_multipart([*job.route, payload])
-                self._housekeeping()
-        finally:
-            with contextlib.suppress(Exception):
-                self.service.flush_live(force=True)
-            push.close(linger=0)
-
-    def _housekeeping(self) -> None:
-        try:
-            self.service.flush_live()
-            if self.service.store is not None and self.service.sequence.wants_extension:
-                self.service.sequence.extend()
-        except Exception:  # the writer thread must live on; the next round retries
-            log.exception("saving the live state failed")

@@ -1,0 +1,98 @@
+"""The collision server's counters: request, error and latency metrics, and the
+sequence numbers that stamp every query and health reply (never repeated, also across
+restarts with a state directory)."""
+
+from __future__ import annotations
+
+import bisect
+import math
+import threading
+from collections import Counter
+
+from reachwise.server import protocol as P
+from reachwise.server.state import StateStore
+
+#: Sequence numbers reserved in the state directory at a time.
+SEQUENCE_BLOCK = 1_000_000
+#: Upper bucket edges of the latency histograms, microseconds (1-2-5 series).
+LATENCY_EDGES_US: tuple[float, ...] = tuple(
+    float(m * 10**e) for e in range(0, 7) for m in (1, 2, 5) if m * 10**e <= 1_000_000
+)
+
+
+class Metrics:
+    """Request and error counts and the query latency histograms (thread-safe)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._requests: Counter[str] = Counter()
+        self._errors: Counter[str] = Counter()
+        n = len(LATENCY_EDGES_US) + 1
+        self._compute = [0] * n
+        self._handling = [0] * n
+
+    def request(self, op: str) -> None:
+        with self._lock:
+            self._requests[op] += 1
+
+    def error(self, code: P.ErrorCode) -> None:
+        with self._lock:
+            self._errors[code.value] += 1
+
+    def query(self, compute_s: float, handling_s: float) -> None:
+        with self._lock:
+            self._compute[bisect.bisect_right(LATENCY_EDGES_US, compute_s * 1e6)] += 1
+            self._handling[bisect.bisect_right(LATENCY_EDGES_US, handling_s * 1e6)] += 1
+
+    def snapshot(self, uptime: float, sequence: int) -> P.MetricsReply:
+        with self._lock:
+            return P.MetricsReply(
+                uptime,
+                sequence,
+                dict(self._requests),
+                dict(self._errors),
+                LATENCY_EDGES_US,
+                tuple(self._compute),
+                tuple(self._handling),
+            )
+
+
+class SequenceCounter:
+    """Numbers 1, 2, 3 … for query and health replies; with a store, reserved in blocks
+    so that a restarted server continues above everything it may have handed out."""
+
+    def __init__(self, store: StateStore | None, block: int = SEQUENCE_BLOCK) -> None:
+        self._store = store
+        self._block = block
+        self._lock = threading.Lock()
+        self._last = 0
+        self._reserved = math.inf
+        if store is not None:
+            self._last = store.read_reserved()
+            self._reserved = self._last + block
+            store.write_reserved(int(self._reserved))
+
+    @property
+    def last(self) -> int:
+        """The last number handed out (0 before the first)."""
+        return self._last
+
+    def take(self) -> int:
+        with self._lock:
+            self._last += 1
+            if self._last > self._reserved:  # the writer thread fell far behind
+                self._extend_locked()
+            return self._last
+
+    @property
+    def wants_extension(self) -> bool:
+        return self._last > self._reserved - self._block // 2
+
+    def extend(self) -> None:
+        with self._lock:
+            self._extend_locked()
+
+    def _extend_locked(self) -> None:
+        if self._store is not None:
+            self._reserved = max(self._reserved, self._last) + self._block
+            self._store.write_reserved(int(self._reserved))

@@ -1,0 +1,474 @@
+"""The bodies of the server's replies, one frozen dataclass per kind, and the
+typed error reply."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Self
+
+import numpy as np
+from numpy.typing import NDArray
+
+from reachwise.server.protocol.fields import (
+    MAX_NAME_LENGTH,
+    Body,
+    ErrorCode,
+    ProtocolError,
+    Reader,
+    check_array,
+    check_bool,
+    check_float,
+    check_int,
+    check_list,
+    check_map,
+    check_model,
+    check_name,
+    check_text,
+    encode_array,
+    omit_none,
+)
+from reachwise.server.protocol.requests import (
+    _array_map,
+)
+
+
+@dataclass(frozen=True)
+class Reply:
+    """Base of every reply body."""
+
+    def body(self) -> Body:
+        return {}
+
+    @classmethod
+    def parse(cls, r: Reader) -> Self:
+        return cls()
+
+
+@dataclass(frozen=True)
+class Ack(Reply):
+    """Done; nothing to report."""
+
+
+@dataclass(frozen=True)
+class HelloReply(Reply):
+    server: str
+    version: str
+    protocol: int
+    instance: str
+    ready: bool
+
+    def body(self) -> Body:
+        return {
+            "server": self.server,
+            "version": self.version,
+            "protocol": self.protocol,
+            "instance": self.instance,
+            "ready": self.ready,
+        }
+
+    @classmethod
+    def parse(cls, r: Reader) -> Self:
+        return cls(
+            check_text(r.get("server"), r.path("server")),
+            check_text(r.get("version"), r.path("version")),
+            check_int(r.get("protocol"), r.path("protocol")),
+            check_text(r.get("instance"), r.path("instance")),
+            check_bool(r.get("ready"), r.path("ready")),
+        )
+
+
+@dataclass(frozen=True)
+class HealthReply(Reply):
+    """``state``: ``loading`` (restoring the state directory), ``ready`` or ``failed``
+    (with ``reason``). ``sequence`` grows with every health and query reply, also
+    across restarts when the server has a state directory; ``instance`` changes at
+    every start; ``uptime`` in seconds."""
+
+    ready: bool
+    state: str
+    reason: str
+    sequence: int
+    instance: str
+    uptime: float
+    robots: int
+    objects: int
+    pairs: int
+
+    def body(self) -> Body:
+        return dict(self.__dict__)
+
+    @classmethod
+    def parse(cls, r: Reader) -> Self:
+        return cls(
+            check_bool(r.get("ready"), r.path("ready")),
+            check_text(r.get("state"), r.path("state")),
+            check_text(r.get("reason"), r.path("reason")),
+            check_int(r.get("sequence"), r.path("sequence"), minimum=0),
+            check_text(r.get("instance"), r.path("instance")),
+            check_float(r.get("uptime"), r.path("uptime")),
+            check_int(r.get("robots"), r.path("robots"), minimum=0),
+            check_int(r.get("objects"), r.path("objects"), minimum=0),
+            check_int(r.get("pairs"), r.path("pairs"), minimum=0),
+        )
+
+
+@dataclass(frozen=True)
+class MetricsReply(Reply):
+    """``requests`` and ``errors``: counts per op and per error code. Histograms of
+    queries in microseconds over ``edges_us`` (bucket k counts values in
+    [edges[k-1], edges[k]), the last bucket everything above): ``query_compute``
+    the distance computation alone, ``query_handling`` from receipt to reply."""
+
+    uptime: float
+    sequence: int
+    requests: dict[str, int]
+    errors: dict[str, int]
+    edges_us: tuple[float, ...]
+    query_compute: tuple[int, ...]
+    query_handling: tuple[int, ...]
+
+    def body(self) -> Body:
+        return {
+            "uptime": self.uptime,
+            "sequence": self.sequence,
+            "requests": dict(self.requests),
+            "errors": dict(self.errors),
+            "edges_us": list(self.edges_us),
+            "query_compute": list(self.query_compute),
+            "query_handling": list(self.query_handling),
+        }
+
+    @classmethod
+    def parse(cls, r: Reader) -> Self:
+        def counts(key: str) -> dict[str, int]:
+            m = check_map(r.get(key), r.path(key))
+            return {
+                check_text(k, r.path(key)): check_int(v, f"{r.path(key)}.{k}", minimum=0)
+                for k, v in m.items()
+            }
+
+        def ints(key: str) -> tuple[int, ...]:
+            return tuple(
+                check_int(v, r.path(key), minimum=0) for v in check_list(r.get(key), r.path(key))
+            )
+
+        return cls(
+            check_float(r.get("uptime"), r.path("uptime")),
+            check_int(r.get("sequence"), r.path("sequence"), minimum=0),
+            counts("requests"),
+            counts("errors"),
+            tuple(
+                check_float(v, r.path("edges_us"))
+                for v in check_list(r.get("edges_us"), r.path("edges_us"))
+            ),
+            ints("query_compute"),
+            ints("query_handling"),
+        )
+
+
+@dataclass(frozen=True)
+class RobotReply(Reply):
+    """A registered robot: its frame names (``link_0`` … ``tool``) and joint count."""
+
+    name: str
+    links: tuple[str, ...]
+    dof: int
+
+    def body(self) -> Body:
+        return {"name": self.name, "links": list(self.links), "dof": self.dof}
+
+    @classmethod
+    def parse(cls, r: Reader) -> Self:
+        links = check_list(r.get("links"), r.path("links"))
+        return cls(
+            check_name(r.get("name"), r.path("name")),
+            tuple(check_name(v, r.path("links")) for v in links),
+            check_int(r.get("dof"), r.path("dof"), minimum=0),
+        )
+
+
+@dataclass(frozen=True)
+class ObjectReply(Reply):
+    """An object after ``add_object``/``replace_cloud``: its point count."""
+
+    name: str
+    points: int
+
+    def body(self) -> Body:
+        return {"name": self.name, "points": self.points}
+
+    @classmethod
+    def parse(cls, r: Reader) -> Self:
+        return cls(
+            check_name(r.get("name"), r.path("name")),
+            check_int(r.get("points"), r.path("points"), minimum=1),
+        )
+
+
+@dataclass(frozen=True)
+class PairInfo:
+    """A watched pair: object names, margin (m) and kind."""
+
+    a: str
+    b: str
+    margin: float
+    kind: str
+
+    def wire(self) -> list[Any]:
+        return [self.a, self.b, self.margin, self.kind]
+
+    @classmethod
+    def parse(cls, value: object, where: str) -> PairInfo:
+        v = check_list(value, where, 4)
+        if len(v) != 4:
+            raise ProtocolError(ErrorCode.WRONG_SHAPE, where, "expected [a, b, margin, kind]")
+        return cls(
+            check_name(v[0], f"{where}[0]"),
+            check_name(v[1], f"{where}[1]"),
+            check_float(v[2], f"{where}[2]", finite=False, minimum=0.0),
+            check_name(v[3], f"{where}[3]"),
+        )
+
+
+def _pairs(r: Reader, key: str = "pairs") -> tuple[PairInfo, ...]:
+    lst = check_list(r.get(key), r.path(key))
+    return tuple(PairInfo.parse(p, f"{r.path(key)}[{i}]") for i, p in enumerate(lst))
+
+
+@dataclass(frozen=True)
+class PairsReply(Reply):
+    """The pairs a ``watch*`` request created or updated."""
+
+    pairs: tuple[PairInfo, ...]
+
+    def body(self) -> Body:
+        return {"pairs": [p.wire() for p in self.pairs]}
+
+    @classmethod
+    def parse(cls, r: Reader) -> Self:
+        return cls(_pairs(r))
+
+
+#: Columns of :attr:`QueryReply.rows`: distance, point_a (3), point_b (3), direction (3),
+#: index_a, index_b, no_risk (0 or 1).
+ROW_COLUMNS = 13
+
+
+@dataclass(frozen=True, eq=False)
+class QueryReply(Reply):
+    """Every answered pair, in watch order, one row of :data:`ROW_COLUMNS` float64 per
+    pair (one array: the cheapest to encode and check): the distance (m; inf beyond
+    the margin), the closest point on a, on b, the unit direction from b to a (world
+    frame; NaN beyond the margin), the closest points' rows in the clouds (-1 beyond
+    the margin; exact as floats, clouds have far fewer than 2**53 points) and the
+    no-risk flag. :attr:`values`, :attr:`index` and :attr:`no_risk` give the parts.
+
+    ``sequence`` grows with every query (and health) reply; ``measured_at`` is the
+    oldest time stamp among the joint states and run-time poses the answer depends on
+    and the query's own stamp (sender's clock, s); ``compute_time`` the server's
+    computation time (s).
+
+    ``layout`` names the list of watched pairs (it changes whenever a pair, its
+    margin or the order changes, and at every server start; empty for a query of
+    chosen pairs). ``pairs`` is None when the request named the current layout: the
+    rows are then in the order of the list the client holds.
+    """
+
+    sequence: int
+    measured_at: float
+    compute_time: float
+    layout: str
+    pairs: tuple[PairInfo, ...] | None
+    rows: NDArray[np.float64]
+
+    @property
+    def values(self) -> NDArray[np.float64]:
+        """(P, 10): distance, point_a, point_b, direction."""
+        return self.rows[:, :10]
+
+    @property
+    def index(self) -> NDArray[np.int64]:
+        """(P, 2): index_a, index_b."""
+        return self.rows[:, 10:12].astype(np.int64)
+
+    @property
+    def no_risk(self) -> NDArray[np.bool_]:
+        return self.rows[:, 12] == 1.0
+
+    def body(self) -> Body:
+        return omit_none(
+            {
+                "sequence": self.sequence,
+                "measured_at": self.measured_at,
+                "compute_time": self.compute_time,
+                "layout": self.layout,
+                "pairs": None if self.pairs is None else [p.wire() for p in self.pairs],
+                "rows": encode_array(self.rows),
+            }
+        )
+
+    @classmethod
+    def parse(cls, r: Reader) -> Self:
+        pairs = None if r.opt("pairs") is None else _pairs(r)
+        where = r.path("rows")
+        rows = check_array(r.get("rows"), where, shape=(None, ROW_COLUMNS), finite=False)
+        n = rows.shape[0]
+        if pairs is not None and len(pairs) != n:
+            raise ProtocolError(
+                ErrorCode.WRONG_SHAPE, r.path("pairs"), f"{len(pairs)} pairs for {n} rows"
+            )
+        for ia, ib, flag in rows[:, 10:13].tolist():
+            if not (ia.is_integer() and ib.is_integer() and ia >= -1.0 and ib >= -1.0):
+                raise ProtocolError(
+                    ErrorCode.WRONG_TYPE, where, "columns 10-11 must be indices >= -1"
+                )
+            if flag != 0.0 and flag != 1.0:
+                raise ProtocolError(
+                    ErrorCode.WRONG_TYPE, where, "column 12 (no_risk) must be 0 or 1"
+                )
+        return cls(
+            check_int(r.get("sequence"), r.path("sequence"), minimum=0),
+            check_float(r.get("measured_at"), r.path("measured_at")),
+            check_float(r.get("compute_time"), r.path("compute_time"), minimum=0.0),
+            check_text(r.get("layout"), r.path("layout"), MAX_NAME_LENGTH),
+            pairs,
+            rows,
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class ObjectInfo:
+    """One object of the scene: ``source`` is ``fixed`` (``pose`` in world), ``link``
+    (``pose`` the offset from ``robot``'s ``link``) or ``runtime`` (``pose`` the current
+    world pose); ``cloud`` only when asked for."""
+
+    name: str
+    points: int
+    source: str
+    pose: NDArray[np.float64]
+    robot: str | None = None
+    link: str | None = None
+    cloud: NDArray[np.float64] | None = None
+
+    def wire(self) -> Body:
+        return omit_none(
+            {
+                "name": self.name,
+                "points": self.points,
+                "source": self.source,
+                "pose": encode_array(self.pose),
+                "robot": self.robot,
+                "link": self.link,
+                "cloud": None if self.cloud is None else encode_array(self.cloud),
+            }
+        )
+
+    @classmethod
+    def parse(cls, value: object, where: str) -> ObjectInfo:
+        r = Reader(value, where)
+        source = r.get("source")
+        if source not in ("fixed", "link", "runtime"):
+            raise ProtocolError(
+                ErrorCode.WRONG_TYPE, r.path("source"), "expected fixed, link or runtime"
+            )
+        robot, link, cloud = r.opt("robot"), r.opt("link"), r.opt("cloud")
+        out = cls(
+            check_name(r.get("name"), r.path("name")),
+            check_int(r.get("points"), r.path("points"), minimum=1),
+            source,
+            check_array(r.get("pose"), r.path("pose"), shape=(4, 4)),
+            None if robot is None else check_name(robot, r.path("robot")),
+            None if link is None else check_name(link, r.path("link")),
+            None if cloud is None else check_array(cloud, r.path("cloud"), shape=(None, 3)),
+        )
+        r.done()
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class DescribeReply(Reply):
+    """The scene: distance ``strategy``, robots (YAML mappings) and their joint
+    states, objects in insertion order, watched pairs in query order, the sequence."""
+
+    strategy: str
+    robots: dict[str, dict[str, Any]]
+    joints: dict[str, NDArray[np.float64]]
+    objects: tuple[ObjectInfo, ...]
+    pairs: tuple[PairInfo, ...]
+    sequence: int
+
+    def body(self) -> Body:
+        return {
+            "strategy": self.strategy,
+            "robots": dict(self.robots),
+            "joints": {k: encode_array(v) for k, v in self.joints.items()},
+            "objects": [o.wire() for o in self.objects],
+            "pairs": [p.wire() for p in self.pairs],
+            "sequence": self.sequence,
+        }
+
+    @classmethod
+    def parse(cls, r: Reader) -> Self:
+        robots = check_map(r.get("robots"), r.path("robots"))
+        models = {
+            check_name(k, r.path("robots")): check_model(v, f"{r.path('robots')}.{k}")
+            for k, v in robots.items()
+        }
+        objs = check_list(r.get("objects"), r.path("objects"))
+        return cls(
+            check_name(r.get("strategy"), r.path("strategy")),
+            models,
+            _array_map(r, "joints", (None,)) or {},
+            tuple(ObjectInfo.parse(o, f"{r.path('objects')}[{i}]") for i, o in enumerate(objs)),
+            _pairs(r),
+            check_int(r.get("sequence"), r.path("sequence"), minimum=0),
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class PosesReply(Reply):
+    """World pose (4x4) of every object."""
+
+    poses: dict[str, NDArray[np.float64]]
+
+    def body(self) -> Body:
+        return {"poses": {k: encode_array(v) for k, v in self.poses.items()}}
+
+    @classmethod
+    def parse(cls, r: Reader) -> Self:
+        return cls(_array_map(r, "poses", (4, 4)) or {})
+
+
+#: The reply type of every request op.
+REPLIES: dict[str, type[Reply]] = {
+    "hello": HelloReply,
+    "health": HealthReply,
+    "metrics": MetricsReply,
+    "add_robot": RobotReply,
+    "add_object": ObjectReply,
+    "replace_cloud": ObjectReply,
+    "set_joints": Ack,
+    "set_pose": Ack,
+    "watch": PairsReply,
+    "watch_self": PairsReply,
+    "watch_environment": PairsReply,
+    "watch_robots": PairsReply,
+    "unwatch": Ack,
+    "clear": Ack,
+    "query": QueryReply,
+    "describe": DescribeReply,
+    "poses": PosesReply,
+}
+
+
+@dataclass(frozen=True)
+class ErrorReply:
+    """A typed error: ``code``, the offending ``field`` and a ``message``."""
+
+    code: ErrorCode
+    field: str
+    message: str
+
+    @classmethod
+    def of(cls, exc: ProtocolError) -> ErrorReply:
+        return cls(exc.code, exc.field, exc.message)

@@ -1,0 +1,468 @@
+"""The requests a client sends the collision server, one frozen dataclass per ``op``
+(P-V Table 1: the initialization phase, then the calculation phase)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar, Self
+
+import numpy as np
+from numpy.typing import NDArray
+
+from reachwise.server.protocol.fields import (
+    MAX_LIST,
+    MAX_NAME_LENGTH,
+    SUPPORTED_VERSIONS,
+    Body,
+    ErrorCode,
+    Limits,
+    ProtocolError,
+    Reader,
+    check_array,
+    check_bool,
+    check_float,
+    check_int,
+    check_list,
+    check_map,
+    check_model,
+    check_name,
+    check_name_pair,
+    check_text,
+    encode_array,
+    omit_none,
+    pose_or_none,
+    stamp_of,
+)
+
+
+@dataclass(frozen=True)
+class Request:
+    """Base of every request; ``OP`` is its wire name."""
+
+    OP: ClassVar[str] = ""
+    #: Requests that change the scene's structure (run in order on the server's writer
+    #: thread and persisted before the reply); the rest are answered at once.
+    STRUCTURAL: ClassVar[bool] = False
+
+    def body(self) -> Body:
+        return {}
+
+    @classmethod
+    def parse(cls, r: Reader, limits: Limits) -> Self:
+        return cls()
+
+
+@dataclass(frozen=True)
+class Hello(Request):
+    """Say who the client is and which protocol versions it speaks."""
+
+    OP: ClassVar[str] = "hello"
+    client: str = "reachwise"
+    versions: tuple[int, ...] = SUPPORTED_VERSIONS
+
+    def body(self) -> Body:
+        return {"client": self.client, "versions": list(self.versions)}
+
+    @classmethod
+    def parse(cls, r: Reader, limits: Limits) -> Self:
+        client = check_text(r.get("client"), r.path("client"), MAX_NAME_LENGTH)
+        vs = check_list(r.get("versions"), r.path("versions"), 64)
+        versions = tuple(check_int(v, f"{r.path('versions')}[{i}]") for i, v in enumerate(vs))
+        return cls(client, versions)
+
+
+@dataclass(frozen=True)
+class Health(Request):
+    """Readiness and a sequence number that only grows (across restarts too)."""
+
+    OP: ClassVar[str] = "health"
+
+
+@dataclass(frozen=True)
+class Metrics(Request):
+    """Request counts, error counts and the query latency histograms."""
+
+    OP: ClassVar[str] = "metrics"
+
+
+@dataclass(frozen=True, eq=False)
+class AddRobot(Request):
+    """Register a robot (its YAML mapping), optionally with its joint state ``q``."""
+
+    OP: ClassVar[str] = "add_robot"
+    STRUCTURAL: ClassVar[bool] = True
+    robot: dict[str, Any]
+    q: NDArray[np.float64] | None = None
+    stamp: float | None = None
+
+    def body(self) -> Body:
+        return omit_none(
+            {
+                "robot": self.robot,
+                "q": None if self.q is None else encode_array(self.q),
+                "stamp": self.stamp,
+            }
+        )
+
+    @classmethod
+    def parse(cls, r: Reader, limits: Limits) -> Self:
+        robot = check_model(r.get("robot"), r.path("robot"))
+        q = r.opt("q")
+        qa = None if q is None else check_array(q, r.path("q"), shape=(None,))
+        return cls(robot, qa, stamp_of(r))
+
+
+@dataclass(frozen=True, eq=False)
+class AddObject(Request):
+    """Add a cloud (P-V Table 1 initialization: its index is built once): fixed in world
+    at ``pose``; on ``robot``'s ``link`` with ``pose`` its offset; or ``dynamic`` (pose
+    set at run time, ``pose`` the initial one)."""
+
+    OP: ClassVar[str] = "add_object"
+    STRUCTURAL: ClassVar[bool] = True
+    name: str
+    cloud: NDArray[np.float64]
+    pose: NDArray[np.float64] | None = None
+    robot: str | None = None
+    link: str | None = None
+    dynamic: bool = False
+
+    def body(self) -> Body:
+        return omit_none(
+            {
+                "name": self.name,
+                "cloud": encode_array(self.cloud),
+                "pose": None if self.pose is None else encode_array(self.pose),
+                "robot": self.robot,
+                "link": self.link,
+                "dynamic": self.dynamic or None,
+            }
+        )
+
+    @classmethod
+    def parse(cls, r: Reader, limits: Limits) -> Self:
+        name = check_name(r.get("name"), r.path("name"))
+        cloud = check_array(
+            r.get("cloud"), r.path("cloud"), shape=(None, 3), max_rows=limits.max_cloud_points
+        )
+        if cloud.shape[0] == 0:
+            raise ProtocolError(ErrorCode.WRONG_SHAPE, r.path("cloud"), "the cloud is empty")
+        pose = pose_or_none(r, "pose")
+        robot = r.opt("robot")
+        link = r.opt("link")
+        dyn = r.opt("dynamic")
+        return cls(
+            name,
+            cloud,
+            pose,
+            None if robot is None else check_name(robot, r.path("robot")),
+            None if link is None else check_name(link, r.path("link")),
+            False if dyn is None else check_bool(dyn, r.path("dynamic")),
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class ReplaceCloud(Request):
+    """Swap an object's cloud, e.g. the environment after a new scan (index rebuilt)."""
+
+    OP: ClassVar[str] = "replace_cloud"
+    STRUCTURAL: ClassVar[bool] = True
+    name: str
+    cloud: NDArray[np.float64]
+
+    def body(self) -> Body:
+        return {"name": self.name, "cloud": encode_array(self.cloud)}
+
+    @classmethod
+    def parse(cls, r: Reader, limits: Limits) -> Self:
+        name = check_name(r.get("name"), r.path("name"))
+        cloud = check_array(
+            r.get("cloud"), r.path("cloud"), shape=(None, 3), max_rows=limits.max_cloud_points
+        )
+        if cloud.shape[0] == 0:
+            raise ProtocolError(ErrorCode.WRONG_SHAPE, r.path("cloud"), "the cloud is empty")
+        return cls(name, cloud)
+
+
+@dataclass(frozen=True, eq=False)
+class SetJoints(Request):
+    """A robot's joint state (one value per non-fixed joint), measured at ``stamp``."""
+
+    OP: ClassVar[str] = "set_joints"
+    robot: str
+    q: NDArray[np.float64]
+    stamp: float | None = None
+
+    def body(self) -> Body:
+        return omit_none({"robot": self.robot, "q": encode_array(self.q), "stamp": self.stamp})
+
+    @classmethod
+    def parse(cls, r: Reader, limits: Limits) -> Self:
+        robot = check_name(r.get("robot"), r.path("robot"))
+        q = check_array(r.get("q"), r.path("q"), shape=(None,))
+        return cls(robot, q, stamp_of(r))
+
+
+@dataclass(frozen=True, eq=False)
+class SetPose(Request):
+    """The world pose (4x4) of a run-time object, measured at ``stamp``."""
+
+    OP: ClassVar[str] = "set_pose"
+    name: str
+    pose: NDArray[np.float64]
+    stamp: float | None = None
+
+    def body(self) -> Body:
+        return omit_none({"name": self.name, "pose": encode_array(self.pose), "stamp": self.stamp})
+
+    @classmethod
+    def parse(cls, r: Reader, limits: Limits) -> Self:
+        name = check_name(r.get("name"), r.path("name"))
+        pose = check_array(r.get("pose"), r.path("pose"), shape=(4, 4))
+        return cls(name, pose, stamp_of(r))
+
+
+def _margin(r: Reader) -> float:
+    return check_float(r.get("margin"), r.path("margin"), finite=False, minimum=0.0)
+
+
+@dataclass(frozen=True)
+class Watch(Request):
+    """Watch objects ``a`` and ``b`` with ``margin`` metres (inf allowed)."""
+
+    OP: ClassVar[str] = "watch"
+    STRUCTURAL: ClassVar[bool] = True
+    a: str
+    b: str
+    margin: float
+    kind: str = "custom"
+
+    def body(self) -> Body:
+        return {"a": self.a, "b": self.b, "margin": self.margin, "kind": self.kind}
+
+    @classmethod
+    def parse(cls, r: Reader, limits: Limits) -> Self:
+        return cls(
+            check_name(r.get("a"), r.path("a")),
+            check_name(r.get("b"), r.path("b")),
+            _margin(r),
+            check_name(r.get("kind"), r.path("kind")),
+        )
+
+
+@dataclass(frozen=True)
+class WatchSelf(Request):
+    """Self-collision pairs of a robot except adjacent links and ``exclude``."""
+
+    OP: ClassVar[str] = "watch_self"
+    STRUCTURAL: ClassVar[bool] = True
+    robot: str
+    margin: float
+    exclude: tuple[tuple[str, str], ...] = ()
+
+    def body(self) -> Body:
+        return {
+            "robot": self.robot,
+            "margin": self.margin,
+            "exclude": [list(e) for e in self.exclude],
+        }
+
+    @classmethod
+    def parse(cls, r: Reader, limits: Limits) -> Self:
+        ex = check_list(r.get("exclude"), r.path("exclude"))
+        return cls(
+            check_name(r.get("robot"), r.path("robot")),
+            _margin(r),
+            tuple(check_name_pair(e, f"{r.path('exclude')}[{i}]") for i, e in enumerate(ex)),
+        )
+
+
+@dataclass(frozen=True)
+class WatchEnvironment(Request):
+    """A robot's objects against every object not on a robot (or the named ones)."""
+
+    OP: ClassVar[str] = "watch_environment"
+    STRUCTURAL: ClassVar[bool] = True
+    robot: str
+    margin: float
+    objects: tuple[str, ...] | None = None
+
+    def body(self) -> Body:
+        return omit_none(
+            {
+                "robot": self.robot,
+                "margin": self.margin,
+                "objects": None if self.objects is None else list(self.objects),
+            }
+        )
+
+    @classmethod
+    def parse(cls, r: Reader, limits: Limits) -> Self:
+        robot = check_name(r.get("robot"), r.path("robot"))
+        margin = _margin(r)
+        objs = r.opt("objects")
+        names = None
+        if objs is not None:
+            lst = check_list(objs, r.path("objects"))
+            names = tuple(check_name(v, f"{r.path('objects')}[{i}]") for i, v in enumerate(lst))
+        return cls(robot, margin, names)
+
+
+@dataclass(frozen=True)
+class WatchRobots(Request):
+    """Every object of ``robot_a`` against every object of ``robot_b``."""
+
+    OP: ClassVar[str] = "watch_robots"
+    STRUCTURAL: ClassVar[bool] = True
+    robot_a: str
+    robot_b: str
+    margin: float
+
+    def body(self) -> Body:
+        return {"robot_a": self.robot_a, "robot_b": self.robot_b, "margin": self.margin}
+
+    @classmethod
+    def parse(cls, r: Reader, limits: Limits) -> Self:
+        return cls(
+            check_name(r.get("robot_a"), r.path("robot_a")),
+            check_name(r.get("robot_b"), r.path("robot_b")),
+            _margin(r),
+        )
+
+
+@dataclass(frozen=True)
+class Unwatch(Request):
+    """Stop watching a pair (either order); like the in-process scene, no error if it
+    was not watched."""
+
+    OP: ClassVar[str] = "unwatch"
+    STRUCTURAL: ClassVar[bool] = True
+    a: str
+    b: str
+
+    def body(self) -> Body:
+        return {"a": self.a, "b": self.b}
+
+    @classmethod
+    def parse(cls, r: Reader, limits: Limits) -> Self:
+        return cls(check_name(r.get("a"), r.path("a")), check_name(r.get("b"), r.path("b")))
+
+
+@dataclass(frozen=True, eq=False)
+class Query(Request):
+    """Answer the watched pairs (P-V Table 1's calculation phase).
+
+    ``joints`` and ``poses`` are applied first, atomically with the query (one round
+    trip per control tick); ``pairs`` restricts the answer to watched pairs (an
+    unwatched one is :attr:`ErrorCode.UNKNOWN_PAIR`); ``stamp`` is the time the
+    request was made and stamps the inputs it carries. ``layout`` names the pair list
+    the client already holds (from an earlier :class:`QueryReply`): if it is still
+    current the reply leaves the list out.
+    """
+
+    OP: ClassVar[str] = "query"
+    stamp: float | None = None
+    joints: dict[str, NDArray[np.float64]] | None = None
+    poses: dict[str, NDArray[np.float64]] | None = None
+    pairs: tuple[tuple[str, str], ...] | None = None
+    layout: str | None = None
+
+    def body(self) -> Body:
+        return omit_none(
+            {
+                "stamp": self.stamp,
+                "joints": None
+                if not self.joints
+                else {k: encode_array(v) for k, v in self.joints.items()},
+                "poses": None
+                if not self.poses
+                else {k: encode_array(v) for k, v in self.poses.items()},
+                "pairs": None if self.pairs is None else [list(p) for p in self.pairs],
+                "layout": self.layout,
+            }
+        )
+
+    @classmethod
+    def parse(cls, r: Reader, limits: Limits) -> Self:
+        stamp = stamp_of(r)
+        lv = r.opt("layout")
+        layout = None if lv is None else check_text(lv, r.path("layout"), MAX_NAME_LENGTH)
+        joints = _array_map(r, "joints", (None,))
+        poses = _array_map(r, "poses", (4, 4))
+        pv = r.opt("pairs")
+        pairs = None
+        if pv is not None:
+            lst = check_list(pv, r.path("pairs"))
+            pairs = tuple(check_name_pair(p, f"{r.path('pairs')}[{i}]") for i, p in enumerate(lst))
+        return cls(stamp, joints, poses, pairs, layout)
+
+
+def _array_map(
+    r: Reader, key: str, shape: tuple[int | None, ...]
+) -> dict[str, NDArray[np.float64]] | None:
+    v = r.opt(key)
+    if v is None:
+        return None
+    m = check_map(v, r.path(key))
+    if len(m) > MAX_LIST:
+        raise ProtocolError(ErrorCode.WRONG_SHAPE, r.path(key), f"at most {MAX_LIST} entries")
+    out = {}
+    for name, item in m.items():
+        where = f"{r.path(key)}.{name}"
+        out[check_name(name, where)] = check_array(item, where, shape=shape)
+    return out
+
+
+@dataclass(frozen=True)
+class Clear(Request):
+    """Remove every robot, object and pair (and their saved state): a simulator that
+    owns the server's scene starts each run from an empty one."""
+
+    OP: ClassVar[str] = "clear"
+    STRUCTURAL: ClassVar[bool] = True
+
+
+@dataclass(frozen=True)
+class Describe(Request):
+    """The scene's contents: robots, objects (with their clouds if ``clouds``), pairs."""
+
+    OP: ClassVar[str] = "describe"
+    clouds: bool = False
+
+    def body(self) -> Body:
+        return {"clouds": self.clouds}
+
+    @classmethod
+    def parse(cls, r: Reader, limits: Limits) -> Self:
+        return cls(check_bool(r.get("clouds"), r.path("clouds")))
+
+
+@dataclass(frozen=True)
+class Poses(Request):
+    """The current world pose of every object."""
+
+    OP: ClassVar[str] = "poses"
+
+
+REQUESTS: dict[str, type[Request]] = {
+    cls.OP: cls
+    for cls in (
+        Hello,
+        Health,
+        Metrics,
+        AddRobot,
+        AddObject,
+        ReplaceCloud,
+        SetJoints,
+        SetPose,
+        Watch,
+        WatchSelf,
+        WatchEnvironment,
+        WatchRobots,
+        Unwatch,
+        Clear,
+        Query,
+        Describe,
+        Poses,
+    )
+}

@@ -1,0 +1,282 @@
+"""The collision server on the wire: :class:`CollisionServer`, one ZeroMQ ROUTER
+socket, bound locally or with CURVE (:mod:`reachwise.server.security`), in front of the
+:class:`reachwise.server.service.SceneService`.
+
+Threads, so that one request never blocks another longer than its own work:
+
+- the *I/O thread* (the one running :meth:`CollisionServer.serve_forever`) receives,
+  checks the size, decodes and answers at once everything that is short: hello, health,
+  metrics, joint states, poses, queries, descriptions. The scene lock is held only for
+  the scene work itself.
+- the *writer thread* does, in arrival order, everything that builds or persists:
+  restoring the state directory at start, registering robots and clouds (the cloud and
+  its k-d tree are built *outside* the lock and swapped in under it), replacing scans,
+  pair rules, and the batched write of the latest joint states and poses. Its replies go
+  back to the I/O thread over an ``inproc://`` socket. The distance kernels release the
+  GIL (numba ``nogil``), so an index being built does not stall queries.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import queue
+import threading
+import time
+import uuid
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import zmq
+import zmq.auth.thread
+
+from reachwise.server import protocol as P
+from reachwise.server.security import DEFAULT_BIND, BindPlan, plan_bind, secure_server_socket
+from reachwise.server.service import LIVE_INTERVAL, SceneService, answer
+from reachwise.server.state import StateStore
+
+log = logging.getLogger("reachwise.server")
+
+
+@dataclass(frozen=True)
+class _Job:
+    route: list[bytes]
+    request_id: int
+    request: P.Request
+
+
+_STOP = object()
+
+
+def split_frames(frames: list[bytes]) -> tuple[list[bytes], list[bytes]]:
+    """(routing envelope, body frames) of a ROUTER message: the envelope runs up to
+    and including the first empty delimiter frame (REQ peers), else it is the peer
+    identity alone (DEALER peers)."""
+    for k in range(1, len(frames)):
+        if not frames[k]:
+            return frames[: k + 1], frames[k + 1 :]
+    return frames[:1], frames[1:]
+
+
+class CollisionServer:
+    """The collision server on one ZeroMQ ROUTER socket.
+
+    ``bind`` is checked by :func:`reachwise.server.security.plan_bind` (local by
+    default; CURVE with ``keys``; ``insecure`` to bind a non-local address without).
+    ``state_dir`` makes the scene durable. :meth:`start` binds and returns the
+    endpoint; :meth:`serve_forever` runs the I/O loop until :meth:`stop` (from any
+    thread or a signal handler) or ``max_runtime`` seconds; :meth:`close` frees the
+    port and every thread. ``with server.background() as endpoint:`` does all of that
+    on a thread.
+    """
+
+    def __init__(
+        self,
+        bind: str = DEFAULT_BIND,
+        state_dir: str | Path | None = None,
+        *,
+        keys: str | Path | None = None,
+        insecure: bool = False,
+        strategy: str = "default",
+        limits: P.Limits = P.DEFAULT_LIMITS,
+        live_interval: float = LIVE_INTERVAL,
+    ) -> None:
+        self.plan: BindPlan = plan_bind(bind, keys, insecure)
+        self.limits = limits
+        self.live_interval = live_interval
+        store = StateStore(state_dir) if state_dir is not None else None
+        self.service = SceneService(strategy, store)
+        self.endpoint: str | None = None
+        self._stop = threading.Event()
+        self._jobs: queue.Queue[object] = queue.Queue()
+        self._ctx: zmq.Context[zmq.Socket[bytes]] | None = None
+        self._router: zmq.Socket[bytes] | None = None
+        self._replies: zmq.Socket[bytes] | None = None
+        self._auth: zmq.auth.thread.ThreadAuthenticator | None = None
+        self._writer: threading.Thread | None = None
+        self._inproc = f"inproc://reachwise-replies-{uuid.uuid4().hex}"
+
+    # ------------------------------------------------------------------ life cycle
+    def start(self) -> str:
+        """Bind (CURVE if planned), start the writer thread (which restores the state
+        directory first) and return the bound endpoint."""
+        if self._ctx is not None:
+            raise RuntimeError("the server is already started")
+        ctx: zmq.Context[zmq.Socket[bytes]] = zmq.Context()
+        self._ctx = ctx
+        try:
+            if self.plan.keys is not None:
+                self._auth = zmq.auth.thread.ThreadAuthenticator(ctx, log=log)
+                self._auth.start()
+                self._auth.configure_curve(domain="*", location=str(self.plan.keys.authorized))
+            router = ctx.socket(zmq.ROUTER)
+            self._router = router
+            router.linger = 0
+            # a hard cap far above the checked one: beyond it ZeroMQ drops the peer
+            router.setsockopt(zmq.MAXMSGSIZE, 2 * self.limits.max_message_bytes + 4096)
+            if self.plan.keys is not None:
+                secure_server_socket(router, self.plan.keys)
+            router.bind(self.plan.address)
+            self.endpoint = router.getsockopt_string(zmq.LAST_ENDPOINT)
+            replies = ctx.socket(zmq.PULL)
+            replies.linger = 0
+            replies.bind(self._inproc)
+            self._replies = replies
+        except BaseException:
+            self.close()
+            raise
+        self._writer = threading.Thread(
+            target=self._write_loop, name="reachwise-writer", daemon=True
+        )
+        self._writer.start()
+        log.info(
+            "listening on %s (%s%s)",
+            self.endpoint,
+            "CURVE" if self.plan.curve else "no encryption",
+            "" if self.plan.local else ", reachable from other machines",
+        )
+        return self.endpoint
+
+    def stop(self) -> None:
+        """Ask :meth:`serve_forever` to return (thread- and signal-safe)."""
+        self._stop.set()
+
+    def close(self) -> None:
+        """Stop the writer (saving the latest joint states), close sockets, stop the
+        authenticator and terminate the context: the port is free afterwards."""
+        self._stop.set()
+        if self._writer is not None:
+            self._jobs.put(_STOP)
+            self._writer.join()
+            self._writer = None
+        for sock in (self._router, self._replies):
+            if sock is not None:
+                sock.close(linger=0)
+        self._router = self._replies = None
+        if self._auth is not None:
+            self._auth.stop()
+            self._auth = None
+        if self._ctx is not None:
+            self._ctx.term()
+            self._ctx = None
+
+    def __enter__(self) -> CollisionServer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @contextlib.contextmanager
+    def background(self) -> Iterator[str]:
+        """Start, serve on a thread, yield the endpoint; stop and close on exit."""
+        endpoint = self.start()
+        thread = threading.Thread(target=self.serve_forever, name="reachwise-io", daemon=True)
+        thread.start()
+        try:
+            yield endpoint
+        finally:
+            self.stop()
+            thread.join()
+            self.close()
+
+    # ------------------------------------------------------------------ I/O thread
+    def serve_forever(self, max_runtime: float | None = None) -> None:
+        """Run the I/O loop until :meth:`stop` or ``max_runtime`` seconds."""
+        router, replies = self._router, self._replies
+        if router is None or replies is None:
+            raise RuntimeError("start() the server first")
+        poller = zmq.Poller()
+        poller.register(router, zmq.POLLIN)
+        poller.register(replies, zmq.POLLIN)
+        end = math.inf if max_runtime is None else time.monotonic() + max_runtime
+        while not self._stop.is_set() and time.monotonic() < end:
+            events = dict(poller.poll(100))
+            if replies in events:
+                while True:
+                    try:
+                        router.send_multipart(replies.recv_multipart(zmq.NOBLOCK))
+                    except zmq.Again:
+                        break
+            if router in events:
+                for _ in range(256):  # then look at the replies again
+                    try:
+                        frames = router.recv_multipart(zmq.NOBLOCK)
+                    except zmq.Again:
+                        break
+                    self._on_message(router, frames)
+                    if not int(router.get(zmq.EVENTS)) & zmq.POLLIN:
+                        break
+
+    def _on_message(self, router: zmq.Socket[bytes], frames: list[bytes]) -> None:
+        t0 = time.perf_counter()
+        route, body = split_frames(frames)
+        if len(body) != 1:
+            self._send_error(
+                router,
+                route,
+                P.ProtocolError(
+                    P.ErrorCode.BAD_MESSAGE, "frames", f"expected one body frame, got {len(body)}"
+                ),
+            )
+            return
+        try:
+            rid, req = P.decode_request(body[0], self.limits)
+        except P.ProtocolError as exc:
+            self._send_error(router, route, exc)
+            return
+        self.service.metrics.request(req.OP)
+        if req.STRUCTURAL:
+            if not self.service.ready:
+                why = P.ProtocolError(
+                    P.ErrorCode.NOT_READY, "op", f"the server is {self.service.state}", rid
+                )
+                self._send_error(router, route, why)
+            else:
+                self._jobs.put(_Job(route, rid, req))
+            return
+        payload, reply = answer(self.service, rid, req)
+        router.send_multipart([*route, payload])
+        if isinstance(reply, P.QueryReply):
+            self.service.metrics.query(reply.compute_time, time.perf_counter() - t0)
+
+    def _send_error(
+        self, router: zmq.Socket[bytes], route: list[bytes], exc: P.ProtocolError
+    ) -> None:
+        self.service.metrics.error(exc.code)
+        router.send_multipart([*route, P.encode_error(exc.request_id, P.ErrorReply.of(exc))])
+
+    # ------------------------------------------------------------------ writer thread
+    def _write_loop(self) -> None:
+        ctx = self._ctx
+        if ctx is None:
+            return
+        push = ctx.socket(zmq.PUSH)
+        push.linger = 0
+        push.connect(self._inproc)
+        try:
+            self.service.load()
+            while True:
+                try:
+                    job = self._jobs.get(timeout=self.live_interval)
+                except queue.Empty:
+                    job = None
+                if job is _STOP:
+                    break
+                if isinstance(job, _Job):
+                    payload, _ = answer(self.service, job.request_id, job.request)
+                    push.send_multipart([*job.route, payload])
+                self._housekeeping()
+        finally:
+            with contextlib.suppress(Exception):
+                self.service.flush_live(force=True)
+            push.close(linger=0)
+
+    def _housekeeping(self) -> None:
+        try:
+            self.service.flush_live()
+            if self.service.store is not None and self.service.sequence.wants_extension:
+                self.service.sequence.extend()
+        except Exception:  # the writer thread must live on; the next round retries
+            log.exception("saving the live state failed")
