@@ -13,7 +13,8 @@ from reachwise.io.robot_file import load_robot
 from reachwise.io.task_file import load_task
 from reachwise.kinematics.ik import IKResult
 from reachwise.kinematics.robot import Joint, Robot
-from reachwise.sim.simulate import SimulationLog, simulate
+from reachwise.sim.log import SimulationLog
+from reachwise.sim.simulate import simulate
 from reachwise.synthesis.synthesize import SynthesisResult, synthesize
 from reachwise.tasks.task import Task, TaskPoint
 

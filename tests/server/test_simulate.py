@@ -16,7 +16,8 @@ from reachwise.benchmarks.server import ServerProcess
 from reachwise.cli.simulate import simulate as simulate_cli
 from reachwise.io.robot_file import load_robot
 from reachwise.server.client import SceneClient, ServerOptions, owned_scene
-from reachwise.sim.simulate import SimulationLog, simulate
+from reachwise.sim.log import SimulationLog
+from reachwise.sim.simulate import simulate
 
 SCENARIO = "p5-crane-obstacle"
 DURATION = 2.5  # s: the grabber comes within its margin of the scan before this

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from reachwise.errors import InputError
+from reachwise.sim.log import SimulationLog, load_log
 from reachwise.sim.scenarios import load_scenario, scenario_from_dict
-from reachwise.sim.simulate import SimulationLog, load_log, simulate
+from reachwise.sim.simulate import simulate
 
 
 def _same(a: SimulationLog, b: SimulationLog) -> None:

@@ -20,9 +20,11 @@ from reachwise.control.avoidance import AvoidancePoints, SceneConverter
 from reachwise.distance.scene import Scene
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
+from reachwise.sim.log import load_log
 from reachwise.sim.motion import ConstantVelocity, WaypointTrajectory, point_velocity
 from reachwise.sim.scenarios import load_scenario, scenario_from_dict
-from reachwise.sim.simulate import build_world, load_log, simulate
+from reachwise.sim.simulate import simulate
+from reachwise.sim.world import build_world
 
 # --------------------------------------------------------------------------- math
 

@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 
 from reachwise.geometry.scanner import get_scene
+from reachwise.sim.log import SimulationLog
 from reachwise.sim.scenarios import load_scenario, scenario_from_dict
-from reachwise.sim.simulate import SimulationLog, build_world, simulate
+from reachwise.sim.simulate import simulate
+from reachwise.sim.world import build_world
 
 START = np.array([2.7, 1.5, 1.5])
 GOAL = np.array([2.7, -1.5, 1.5])

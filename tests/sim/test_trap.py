@@ -12,13 +12,14 @@ import yaml
 from typer.testing import CliRunner
 
 from reachwise.errors import InputError
+from reachwise.sim.log import SimulationLog
 from reachwise.sim.scenarios import (
     EscapeSpec,
     builtin_scenarios,
     load_scenario,
     scenario_from_dict,
 )
-from reachwise.sim.simulate import SimulationLog, simulate
+from reachwise.sim.simulate import simulate
 
 GOAL = np.array([0.45, -0.50, 0.30])
 

@@ -23,7 +23,8 @@ from scipy.spatial.transform import Rotation
 import reachwise
 from reachwise.distance.scene import Scene
 from reachwise.errors import InputError
-from reachwise.sim.simulate import build_world, load_log
+from reachwise.sim.log import load_log
+from reachwise.sim.world import build_world
 from reachwise.viz.nodes import WATCHED_RGB
 from reachwise.viz.scene_data import (
     STATUS_RGB,

@@ -25,7 +25,7 @@ SCENARIOS = ("p3-self-collision", "p5-crane-obstacle")
 
 
 def _run(name: str, ticks: int) -> tuple[np.ndarray, np.ndarray, int]:
-    from reachwise.sim.simulate import build_world
+    from reachwise.sim.world import build_world
 
     world = build_world(name, avoidance=True)
     agents = world.agents

@@ -60,9 +60,10 @@ def simulate(
     ),
 ) -> None:
     """Simulate a scenario with collision avoidance (thesis §3.3, P-III/P-IV/P-V)."""
+    from reachwise.sim.log import SimulationLog
     from reachwise.sim.scenarios import load_scenario
-    from reachwise.sim.simulate import SimulationLog, build_world
     from reachwise.sim.simulate import simulate as run
+    from reachwise.sim.world import build_world
 
     if plant not in ("scenario", "mujoco"):
         raise typer.BadParameter(f"scenario or mujoco, got {plant!r}", param_hint="--plant")

@@ -42,7 +42,8 @@ from reachwise.sim.scenarios import EscapeSpec
 
 if TYPE_CHECKING:
     from reachwise.planning.follow import PathFollower
-    from reachwise.sim.simulate import Event, World, _Agent
+    from reachwise.sim.log import Event
+    from reachwise.sim.world import Agent, World
 
 __all__ = ["Escape"]
 
@@ -73,12 +74,12 @@ class Escape:
         }
 
     def _event(self, t: float, robot: str, kind: str, text: str) -> None:
-        from reachwise.sim.simulate import Event
+        from reachwise.sim.log import Event
 
         self.events.append(Event(t, robot, kind, text))
 
     # ------------------------------------------------------------------ per tick
-    def goal(self, a: _Agent, q: NDArray[np.float64], dt: float) -> Goal | None:
+    def goal(self, a: Agent, q: NDArray[np.float64], dt: float) -> Goal | None:
         """The goal ``a``'s controller gets this tick: the escape path's intermediate
         goal while following one, else the robot's own."""
         f = self._following.get(a.name)
@@ -90,7 +91,7 @@ class Escape:
         return f.follower.goal(q, dt)
 
     def status(
-        self, a: _Agent, q: NDArray[np.float64], st: ControlStatus, t: float
+        self, a: Agent, q: NDArray[np.float64], st: ControlStatus, t: float
     ) -> ControlStatus:
         """The status to act on after the controller's tick: plans on a stall, hides
         an intermediate goal's ``reached``, ends a finished or stuck escape."""
@@ -130,14 +131,14 @@ class Escape:
         self._plan(a, q, t, tries)
         return st
 
-    def _end(self, a: _Agent) -> None:
+    def _end(self, a: Agent) -> None:
         """Hand ``a`` back to its own controller (fresh stall clock)."""
         f = self._following.pop(a.name)
         a.controller = f.controller
         a.controller.reset()
 
     # ------------------------------------------------------------------ planning
-    def _plan(self, a: _Agent, q: NDArray[np.float64], t: float, tries: int) -> None:
+    def _plan(self, a: Agent, q: NDArray[np.float64], t: float, tries: int) -> None:
         from reachwise.planning.escape import PlannerConfig, plan_escape
         from reachwise.planning.follow import PathFollower
         from reachwise.planning.timing import time_path

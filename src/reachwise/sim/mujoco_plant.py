@@ -50,7 +50,7 @@ from reachwise.sim.mujoco_model import MujocoRobot, mujoco_model, require_mujoco
 from reachwise.sim.plant import PlantConfig, hanging_joints
 
 if TYPE_CHECKING:
-    from reachwise.sim.simulate import SimulationLog
+    from reachwise.sim.log import SimulationLog
 
 __all__ = ["MujocoPlant", "MujocoPlantConfig", "plant_comparison"]
 

@@ -22,613 +22,34 @@ inside the solid of a robot part (see :mod:`reachwise.sim.contact`).
 
 from __future__ import annotations
 
-import csv
-import json
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise.control.avoidance import SceneConverter
-from reachwise.control.controller import Controller, ControllerConfig, ControlStatus, Goal
-from reachwise.control.safety import SafetyConfig
-from reachwise.distance.scene import OnLink, Scene, SceneResult
-from reachwise.errors import InputError
-from reachwise.geometry.cloud import PointCloud
-from reachwise.kinematics.robot import Robot
-from reachwise.sim.contact import Solid, solid_of_geometry, solid_of_mesh
-from reachwise.sim.motion import Trajectory
-from reachwise.sim.plant import Plant, PlantConfig
-from reachwise.sim.scenarios import (
-    EscapeSpec,
-    GoalSpec,
-    ObjectSpec,
-    RobotSpec,
-    Scenario,
-    load_scenario,
+from reachwise.control.controller import ControlStatus
+from reachwise.distance.scene import Scene, SceneResult
+from reachwise.sim.log import Event, GoalRecord, SimulationLog
+from reachwise.sim.scenarios import EscapeSpec, Scenario
+from reachwise.sim.world import (
+    Agent,
+    SimClock,
+    World,
+    build_world,
+    close_scene,
+    frozen_scene,
+    move_objects,
 )
 
 if TYPE_CHECKING:
     from reachwise.server.client import ServerOptions
     from reachwise.sim.escape import Escape
-    from reachwise.sim.mujoco_plant import MujocoPlant
 
-__all__ = ["Event", "GoalRecord", "SimulationLog", "World", "build_world", "simulate"]
-
-
-@dataclass(frozen=True)
-class Event:
-    """Something that happened at time ``t`` (s) to ``robot`` (or ``""``)."""
-
-    t: float
-    robot: str
-    kind: str
-    text: str
-
-
-@dataclass(frozen=True)
-class GoalRecord:
-    """One goal of one robot: when it was reached (``None``: never) and the remaining
-    errors at the end of the run or when reached."""
-
-    robot: str
-    index: int
-    name: str
-    work: float
-    reached_at: float | None
-    position_error: float
-    orientation_error: float
-
-
-@dataclass(frozen=True, eq=False)
-class SimulationLog:
-    """Everything a run recorded, one row per tick.
-
-    ``t`` (T,); per robot (dicts keyed by robot name): ``q``, ``qdot`` (actual),
-    ``command`` (T, n), ``tool`` (T, 4, 4), ``state`` (T,) strings, ``goal_index``
-    (T,); per pair (``pairs`` names ``"a|b"``): ``distance`` (T, P) cloud distance
-    (``inf`` beyond margin + monitor range), ``signed`` (T, P) the same or ``−depth``
-    when the solids overlap, ``margins`` (P,) the collision margins ρ_O. ``events``,
-    ``goals``; ``first_collision`` (s) and its pair, or ``None``. ``object_poses``:
-    per moving object (``motion``), its world pose at each tick (T, 4, 4), for replay.
-    """
-
-    scenario: str
-    avoidance: bool
-    dt: float
-    t: NDArray[np.float64]
-    robots: tuple[str, ...]
-    q: dict[str, NDArray[np.float64]]
-    qdot: dict[str, NDArray[np.float64]]
-    command: dict[str, NDArray[np.float64]]
-    tool: dict[str, NDArray[np.float64]]
-    state: dict[str, NDArray[np.str_]]
-    goal_index: dict[str, NDArray[np.int64]]
-    pairs: tuple[str, ...]
-    distance: NDArray[np.float64]
-    signed: NDArray[np.float64]
-    margins: NDArray[np.float64]
-    lower: dict[str, NDArray[np.float64]]
-    upper: dict[str, NDArray[np.float64]]
-    vmax: dict[str, NDArray[np.float64]]
-    events: tuple[Event, ...] = ()
-    goals: tuple[GoalRecord, ...] = ()
-    first_collision: float | None = None
-    first_collision_pair: str | None = None
-    extras: dict[str, Any] = field(default_factory=dict)
-    object_poses: dict[str, NDArray[np.float64]] = field(default_factory=dict)
-
-    @property
-    def min_distance(self) -> NDArray[np.float64]:
-        """Smallest signed distance over all pairs at each tick (inf without pairs)."""
-        if self.signed.shape[1] == 0:
-            return np.full(self.t.shape, np.inf)
-        return np.asarray(self.signed.min(axis=1))
-
-    @property
-    def all_goals_reached(self) -> bool:
-        return all(g.reached_at is not None for g in self.goals)
-
-    def limits_held(self, tol: float = 1e-9) -> dict[str, bool]:
-        """Per robot: every joint inside its limits at every tick (a joint that starts
-        outside must not move farther out)."""
-        out = {}
-        for r in self.robots:
-            q = self.q[r]
-            lo = np.minimum(self.lower[r], q[0])
-            hi = np.maximum(self.upper[r], q[0])
-            ok = bool(np.all(q >= lo - tol) & np.all(q <= hi + tol))
-            # a joint outside at the start: monotone back inward
-            out[r] = ok
-        return out
-
-    def speeds_held(self, tol: float = 1e-9) -> dict[str, bool]:
-        """Per robot: |command| and |actual velocity| ≤ v_max at every tick."""
-        return {
-            r: bool(
-                np.all(np.abs(self.command[r]) <= self.vmax[r] + tol)
-                and np.all(np.abs(self.qdot[r]) <= self.vmax[r] + tol)
-            )
-            for r in self.robots
-        }
-
-    def summary(self) -> dict[str, Any]:
-        """A JSON-ready summary of the outcome."""
-        md = self.min_distance
-        finite = md[np.isfinite(md)]
-        per_pair = {
-            p: float(np.min(self.signed[:, i])) if self.signed.shape[0] else math.inf
-            for i, p in enumerate(self.pairs)
-        }
-        stalls = [e for e in self.events if e.kind == "stalled"]
-        return {
-            "scenario": self.scenario,
-            "avoidance": self.avoidance,
-            "dt": self.dt,
-            "duration": float(self.t[-1]) if self.t.size else 0.0,
-            "ticks": int(self.t.size),
-            "all_goals_reached": self.all_goals_reached,
-            "goals": [
-                {
-                    "robot": g.robot,
-                    "index": g.index,
-                    "name": g.name,
-                    "work": g.work,
-                    "reached_at": g.reached_at,
-                    "position_error": g.position_error,
-                    "orientation_error": g.orientation_error,
-                }
-                for g in self.goals
-            ],
-            "min_distance": float(finite.min()) if finite.size else None,
-            "min_distance_by_pair": {
-                k: (v if math.isfinite(v) else None) for k, v in per_pair.items()
-            },
-            "first_collision": self.first_collision,
-            "first_collision_pair": self.first_collision_pair,
-            "limits_held": self.limits_held(),
-            "speeds_held": self.speeds_held(),
-            "stalls": [{"t": e.t, "robot": e.robot, "text": e.text} for e in stalls],
-            "extras": self.extras,
-            "events": [
-                {"t": e.t, "robot": e.robot, "kind": e.kind, "text": e.text} for e in self.events
-            ],
-        }
-
-    def save(self, folder: str | Path) -> Path:
-        """Write ``log.npz`` (every array), ``log.csv`` (t, joints, tool xyz, min
-        distance per tick) and ``summary.json`` into ``folder``; returns it."""
-        out = Path(folder)
-        out.mkdir(parents=True, exist_ok=True)
-        arrays: dict[str, Any] = {
-            "t": self.t,
-            "distance": self.distance,
-            "signed": self.signed,
-            "margins": self.margins,
-            "pairs": np.array(self.pairs, dtype=str),
-            "min_distance": self.min_distance,
-        }
-        for r in self.robots:
-            arrays[f"{r}.q"] = self.q[r]
-            arrays[f"{r}.qdot"] = self.qdot[r]
-            arrays[f"{r}.command"] = self.command[r]
-            arrays[f"{r}.tool"] = self.tool[r]
-            arrays[f"{r}.state"] = self.state[r]
-            arrays[f"{r}.goal_index"] = self.goal_index[r]
-        for name, poses in self.object_poses.items():
-            arrays[f"object.{name}.pose"] = poses
-        np.savez_compressed(out / "log.npz", **arrays)
-        with (out / "log.csv").open("w", newline="") as fh:
-            w = csv.writer(fh)
-            head = ["t"]
-            for r in self.robots:
-                n = self.q[r].shape[1]
-                head += [f"{r}.q{k + 1}" for k in range(n)]
-                head += [f"{r}.tool_{c}" for c in "xyz"] + [f"{r}.state"]
-            head.append("min_distance")
-            w.writerow(head)
-            md = self.min_distance
-            for i in range(self.t.size):
-                row: list[Any] = [f"{self.t[i]:.4f}"]
-                for r in self.robots:
-                    row += [f"{v:.6g}" for v in self.q[r][i]]
-                    row += [f"{v:.6g}" for v in self.tool[r][i, :3, 3]]
-                    row.append(self.state[r][i])
-                row.append(f"{md[i]:.6g}")
-                w.writerow(row)
-        (out / "summary.json").write_text(json.dumps(self.summary(), indent=2))
-        return out
-
-
-# --------------------------------------------------------------------------- world
-
-
-@dataclass(eq=False)
-class _Agent:
-    """One robot's run-time state in the simulation."""
-
-    name: str
-    robot: Robot
-    controller: Controller
-    plant: Plant | MujocoPlant
-    converter: SceneConverter
-    own: list[tuple[Goal, GoalSpec]]
-    jobs: bool
-    goal: Goal | None = None
-    spec: GoalSpec | None = None
-    record: int = -1
-    job: int = -1
-    locked_until: float = -math.inf
-    stalled: bool = False
-    stopped: bool = False
-
-
-@dataclass(eq=False)
-class World:
-    """A built scenario: robots, scene, solids and watched pairs, ready to run."""
-
-    scenario: Scenario
-    scene: Scene
-    robots: dict[str, Robot]
-    agents: list[_Agent]
-    pairs: tuple[str, ...]
-    margins: NDArray[np.float64]
-    solids: dict[str, tuple[Solid, str, str]]  # object -> (solid, robot, link)
-    jobs: list[tuple[Goal, GoalSpec]]
-    movers: list[_Mover] = field(default_factory=list)
-
-
-def _robot_of(spec: RobotSpec, scenario: Scenario) -> Robot:
-    from reachwise.io.robot_file import builtin_robots, load_robot
-
-    try:
-        r = load_robot(spec.robot if spec.robot in builtin_robots() else scenario.path(spec.robot))
-    except InputError as exc:
-        raise InputError(scenario.source, f"robots.{spec.name}.robot", str(exc)) from None
-    if spec.base is not None:
-        r = r.with_parameters(base=spec.base.matrix())
-    return replace(r, name=spec.name)
-
-
-def _controller_config(spec: RobotSpec, dt: float, avoidance: bool) -> ControllerConfig:
-    c = spec.controller.model_dump(exclude_none=True)
-    safety = {k: c.pop(k) for k in ("max_age_ticks", "stop_ticks") if k in c}
-    return ControllerConfig(avoidance=avoidance, safety=SafetyConfig(dt=dt, **safety), **c)
-
-
-def build_world(
-    scenario: Scenario | str | Path,
-    avoidance: bool = True,
-    plant: str = "scenario",
-    *,
-    server: str | ServerOptions | None = None,
-    clock: Callable[[], float] | None = None,
-) -> World:
-    """Robots, clouds (links, meshes, files, the scanner), scene, controllers, plants
-    (``plant``: ``"scenario"`` — each robot's own — or ``"mujoco"``, see
-    :mod:`reachwise.sim.mujoco_plant`). The scene is in process, or with ``server``
-    (an address or :class:`~reachwise.server.client.ServerOptions`) on a collision
-    server (:func:`_server_scene`); ``clock`` stamps its inputs and answers."""
-    if plant not in ("scenario", "mujoco"):
-        raise InputError("simulate", "plant", f"scenario or mujoco, got {plant!r}")
-    from reachwise.io.robot_clouds import link_cloud, link_mesh
-
-    sc = load_scenario(scenario)
-    spec = sc.spec
-    scene = Scene(clock=clock) if server is None else _server_scene(server, clock)
-    robots: dict[str, Robot] = {}
-    solids: dict[str, tuple[Solid, str, str]] = {}
-    for rs in spec.robots:
-        robot = _robot_of(rs, sc)
-        if len(rs.q0) != robot.n:
-            raise InputError(sc.source, f"robots.{rs.name}.q0", f"expected {robot.n} values")
-        robots[rs.name] = robot
-        scene.add_robot(robot, rs.q0)
-        links = rs.links if rs.links is not None else list(robot.geometry)
-        for link in links:
-            if link not in robot.link_names:
-                raise InputError(sc.source, f"robots.{rs.name}.links", f"no link {link!r}")
-            obj = f"{rs.name}/{link}"
-            over = rs.link_clouds.get(link)
-            if over is not None:
-                import trimesh
-
-                from reachwise.geometry.cloud import sample_mesh_surface
-
-                path = sc.path(over.mesh)
-                try:
-                    mesh = trimesh.load(str(path), force="mesh", process=True)
-                except Exception as exc:
-                    raise InputError(
-                        sc.source, f"robots.{rs.name}.link_clouds.{link}.mesh", f"{exc}"
-                    ) from None
-                if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-                    raise InputError(
-                        sc.source, f"robots.{rs.name}.link_clouds.{link}.mesh", "no triangles"
-                    )
-                mesh.apply_transform(over.pose.matrix())
-                rng = np.random.default_rng([rs.seed, robot.link_index(link)])
-                cloud = sample_mesh_surface(mesh, n=over.points, seed=rng, frame=link, name=obj)
-                solid = solid_of_mesh(mesh)
-            else:
-                if link not in robot.geometry:
-                    raise InputError(
-                        sc.source, f"robots.{rs.name}.links", f"link {link!r} has no geometry"
-                    )
-                cloud = link_cloud(robot, link, rs.points, rs.seed)
-                g = robot.geometry[link]
-                solid = solid_of_geometry(g, link_mesh(robot, link) if g.shape == "mesh" else None)
-            scene.add_object(obj, cloud, robot=rs.name, link=link)
-            solids[obj] = (solid, rs.name, link)
-    movers: list[_Mover] = []
-    for os_ in spec.objects:
-        mover = _mover(os_, sc)
-        moving = mover is not None and mover.trajectory is not None
-        pose = mover.trajectory.pose(0.0) if moving else os_.pose.matrix()  # type: ignore[union-attr]
-        scene.add_object(os_.name, _object_cloud(os_, sc), pose, dynamic=moving)
-        box_solid = _box_solid(os_.box)
-        if box_solid is not None:
-            solids[os_.name] = (box_solid, "", "")
-        if mover is not None:
-            movers.append(mover)
-    # watched pairs: scene margin = rho_O + monitor range; the controller uses rho_O
-    control: dict[tuple[str, str], float] = {}
-    for i, w in enumerate(spec.watch):
-        where = f"watch[{i}]"
-        qm = w.margin + spec.monitor
-        made = []
-        if w.self_ is not None:
-            r = robots[w.self_]
-            if w.pairs is not None:
-                for la, lb in w.pairs:
-                    a, b = f"{w.self_}/{la}", f"{w.self_}/{lb}"
-                    for o in (a, b):
-                        if o not in scene.objects:
-                            raise InputError(sc.source, where, f"no cloud {o!r}")
-                    made.append(scene.watch(a, b, qm, "self"))
-            else:
-                keep = set(w.links) if w.links is not None else set(r.link_names)
-                excl = [
-                    (o.name, p.name)
-                    for o in scene.robot_objects(w.self_)
-                    for p in scene.robot_objects(w.self_)
-                    if o.source.link not in keep or p.source.link not in keep  # type: ignore[union-attr]
-                ]
-                made.extend(scene.watch_self(w.self_, qm, exclude=excl))
-        elif w.environment is not None and w.robot is not None:
-            mine = _robot_objects(scene, w.robot, w.links, sc.source, where)
-            for o in mine:
-                for e in w.environment:
-                    made.append(scene.watch(o, e, qm, "robot-environment"))
-        elif w.robots is not None:
-            ra, rb = w.robots
-            for o in _robot_objects(scene, ra, w.links, sc.source, where):
-                for p in _robot_objects(scene, rb, w.links, sc.source, where):
-                    made.append(scene.watch(o, p, qm, "robot-robot"))
-        for pair in made:
-            control[(pair.a, pair.b)] = w.margin
-    agents = []
-    job_robots = set(spec.jobs.robots) if spec.jobs is not None else set()
-    for rs in spec.robots:
-        robot = robots[rs.name]
-        cfg = _controller_config(rs, spec.dt, avoidance)
-        try:
-            tl = rs.tool_links
-            conv = SceneConverter(scene, robot, tool_links=tl, margins=control)
-        except InputError as exc:
-            raise InputError(sc.source, f"robots.{rs.name}.tool_links", str(exc)) from None
-        pc = PlantConfig(**rs.plant.model_dump())
-        own = [(_goal(g, robot), g) for g in rs.goals]
-        agents.append(
-            _Agent(
-                rs.name,
-                robot,
-                Controller(robot, cfg),
-                _make_plant(plant, robot, rs.q0, pc),
-                conv,
-                own,
-                rs.name in job_robots,
-            )
-        )
-    jobs: list[tuple[Goal, GoalSpec]] = []
-    if spec.jobs is not None:
-        first = robots[spec.jobs.robots[0]]
-        work = spec.jobs.work
-        jobs = [
-            (_goal(g, first), g if g.work > 0 else g.model_copy(update={"work": work}))
-            for g in spec.jobs.goals
-        ]
-    pairs = tuple(f"{p.a}|{p.b}" for p in scene.pairs)
-    margins = np.array([control[(p.a, p.b)] for p in scene.pairs], dtype=float)
-    return World(sc, scene, robots, agents, pairs, margins, solids, jobs, movers)
-
-
-def _server_scene(server: str | ServerOptions, clock: Callable[[], float] | None) -> Scene:
-    """A client of the collision server at ``server`` that owns its scene (cleared,
-    mirrored locally, inputs sent with each query; :func:`reachwise.server.client.
-    owned_scene`). It has the in-process scene's interface (``SceneLike``), so the
-    world, the converters and the controllers use it unchanged; a reply that misses
-    its deadline is an invalid result (missing data: a protective stop)."""
-    import time
-
-    from reachwise.server.client import owned_scene
-
-    return cast(Scene, owned_scene(server, clock or time.monotonic))
-
-
-def _close_scene(scene: object) -> None:
-    """Disconnect from a collision server (an in-process scene has nothing to close)."""
-    close = getattr(scene, "close", None)
-    if callable(close):
-        close()
-
-
-class _SimClock:
-    """The simulated time (s); the scene stamps joint states and answers with it."""
-
-    def __init__(self) -> None:
-        self.now = 0.0
-
-    def __call__(self) -> float:
-        return self.now
-
-
-def _make_plant(kind: str, robot: Robot, q0: list[float], pc: PlantConfig) -> Plant | MujocoPlant:
-    if kind == "mujoco":
-        from reachwise.sim.mujoco_plant import MujocoPlant, MujocoPlantConfig
-
-        return MujocoPlant(robot, q0, MujocoPlantConfig.like(pc))
-    return Plant(robot, q0, pc)
-
-
-def _robot_objects(
-    scene: Scene, robot: str, links: list[str] | None, source: str, where: str
-) -> list[str]:
-    objs = [o for o in scene.robot_objects(robot)]
-    if links is None:
-        return [o.name for o in objs]
-    have = {o.source.link: o.name for o in objs}  # type: ignore[union-attr]
-    out = []
-    for link in links:
-        if link not in have:
-            raise InputError(source, f"{where}.links", f"robot {robot!r} has no cloud on {link!r}")
-        out.append(have[link])
-    return out
-
-
-def _goal(g: GoalSpec, robot: Robot) -> Goal:
-    return Goal(
-        g.pose(robot.fk),
-        g.dims,
-        position_tolerance=g.position_tolerance,
-        orientation_tolerance=g.orientation_tolerance,
-    )
-
-
-def _object_cloud(
-    spec: Any, sc: Scenario, name: str | None = None, seed: int | None = None
-) -> PointCloud:
-    """The cloud of an object spec (or of a scheduled :class:`CloudAtSpec` of object
-    ``name``); ``seed`` overrides the spec's (a re-scan)."""
-    from reachwise.io.clouds import load_cloud, load_mesh_cloud
-
-    name = name or spec.name
-    seed = getattr(spec, "seed", 0) if seed is None else seed
-    where = f"objects.{name}"
-    if getattr(spec, "scanner", None) is not None:
-        from reachwise.geometry.scanner import OcclusionFill, scan_scene
-
-        occ = spec.occlusion
-        fill = (
-            OcclusionFill(occ.depth, occ.spacing, occ.ground)
-            if occ is not None and occ.fill
-            else None
-        )
-        try:
-            _, cloud = scan_scene(spec.scanner, rng=seed, noise=spec.noise, occlusion=fill)
-        except InputError as exc:
-            raise InputError(sc.source, f"{where}.scanner", str(exc)) from None
-        return PointCloud(cloud.points, name=name)
-    if spec.box is not None:
-        import trimesh
-
-        from reachwise.geometry.cloud import sample_mesh_surface
-
-        box = trimesh.creation.box(extents=spec.box)
-        return sample_mesh_surface(box, n=spec.points, seed=seed, name=name)
-    try:
-        if spec.mesh is not None:
-            return load_mesh_cloud(sc.path(spec.mesh), spec.points, seed, name=name)
-        return load_cloud(sc.path(spec.file))
-    except InputError as exc:
-        raise InputError(sc.source, where, str(exc)) from None
-
-
-# --------------------------------------------------------------------------- moving objects
-
-
-@dataclass(eq=False)
-class _Mover:
-    """An object that moves (``trajectory``) or changes its cloud (``clouds`` at
-    times, or a re-scan every ``rescan`` s) during the run."""
-
-    spec: ObjectSpec
-    trajectory: Trajectory | None
-    clouds: list[tuple[float, PointCloud, Solid | None]]
-    rescan: float | None
-    next_cloud: int = 0
-    scans: int = 0
-
-
-def _mover(spec: ObjectSpec, sc: Scenario) -> _Mover | None:
-    if spec.motion is None and spec.rescan is None and not spec.clouds:
-        return None
-    traj = spec.motion.trajectory(spec.pose.matrix()) if spec.motion is not None else None
-    clouds = [
-        (c.t, _object_cloud(c, sc, spec.name, spec.seed + k + 1), _box_solid(c.box))
-        for k, c in enumerate(spec.clouds)
-    ]
-    every = spec.rescan.every if spec.rescan is not None else None
-    return _Mover(spec, traj, clouds, every)
-
-
-def _box_solid(box: Any) -> Solid | None:
-    """The solid of a ``box`` object (centred on its frame), for the contact check."""
-    return None if box is None else Solid("box", np.eye(4), 0.5 * np.asarray(box, dtype=float))
-
-
-def _move_objects(
-    world: World, t: float
-) -> dict[str, tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]]:
-    """Per tick, before the distance query: each moving object's pose at ``t``, and
-    the clouds due by ``t`` (scheduled, or a re-scan with the next seed). Returns the
-    moving objects' twists ``{name: (v, ω, origin)}`` for the controllers."""
-    scene = world.scene
-    twists = {}
-    for m in world.movers:
-        name = m.spec.name
-        if m.trajectory is not None:
-            pose = m.trajectory.pose(t)
-            scene.set_pose(name, pose, stamp=t)
-            twists[name] = (*m.trajectory.twist(t), pose[:3, 3])
-        due = None
-        while m.next_cloud < len(m.clouds) and m.clouds[m.next_cloud][0] <= t + 1e-9:
-            _, due, solid = m.clouds[m.next_cloud]
-            m.next_cloud += 1
-            world.solids.pop(name, None)
-            if solid is not None:  # the contact check follows the new shape
-                world.solids[name] = (solid, "", "")
-        if m.rescan is not None and t >= (m.scans + 1) * m.rescan - 1e-9:
-            m.scans += 1
-            due = _object_cloud(m.spec, world.scenario, seed=m.spec.seed + m.scans)
-        if due is not None:
-            scene.replace_cloud(name, due)
-    return twists
-
-
-def _frozen_scene(scene: Scene) -> Scene:
-    """A copy of ``scene`` in which every object not on a robot stays where it is now,
-    with its current cloud: the world a static-world controller believes in."""
-    frozen = Scene(scene.strategy)
-    for r in scene.robots.values():
-        frozen.add_robot(r)
-    now = scene.poses()
-    for name, obj in scene.objects.items():
-        src = obj.source
-        if isinstance(src, OnLink):
-            frozen.add_object(name, obj.cloud, src.offset, robot=src.robot, link=src.link)
-        else:
-            frozen.add_object(name, obj.cloud, now[name])
-    for pair in scene.pairs:
-        frozen.watch(pair.a, pair.b, pair.margin, pair.kind)
-    return frozen
-
-
-# --------------------------------------------------------------------------- run
+__all__ = ["simulate"]
 
 
 def simulate(
@@ -662,7 +83,7 @@ def simulate(
     or the defaults; False: off; or an :class:`EscapeSpec`): a robot whose controller
     stalls plans a path out with OMPL and follows it (:mod:`reachwise.sim.escape`);
     the plans are in ``extras["escape"]``."""
-    clock = _SimClock()
+    clock = SimClock()
     world = build_world(scenario, avoidance, plant, server=server, clock=clock)
     spec = world.scenario.spec
     dt = spec.dt
@@ -689,9 +110,9 @@ def simulate(
     pair_objs = [(p.a, p.b) for p in scene.pairs]
     check = spec.contact_check
     obj_log = {m.spec.name: np.empty((ticks, 4, 4)) for m in world.movers if m.trajectory}
-    seen = _frozen_scene(scene) if static_world and world.movers else scene
+    seen = frozen_scene(scene) if static_world and world.movers else scene
 
-    def next_goal(a: _Agent, t: float) -> None:
+    def next_goal(a: Agent, t: float) -> None:
         a.goal = None
         a.spec = None
         a.job = -1
@@ -724,7 +145,7 @@ def simulate(
         t_log[k] = t
         for a in agents:
             scene.set_joints(a.name, a.plant.q, stamp=t)
-        twists = _move_objects(world, t)
+        twists = move_objects(world, t)
         for m in world.movers:
             if m.trajectory is not None:
                 obj_log[m.spec.name][k] = m.trajectory.pose(t)
@@ -815,7 +236,7 @@ def simulate(
         if all_done:
             break
     n = k + 1
-    _close_scene(scene)
+    close_scene(scene)
     return SimulationLog(
         scenario=spec.name,
         avoidance=avoidance,
@@ -866,7 +287,7 @@ def _escape(world: World, escape: bool | EscapeSpec | None, events: list[Event])
     return Escape(world, spec, events)
 
 
-def _note(a: _Agent, st: ControlStatus, t: float, events: list[Event]) -> None:
+def _note(a: Agent, st: ControlStatus, t: float, events: list[Event]) -> None:
     """Log state changes worth reading: stalls and protective stops."""
     if st.state == "stalled" and not a.stalled:
         a.stalled = True
@@ -897,122 +318,3 @@ def _overlap(
         pts = src.cloud.points @ Po[:3, :3].T + Po[:3, 3]
         best = max(best, solid.depth(pts, poses[mine]))
     return best
-
-
-# --------------------------------------------------------------------------- reading
-
-
-def load_log(folder: str | Path, scenario: Scenario | str | Path | None = None) -> SimulationLog:
-    """Read a log written by :meth:`SimulationLog.save` (``log.npz`` and
-    ``summary.json`` in ``folder``) back into a :class:`SimulationLog`.
-
-    The joint limits and speed bounds come from ``log.npz`` when it has them
-    (``<robot>.lower``, ``.upper``, ``.vmax``), else from the robots of ``scenario``
-    (default: the scenario the log names, when it is a built-in one); without either
-    they are unbounded (``±inf``) and ``extras["limits"]`` says so. Missing or
-    unreadable files raise :class:`~reachwise.errors.InputError` naming the file.
-    """
-    src = Path(folder)
-    npz_path, sum_path = src / "log.npz", src / "summary.json"
-    for p in (npz_path, sum_path):
-        if not p.is_file():
-            raise InputError(str(p), "", "missing: not a simulation log folder")
-    try:
-        meta = json.loads(sum_path.read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError(str(sum_path), "", f"unreadable: {exc}") from None
-    for key in ("scenario", "avoidance", "dt"):
-        if not isinstance(meta, dict) or key not in meta:
-            raise InputError(str(sum_path), key, "missing")
-    try:
-        with np.load(npz_path, allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}
-    except (OSError, ValueError) as exc:
-        raise InputError(str(npz_path), "", f"unreadable: {exc}") from None
-    for key in ("t", "distance", "signed", "margins", "pairs"):
-        if key not in arrays:
-            raise InputError(str(npz_path), key, "missing")
-    robots = tuple(k[: -len(".q")] for k in arrays if k.endswith(".q"))
-    per: dict[str, dict[str, NDArray[Any]]] = {}
-    for field_ in ("q", "qdot", "command", "tool", "state", "goal_index"):
-        per[field_] = {}
-        for r in robots:
-            key = f"{r}.{field_}"
-            if key not in arrays:
-                raise InputError(str(npz_path), key, "missing")
-            per[field_][r] = arrays[key]
-    objects = {
-        k[len("object.") : -len(".pose")]: arrays[k]
-        for k in arrays
-        if k.startswith("object.") and k.endswith(".pose")
-    }
-    extras: dict[str, Any] = dict(meta.get("extras") or {})
-    lower: dict[str, NDArray[np.float64]] = {}
-    upper: dict[str, NDArray[np.float64]] = {}
-    vmax: dict[str, NDArray[np.float64]] = {}
-    robot_models: dict[str, Robot] = {}
-    sc: Scenario | None = None
-    from reachwise.sim.scenarios import builtin_scenarios
-
-    if scenario is not None:
-        sc = load_scenario(scenario)
-    elif meta["scenario"] in builtin_scenarios():
-        sc = load_scenario(meta["scenario"])
-    if sc is not None:
-        robot_models = {rs.name: _robot_of(rs, sc) for rs in sc.spec.robots}
-    for r in robots:
-        n = per["q"][r].shape[1] if per["q"][r].ndim == 2 else 0
-        model = robot_models.get(r)
-        if all(f"{r}.{k}" in arrays for k in ("lower", "upper", "vmax")):  # saved in the log
-            lower[r], upper[r] = arrays[f"{r}.lower"], arrays[f"{r}.upper"]
-            vmax[r] = arrays[f"{r}.vmax"]
-        elif model is not None and model.n == n:
-            lower[r], upper[r] = np.asarray(model.lower), np.asarray(model.upper)
-            vmax[r] = np.asarray(model.vmax)
-        else:
-            lower[r], upper[r] = np.full(n, -np.inf), np.full(n, np.inf)
-            vmax[r] = np.full(n, np.inf)
-            extras["limits"] = "unknown: the log's scenario was not found; limits are ±inf"
-    events = tuple(
-        Event(float(e["t"]), str(e["robot"]), str(e["kind"]), str(e["text"]))
-        for e in meta.get("events", [])
-    )
-    goals = tuple(
-        GoalRecord(
-            str(g["robot"]),
-            int(g["index"]),
-            str(g["name"]),
-            float(g["work"]),
-            None if g["reached_at"] is None else float(g["reached_at"]),
-            float(g["position_error"]),
-            float(g["orientation_error"]),
-        )
-        for g in meta.get("goals", [])
-    )
-    fc = meta.get("first_collision")
-    return SimulationLog(
-        scenario=str(meta["scenario"]),
-        avoidance=bool(meta["avoidance"]),
-        dt=float(meta["dt"]),
-        t=arrays["t"],
-        robots=robots,
-        q=per["q"],
-        qdot=per["qdot"],
-        command=per["command"],
-        tool=per["tool"],
-        state=per["state"],
-        goal_index=per["goal_index"],
-        pairs=tuple(str(p) for p in arrays["pairs"]),
-        distance=arrays["distance"],
-        signed=arrays["signed"],
-        margins=arrays["margins"],
-        lower=lower,
-        upper=upper,
-        vmax=vmax,
-        events=events,
-        goals=goals,
-        first_collision=None if fc is None else float(fc),
-        first_collision_pair=meta.get("first_collision_pair"),
-        extras=extras,
-        object_poses=objects,
-    )

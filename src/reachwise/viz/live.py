@@ -24,8 +24,9 @@ from reachwise.viz.playback import Playback, SimScene, status_text
 
 if TYPE_CHECKING:
     from reachwise.distance.scene import SceneResult
+    from reachwise.sim.log import SimulationLog
     from reachwise.sim.scenarios import Scenario
-    from reachwise.sim.simulate import SimulationLog, World
+    from reachwise.sim.world import World
     from reachwise.viz.viewer import Viewer
 
 __all__ = ["LiveRun", "LiveSession", "LiveStopped"]
@@ -50,7 +51,7 @@ class LiveRun:
         fps: float = 30.0,
         label: str | None = None,
     ) -> None:
-        from reachwise.sim.simulate import build_world
+        from reachwise.sim.world import build_world
 
         self.viewer = viewer
         self.world = build_world(scenario, avoidance)
@@ -199,7 +200,7 @@ class LiveSession:
     def replay(self, logs: dict[str, SimulationLog], block: bool = True) -> None:
         """Switch to the playback of ``logs`` (a dropdown when several); with
         ``block`` wait for Ctrl-C, then stop the server."""
-        from reachwise.sim.simulate import build_world
+        from reachwise.sim.world import build_world
 
         def entry(log: SimulationLog) -> Any:
             def show(v: Viewer) -> None:

@@ -169,7 +169,7 @@ def show_scenario(viewer: Viewer, scenario: Scenario | str) -> Any:
     """A scenario at its start: robots at ``q0`` with their clouds, the environment
     clouds, the goals and the closest-point lines of the watched pairs; the joint
     sliders move the robots and the lines follow."""
-    from reachwise.sim.simulate import build_world
+    from reachwise.sim.world import build_world
     from reachwise.viz.playback import SimScene
 
     world = build_world(scenario)

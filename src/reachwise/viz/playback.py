@@ -1,13 +1,13 @@
 """Simulations in the viewer: the scene of a scenario and the playback of a log
 (the live view is :mod:`reachwise.viz.live`).
 
-:class:`SimScene` draws a built :class:`~reachwise.sim.simulate.World`: every robot
+:class:`SimScene` draws a built :class:`~reachwise.sim.world.World`: every robot
 (the scene's link clouds — watched links in orange — plus light clouds of its other
 links, the skeleton, the tool frame), the environment clouds, the goals (red until
 reached, then green) and the closest-point lines of the watched pairs (thesis §3.1,
 P-V Fig. 4: red within the collision margin ρ_O, amber in the monitored band).
 
-:class:`Playback` replays a :class:`~reachwise.sim.simulate.SimulationLog`: a play /
+:class:`Playback` replays a :class:`~reachwise.sim.log.SimulationLog`: a play /
 pause button and a time slider (scrub), the speed, the tool paths; at each shown tick
 the robots take the logged ``q``, moving objects their logged poses, and the
 closest-point lines are recomputed from the rebuilt scene (the same clouds, seeds and
@@ -37,7 +37,8 @@ from reachwise.viz.scene_data import (
 
 if TYPE_CHECKING:
     from reachwise.distance.scene import SceneResult
-    from reachwise.sim.simulate import SimulationLog, World
+    from reachwise.sim.log import SimulationLog
+    from reachwise.sim.world import World
     from reachwise.viz.viewer import Viewer
 
 __all__ = ["GoalEntry", "Playback", "SimScene", "goal_reached_at", "goal_table"]

@@ -27,8 +27,8 @@ from reachwise.viz.report_html import (
 )
 
 if TYPE_CHECKING:
+    from reachwise.sim.log import SimulationLog
     from reachwise.sim.scenarios import Scenario
-    from reachwise.sim.simulate import SimulationLog
 
 FigureSource = Any  # a matplotlib Figure, PNG bytes or a PNG file path
 
@@ -51,7 +51,7 @@ _LABELS = {
 
 def scene_cloud(scenario: Scenario | str | Path) -> NDArray[np.float64] | None:
     """Every environment object's cloud in world coordinates (robot links excluded)."""
-    from reachwise.sim.simulate import build_world
+    from reachwise.sim.world import build_world
 
     world = build_world(scenario)
     objs = [o for o in world.scene.objects.values() if "/" not in o.name]

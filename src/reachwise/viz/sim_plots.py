@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from reachwise.sim.simulate import SimulationLog
+    from reachwise.sim.log import SimulationLog
 
 __all__ = ["joint_figure", "min_distance_figure", "save_figures", "tool_path_figure"]
 

@@ -168,7 +168,8 @@ def _simulation(folder: Path, scenario: str | Path | None) -> Show:
     cache: dict[str, Any] = {}
 
     def show(v: Viewer) -> None:
-        from reachwise.sim.simulate import build_world, load_log
+        from reachwise.sim.log import load_log
+        from reachwise.sim.world import build_world
         from reachwise.viz.playback import Playback
 
         if "log" not in cache:

@@ -1,0 +1,322 @@
+"""The record of one simulation run: :class:`SimulationLog` (time, joints, commands,
+tool poses, every pair's distance, statuses, events, goals) with its figures' data,
+``save`` to a folder and :func:`load_log` back."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from reachwise.errors import InputError
+from reachwise.kinematics.robot import Robot
+from reachwise.sim.scenarios import Scenario, load_scenario
+from reachwise.sim.world import robot_of
+
+__all__ = ["Event", "GoalRecord", "SimulationLog", "load_log"]
+
+
+@dataclass(frozen=True)
+class Event:
+    """Something that happened at time ``t`` (s) to ``robot`` (or ``""``)."""
+
+    t: float
+    robot: str
+    kind: str
+    text: str
+
+
+@dataclass(frozen=True)
+class GoalRecord:
+    """One goal of one robot: when it was reached (``None``: never) and the remaining
+    errors at the end of the run or when reached."""
+
+    robot: str
+    index: int
+    name: str
+    work: float
+    reached_at: float | None
+    position_error: float
+    orientation_error: float
+
+
+@dataclass(frozen=True, eq=False)
+class SimulationLog:
+    """Everything a run recorded, one row per tick.
+
+    ``t`` (T,); per robot (dicts keyed by robot name): ``q``, ``qdot`` (actual),
+    ``command`` (T, n), ``tool`` (T, 4, 4), ``state`` (T,) strings, ``goal_index``
+    (T,); per pair (``pairs`` names ``"a|b"``): ``distance`` (T, P) cloud distance
+    (``inf`` beyond margin + monitor range), ``signed`` (T, P) the same or ``−depth``
+    when the solids overlap, ``margins`` (P,) the collision margins ρ_O. ``events``,
+    ``goals``; ``first_collision`` (s) and its pair, or ``None``. ``object_poses``:
+    per moving object (``motion``), its world pose at each tick (T, 4, 4), for replay.
+    """
+
+    scenario: str
+    avoidance: bool
+    dt: float
+    t: NDArray[np.float64]
+    robots: tuple[str, ...]
+    q: dict[str, NDArray[np.float64]]
+    qdot: dict[str, NDArray[np.float64]]
+    command: dict[str, NDArray[np.float64]]
+    tool: dict[str, NDArray[np.float64]]
+    state: dict[str, NDArray[np.str_]]
+    goal_index: dict[str, NDArray[np.int64]]
+    pairs: tuple[str, ...]
+    distance: NDArray[np.float64]
+    signed: NDArray[np.float64]
+    margins: NDArray[np.float64]
+    lower: dict[str, NDArray[np.float64]]
+    upper: dict[str, NDArray[np.float64]]
+    vmax: dict[str, NDArray[np.float64]]
+    events: tuple[Event, ...] = ()
+    goals: tuple[GoalRecord, ...] = ()
+    first_collision: float | None = None
+    first_collision_pair: str | None = None
+    extras: dict[str, Any] = field(default_factory=dict)
+    object_poses: dict[str, NDArray[np.float64]] = field(default_factory=dict)
+
+    @property
+    def min_distance(self) -> NDArray[np.float64]:
+        """Smallest signed distance over all pairs at each tick (inf without pairs)."""
+        if self.signed.shape[1] == 0:
+            return np.full(self.t.shape, np.inf)
+        return np.asarray(self.signed.min(axis=1))
+
+    @property
+    def all_goals_reached(self) -> bool:
+        return all(g.reached_at is not None for g in self.goals)
+
+    def limits_held(self, tol: float = 1e-9) -> dict[str, bool]:
+        """Per robot: every joint inside its limits at every tick (a joint that starts
+        outside must not move farther out)."""
+        out = {}
+        for r in self.robots:
+            q = self.q[r]
+            lo = np.minimum(self.lower[r], q[0])
+            hi = np.maximum(self.upper[r], q[0])
+            ok = bool(np.all(q >= lo - tol) & np.all(q <= hi + tol))
+            # a joint outside at the start: monotone back inward
+            out[r] = ok
+        return out
+
+    def speeds_held(self, tol: float = 1e-9) -> dict[str, bool]:
+        """Per robot: |command| and |actual velocity| ≤ v_max at every tick."""
+        return {
+            r: bool(
+                np.all(np.abs(self.command[r]) <= self.vmax[r] + tol)
+                and np.all(np.abs(self.qdot[r]) <= self.vmax[r] + tol)
+            )
+            for r in self.robots
+        }
+
+    def summary(self) -> dict[str, Any]:
+        """A JSON-ready summary of the outcome."""
+        md = self.min_distance
+        finite = md[np.isfinite(md)]
+        per_pair = {
+            p: float(np.min(self.signed[:, i])) if self.signed.shape[0] else math.inf
+            for i, p in enumerate(self.pairs)
+        }
+        stalls = [e for e in self.events if e.kind == "stalled"]
+        return {
+            "scenario": self.scenario,
+            "avoidance": self.avoidance,
+            "dt": self.dt,
+            "duration": float(self.t[-1]) if self.t.size else 0.0,
+            "ticks": int(self.t.size),
+            "all_goals_reached": self.all_goals_reached,
+            "goals": [
+                {
+                    "robot": g.robot,
+                    "index": g.index,
+                    "name": g.name,
+                    "work": g.work,
+                    "reached_at": g.reached_at,
+                    "position_error": g.position_error,
+                    "orientation_error": g.orientation_error,
+                }
+                for g in self.goals
+            ],
+            "min_distance": float(finite.min()) if finite.size else None,
+            "min_distance_by_pair": {
+                k: (v if math.isfinite(v) else None) for k, v in per_pair.items()
+            },
+            "first_collision": self.first_collision,
+            "first_collision_pair": self.first_collision_pair,
+            "limits_held": self.limits_held(),
+            "speeds_held": self.speeds_held(),
+            "stalls": [{"t": e.t, "robot": e.robot, "text": e.text} for e in stalls],
+            "extras": self.extras,
+            "events": [
+                {"t": e.t, "robot": e.robot, "kind": e.kind, "text": e.text} for e in self.events
+            ],
+        }
+
+    def save(self, folder: str | Path) -> Path:
+        """Write ``log.npz`` (every array), ``log.csv`` (t, joints, tool xyz, min
+        distance per tick) and ``summary.json`` into ``folder``; returns it."""
+        out = Path(folder)
+        out.mkdir(parents=True, exist_ok=True)
+        arrays: dict[str, Any] = {
+            "t": self.t,
+            "distance": self.distance,
+            "signed": self.signed,
+            "margins": self.margins,
+            "pairs": np.array(self.pairs, dtype=str),
+            "min_distance": self.min_distance,
+        }
+        for r in self.robots:
+            arrays[f"{r}.q"] = self.q[r]
+            arrays[f"{r}.qdot"] = self.qdot[r]
+            arrays[f"{r}.command"] = self.command[r]
+            arrays[f"{r}.tool"] = self.tool[r]
+            arrays[f"{r}.state"] = self.state[r]
+            arrays[f"{r}.goal_index"] = self.goal_index[r]
+        for name, poses in self.object_poses.items():
+            arrays[f"object.{name}.pose"] = poses
+        np.savez_compressed(out / "log.npz", **arrays)
+        with (out / "log.csv").open("w", newline="") as fh:
+            w = csv.writer(fh)
+            head = ["t"]
+            for r in self.robots:
+                n = self.q[r].shape[1]
+                head += [f"{r}.q{k + 1}" for k in range(n)]
+                head += [f"{r}.tool_{c}" for c in "xyz"] + [f"{r}.state"]
+            head.append("min_distance")
+            w.writerow(head)
+            md = self.min_distance
+            for i in range(self.t.size):
+                row: list[Any] = [f"{self.t[i]:.4f}"]
+                for r in self.robots:
+                    row += [f"{v:.6g}" for v in self.q[r][i]]
+                    row += [f"{v:.6g}" for v in self.tool[r][i, :3, 3]]
+                    row.append(self.state[r][i])
+                row.append(f"{md[i]:.6g}")
+                w.writerow(row)
+        (out / "summary.json").write_text(json.dumps(self.summary(), indent=2))
+        return out
+
+
+def load_log(folder: str | Path, scenario: Scenario | str | Path | None = None) -> SimulationLog:
+    """Read a log written by :meth:`SimulationLog.save` (``log.npz`` and
+    ``summary.json`` in ``folder``) back into a :class:`SimulationLog`.
+
+    The joint limits and speed bounds come from ``log.npz`` when it has them
+    (``<robot>.lower``, ``.upper``, ``.vmax``), else from the robots of ``scenario``
+    (default: the scenario the log names, when it is a built-in one); without either
+    they are unbounded (``±inf``) and ``extras["limits"]`` says so. Missing or
+    unreadable files raise :class:`~reachwise.errors.InputError` naming the file.
+    """
+    src = Path(folder)
+    npz_path, sum_path = src / "log.npz", src / "summary.json"
+    for p in (npz_path, sum_path):
+        if not p.is_file():
+            raise InputError(str(p), "", "missing: not a simulation log folder")
+    try:
+        meta = json.loads(sum_path.read_text())
+    except (OSError, ValueError) as exc:
+        raise InputError(str(sum_path), "", f"unreadable: {exc}") from None
+    for key in ("scenario", "avoidance", "dt"):
+        if not isinstance(meta, dict) or key not in meta:
+            raise InputError(str(sum_path), key, "missing")
+    try:
+        with np.load(npz_path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except (OSError, ValueError) as exc:
+        raise InputError(str(npz_path), "", f"unreadable: {exc}") from None
+    for key in ("t", "distance", "signed", "margins", "pairs"):
+        if key not in arrays:
+            raise InputError(str(npz_path), key, "missing")
+    robots = tuple(k[: -len(".q")] for k in arrays if k.endswith(".q"))
+    per: dict[str, dict[str, NDArray[Any]]] = {}
+    for field_ in ("q", "qdot", "command", "tool", "state", "goal_index"):
+        per[field_] = {}
+        for r in robots:
+            key = f"{r}.{field_}"
+            if key not in arrays:
+                raise InputError(str(npz_path), key, "missing")
+            per[field_][r] = arrays[key]
+    objects = {
+        k[len("object.") : -len(".pose")]: arrays[k]
+        for k in arrays
+        if k.startswith("object.") and k.endswith(".pose")
+    }
+    extras: dict[str, Any] = dict(meta.get("extras") or {})
+    lower: dict[str, NDArray[np.float64]] = {}
+    upper: dict[str, NDArray[np.float64]] = {}
+    vmax: dict[str, NDArray[np.float64]] = {}
+    robot_models: dict[str, Robot] = {}
+    sc: Scenario | None = None
+    from reachwise.sim.scenarios import builtin_scenarios
+
+    if scenario is not None:
+        sc = load_scenario(scenario)
+    elif meta["scenario"] in builtin_scenarios():
+        sc = load_scenario(meta["scenario"])
+    if sc is not None:
+        robot_models = {rs.name: robot_of(rs, sc) for rs in sc.spec.robots}
+    for r in robots:
+        n = per["q"][r].shape[1] if per["q"][r].ndim == 2 else 0
+        model = robot_models.get(r)
+        if all(f"{r}.{k}" in arrays for k in ("lower", "upper", "vmax")):  # saved in the log
+            lower[r], upper[r] = arrays[f"{r}.lower"], arrays[f"{r}.upper"]
+            vmax[r] = arrays[f"{r}.vmax"]
+        elif model is not None and model.n == n:
+            lower[r], upper[r] = np.asarray(model.lower), np.asarray(model.upper)
+            vmax[r] = np.asarray(model.vmax)
+        else:
+            lower[r], upper[r] = np.full(n, -np.inf), np.full(n, np.inf)
+            vmax[r] = np.full(n, np.inf)
+            extras["limits"] = "unknown: the log's scenario was not found; limits are ±inf"
+    events = tuple(
+        Event(float(e["t"]), str(e["robot"]), str(e["kind"]), str(e["text"]))
+        for e in meta.get("events", [])
+    )
+    goals = tuple(
+        GoalRecord(
+            str(g["robot"]),
+            int(g["index"]),
+            str(g["name"]),
+            float(g["work"]),
+            None if g["reached_at"] is None else float(g["reached_at"]),
+            float(g["position_error"]),
+            float(g["orientation_error"]),
+        )
+        for g in meta.get("goals", [])
+    )
+    fc = meta.get("first_collision")
+    return SimulationLog(
+        scenario=str(meta["scenario"]),
+        avoidance=bool(meta["avoidance"]),
+        dt=float(meta["dt"]),
+        t=arrays["t"],
+        robots=robots,
+        q=per["q"],
+        qdot=per["qdot"],
+        command=per["command"],
+        tool=per["tool"],
+        state=per["state"],
+        goal_index=per["goal_index"],
+        pairs=tuple(str(p) for p in arrays["pairs"]),
+        distance=arrays["distance"],
+        signed=arrays["signed"],
+        margins=arrays["margins"],
+        lower=lower,
+        upper=upper,
+        vmax=vmax,
+        events=events,
+        goals=goals,
+        first_collision=None if fc is None else float(fc),
+        first_collision_pair=meta.get("first_collision_pair"),
+        extras=extras,
+        object_poses=objects,
+    )

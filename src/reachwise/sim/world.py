@@ -1,0 +1,420 @@
+"""A scenario built for running: :func:`build_world` turns a
+:class:`~reachwise.sim.scenarios.Scenario` into robots, plants, controllers, the distance
+scene (in process or on a collision server), solids, watched pairs and moving objects."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, cast
+
+import numpy as np
+from numpy.typing import NDArray
+
+from reachwise.control.avoidance import SceneConverter
+from reachwise.control.controller import Controller, ControllerConfig, Goal
+from reachwise.control.safety import SafetyConfig
+from reachwise.distance.scene import OnLink, Scene
+from reachwise.errors import InputError
+from reachwise.geometry.cloud import PointCloud
+from reachwise.kinematics.robot import Robot
+from reachwise.sim.contact import Solid, solid_of_geometry, solid_of_mesh
+from reachwise.sim.motion import Trajectory
+from reachwise.sim.plant import Plant, PlantConfig
+from reachwise.sim.scenarios import (
+    GoalSpec,
+    ObjectSpec,
+    RobotSpec,
+    Scenario,
+    load_scenario,
+)
+
+if TYPE_CHECKING:
+    from reachwise.server.client import ServerOptions
+    from reachwise.sim.mujoco_plant import MujocoPlant
+
+
+__all__ = ["Agent", "World", "build_world"]
+
+
+@dataclass(eq=False)
+class Agent:
+    """One robot's run-time state in the simulation."""
+
+    name: str
+    robot: Robot
+    controller: Controller
+    plant: Plant | MujocoPlant
+    converter: SceneConverter
+    own: list[tuple[Goal, GoalSpec]]
+    jobs: bool
+    goal: Goal | None = None
+    spec: GoalSpec | None = None
+    record: int = -1
+    job: int = -1
+    locked_until: float = -math.inf
+    stalled: bool = False
+    stopped: bool = False
+
+
+@dataclass(eq=False)
+class World:
+    """A built scenario: robots, scene, solids and watched pairs, ready to run."""
+
+    scenario: Scenario
+    scene: Scene
+    robots: dict[str, Robot]
+    agents: list[Agent]
+    pairs: tuple[str, ...]
+    margins: NDArray[np.float64]
+    solids: dict[str, tuple[Solid, str, str]]  # object -> (solid, robot, link)
+    jobs: list[tuple[Goal, GoalSpec]]
+    movers: list[_Mover] = field(default_factory=list)
+
+
+def robot_of(spec: RobotSpec, scenario: Scenario) -> Robot:
+    from reachwise.io.robot_file import builtin_robots, load_robot
+
+    try:
+        r = load_robot(spec.robot if spec.robot in builtin_robots() else scenario.path(spec.robot))
+    except InputError as exc:
+        raise InputError(scenario.source, f"robots.{spec.name}.robot", str(exc)) from None
+    if spec.base is not None:
+        r = r.with_parameters(base=spec.base.matrix())
+    return replace(r, name=spec.name)
+
+
+def _controller_config(spec: RobotSpec, dt: float, avoidance: bool) -> ControllerConfig:
+    c = spec.controller.model_dump(exclude_none=True)
+    safety = {k: c.pop(k) for k in ("max_age_ticks", "stop_ticks") if k in c}
+    return ControllerConfig(avoidance=avoidance, safety=SafetyConfig(dt=dt, **safety), **c)
+
+
+def build_world(
+    scenario: Scenario | str | Path,
+    avoidance: bool = True,
+    plant: str = "scenario",
+    *,
+    server: str | ServerOptions | None = None,
+    clock: Callable[[], float] | None = None,
+) -> World:
+    """Robots, clouds (links, meshes, files, the scanner), scene, controllers, plants
+    (``plant``: ``"scenario"`` — each robot's own — or ``"mujoco"``, see
+    :mod:`reachwise.sim.mujoco_plant`). The scene is in process, or with ``server``
+    (an address or :class:`~reachwise.server.client.ServerOptions`) on a collision
+    server (:func:`_server_scene`); ``clock`` stamps its inputs and answers."""
+    if plant not in ("scenario", "mujoco"):
+        raise InputError("simulate", "plant", f"scenario or mujoco, got {plant!r}")
+    from reachwise.io.robot_clouds import link_cloud, link_mesh
+
+    sc = load_scenario(scenario)
+    spec = sc.spec
+    scene = Scene(clock=clock) if server is None else _server_scene(server, clock)
+    robots: dict[str, Robot] = {}
+    solids: dict[str, tuple[Solid, str, str]] = {}
+    for rs in spec.robots:
+        robot = robot_of(rs, sc)
+        if len(rs.q0) != robot.n:
+            raise InputError(sc.source, f"robots.{rs.name}.q0", f"expected {robot.n} values")
+        robots[rs.name] = robot
+        scene.add_robot(robot, rs.q0)
+        links = rs.links if rs.links is not None else list(robot.geometry)
+        for link in links:
+            if link not in robot.link_names:
+                raise InputError(sc.source, f"robots.{rs.name}.links", f"no link {link!r}")
+            obj = f"{rs.name}/{link}"
+            over = rs.link_clouds.get(link)
+            if over is not None:
+                import trimesh
+
+                from reachwise.geometry.cloud import sample_mesh_surface
+
+                path = sc.path(over.mesh)
+                try:
+                    mesh = trimesh.load(str(path), force="mesh", process=True)
+                except Exception as exc:
+                    raise InputError(
+                        sc.source, f"robots.{rs.name}.link_clouds.{link}.mesh", f"{exc}"
+                    ) from None
+                if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+                    raise InputError(
+                        sc.source, f"robots.{rs.name}.link_clouds.{link}.mesh", "no triangles"
+                    )
+                mesh.apply_transform(over.pose.matrix())
+                rng = np.random.default_rng([rs.seed, robot.link_index(link)])
+                cloud = sample_mesh_surface(mesh, n=over.points, seed=rng, frame=link, name=obj)
+                solid = solid_of_mesh(mesh)
+            else:
+                if link not in robot.geometry:
+                    raise InputError(
+                        sc.source, f"robots.{rs.name}.links", f"link {link!r} has no geometry"
+                    )
+                cloud = link_cloud(robot, link, rs.points, rs.seed)
+                g = robot.geometry[link]
+                solid = solid_of_geometry(g, link_mesh(robot, link) if g.shape == "mesh" else None)
+            scene.add_object(obj, cloud, robot=rs.name, link=link)
+            solids[obj] = (solid, rs.name, link)
+    movers: list[_Mover] = []
+    for os_ in spec.objects:
+        mover = _mover(os_, sc)
+        moving = mover is not None and mover.trajectory is not None
+        pose = mover.trajectory.pose(0.0) if moving else os_.pose.matrix()  # type: ignore[union-attr]
+        scene.add_object(os_.name, _object_cloud(os_, sc), pose, dynamic=moving)
+        box_solid = _box_solid(os_.box)
+        if box_solid is not None:
+            solids[os_.name] = (box_solid, "", "")
+        if mover is not None:
+            movers.append(mover)
+    # watched pairs: scene margin = rho_O + monitor range; the controller uses rho_O
+    control: dict[tuple[str, str], float] = {}
+    for i, w in enumerate(spec.watch):
+        where = f"watch[{i}]"
+        qm = w.margin + spec.monitor
+        made = []
+        if w.self_ is not None:
+            r = robots[w.self_]
+            if w.pairs is not None:
+                for la, lb in w.pairs:
+                    a, b = f"{w.self_}/{la}", f"{w.self_}/{lb}"
+                    for o in (a, b):
+                        if o not in scene.objects:
+                            raise InputError(sc.source, where, f"no cloud {o!r}")
+                    made.append(scene.watch(a, b, qm, "self"))
+            else:
+                keep = set(w.links) if w.links is not None else set(r.link_names)
+                excl = [
+                    (o.name, p.name)
+                    for o in scene.robot_objects(w.self_)
+                    for p in scene.robot_objects(w.self_)
+                    if o.source.link not in keep or p.source.link not in keep  # type: ignore[union-attr]
+                ]
+                made.extend(scene.watch_self(w.self_, qm, exclude=excl))
+        elif w.environment is not None and w.robot is not None:
+            mine = _robot_objects(scene, w.robot, w.links, sc.source, where)
+            for o in mine:
+                for e in w.environment:
+                    made.append(scene.watch(o, e, qm, "robot-environment"))
+        elif w.robots is not None:
+            ra, rb = w.robots
+            for o in _robot_objects(scene, ra, w.links, sc.source, where):
+                for p in _robot_objects(scene, rb, w.links, sc.source, where):
+                    made.append(scene.watch(o, p, qm, "robot-robot"))
+        for pair in made:
+            control[(pair.a, pair.b)] = w.margin
+    agents = []
+    job_robots = set(spec.jobs.robots) if spec.jobs is not None else set()
+    for rs in spec.robots:
+        robot = robots[rs.name]
+        cfg = _controller_config(rs, spec.dt, avoidance)
+        try:
+            tl = rs.tool_links
+            conv = SceneConverter(scene, robot, tool_links=tl, margins=control)
+        except InputError as exc:
+            raise InputError(sc.source, f"robots.{rs.name}.tool_links", str(exc)) from None
+        pc = PlantConfig(**rs.plant.model_dump())
+        own = [(_goal(g, robot), g) for g in rs.goals]
+        agents.append(
+            Agent(
+                rs.name,
+                robot,
+                Controller(robot, cfg),
+                _make_plant(plant, robot, rs.q0, pc),
+                conv,
+                own,
+                rs.name in job_robots,
+            )
+        )
+    jobs: list[tuple[Goal, GoalSpec]] = []
+    if spec.jobs is not None:
+        first = robots[spec.jobs.robots[0]]
+        work = spec.jobs.work
+        jobs = [
+            (_goal(g, first), g if g.work > 0 else g.model_copy(update={"work": work}))
+            for g in spec.jobs.goals
+        ]
+    pairs = tuple(f"{p.a}|{p.b}" for p in scene.pairs)
+    margins = np.array([control[(p.a, p.b)] for p in scene.pairs], dtype=float)
+    return World(sc, scene, robots, agents, pairs, margins, solids, jobs, movers)
+
+
+def _server_scene(server: str | ServerOptions, clock: Callable[[], float] | None) -> Scene:
+    """A client of the collision server at ``server`` that owns its scene (cleared,
+    mirrored locally, inputs sent with each query; :func:`reachwise.server.client.
+    owned_scene`). It has the in-process scene's interface (``SceneLike``), so the
+    world, the converters and the controllers use it unchanged; a reply that misses
+    its deadline is an invalid result (missing data: a protective stop)."""
+    import time
+
+    from reachwise.server.client import owned_scene
+
+    return cast(Scene, owned_scene(server, clock or time.monotonic))
+
+
+def close_scene(scene: object) -> None:
+    """Disconnect from a collision server (an in-process scene has nothing to close)."""
+    close = getattr(scene, "close", None)
+    if callable(close):
+        close()
+
+
+class SimClock:
+    """The simulated time (s); the scene stamps joint states and answers with it."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def _make_plant(kind: str, robot: Robot, q0: list[float], pc: PlantConfig) -> Plant | MujocoPlant:
+    if kind == "mujoco":
+        from reachwise.sim.mujoco_plant import MujocoPlant, MujocoPlantConfig
+
+        return MujocoPlant(robot, q0, MujocoPlantConfig.like(pc))
+    return Plant(robot, q0, pc)
+
+
+def _robot_objects(
+    scene: Scene, robot: str, links: list[str] | None, source: str, where: str
+) -> list[str]:
+    objs = [o for o in scene.robot_objects(robot)]
+    if links is None:
+        return [o.name for o in objs]
+    have = {o.source.link: o.name for o in objs}  # type: ignore[union-attr]
+    out = []
+    for link in links:
+        if link not in have:
+            raise InputError(source, f"{where}.links", f"robot {robot!r} has no cloud on {link!r}")
+        out.append(have[link])
+    return out
+
+
+def _goal(g: GoalSpec, robot: Robot) -> Goal:
+    return Goal(
+        g.pose(robot.fk),
+        g.dims,
+        position_tolerance=g.position_tolerance,
+        orientation_tolerance=g.orientation_tolerance,
+    )
+
+
+def _object_cloud(
+    spec: Any, sc: Scenario, name: str | None = None, seed: int | None = None
+) -> PointCloud:
+    """The cloud of an object spec (or of a scheduled :class:`CloudAtSpec` of object
+    ``name``); ``seed`` overrides the spec's (a re-scan)."""
+    from reachwise.io.clouds import load_cloud, load_mesh_cloud
+
+    name = name or spec.name
+    seed = getattr(spec, "seed", 0) if seed is None else seed
+    where = f"objects.{name}"
+    if getattr(spec, "scanner", None) is not None:
+        from reachwise.geometry.scanner import OcclusionFill, scan_scene
+
+        occ = spec.occlusion
+        fill = (
+            OcclusionFill(occ.depth, occ.spacing, occ.ground)
+            if occ is not None and occ.fill
+            else None
+        )
+        try:
+            _, cloud = scan_scene(spec.scanner, rng=seed, noise=spec.noise, occlusion=fill)
+        except InputError as exc:
+            raise InputError(sc.source, f"{where}.scanner", str(exc)) from None
+        return PointCloud(cloud.points, name=name)
+    if spec.box is not None:
+        import trimesh
+
+        from reachwise.geometry.cloud import sample_mesh_surface
+
+        box = trimesh.creation.box(extents=spec.box)
+        return sample_mesh_surface(box, n=spec.points, seed=seed, name=name)
+    try:
+        if spec.mesh is not None:
+            return load_mesh_cloud(sc.path(spec.mesh), spec.points, seed, name=name)
+        return load_cloud(sc.path(spec.file))
+    except InputError as exc:
+        raise InputError(sc.source, where, str(exc)) from None
+
+
+# --------------------------------------------------------------------------- moving objects
+
+
+@dataclass(eq=False)
+class _Mover:
+    """An object that moves (``trajectory``) or changes its cloud (``clouds`` at
+    times, or a re-scan every ``rescan`` s) during the run."""
+
+    spec: ObjectSpec
+    trajectory: Trajectory | None
+    clouds: list[tuple[float, PointCloud, Solid | None]]
+    rescan: float | None
+    next_cloud: int = 0
+    scans: int = 0
+
+
+def _mover(spec: ObjectSpec, sc: Scenario) -> _Mover | None:
+    if spec.motion is None and spec.rescan is None and not spec.clouds:
+        return None
+    traj = spec.motion.trajectory(spec.pose.matrix()) if spec.motion is not None else None
+    clouds = [
+        (c.t, _object_cloud(c, sc, spec.name, spec.seed + k + 1), _box_solid(c.box))
+        for k, c in enumerate(spec.clouds)
+    ]
+    every = spec.rescan.every if spec.rescan is not None else None
+    return _Mover(spec, traj, clouds, every)
+
+
+def _box_solid(box: Any) -> Solid | None:
+    """The solid of a ``box`` object (centred on its frame), for the contact check."""
+    return None if box is None else Solid("box", np.eye(4), 0.5 * np.asarray(box, dtype=float))
+
+
+def move_objects(
+    world: World, t: float
+) -> dict[str, tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]]:
+    """Per tick, before the distance query: each moving object's pose at ``t``, and
+    the clouds due by ``t`` (scheduled, or a re-scan with the next seed). Returns the
+    moving objects' twists ``{name: (v, ω, origin)}`` for the controllers."""
+    scene = world.scene
+    twists = {}
+    for m in world.movers:
+        name = m.spec.name
+        if m.trajectory is not None:
+            pose = m.trajectory.pose(t)
+            scene.set_pose(name, pose, stamp=t)
+            twists[name] = (*m.trajectory.twist(t), pose[:3, 3])
+        due = None
+        while m.next_cloud < len(m.clouds) and m.clouds[m.next_cloud][0] <= t + 1e-9:
+            _, due, solid = m.clouds[m.next_cloud]
+            m.next_cloud += 1
+            world.solids.pop(name, None)
+            if solid is not None:  # the contact check follows the new shape
+                world.solids[name] = (solid, "", "")
+        if m.rescan is not None and t >= (m.scans + 1) * m.rescan - 1e-9:
+            m.scans += 1
+            due = _object_cloud(m.spec, world.scenario, seed=m.spec.seed + m.scans)
+        if due is not None:
+            scene.replace_cloud(name, due)
+    return twists
+
+
+def frozen_scene(scene: Scene) -> Scene:
+    """A copy of ``scene`` in which every object not on a robot stays where it is now,
+    with its current cloud: the world a static-world controller believes in."""
+    frozen = Scene(scene.strategy)
+    for r in scene.robots.values():
+        frozen.add_robot(r)
+    now = scene.poses()
+    for name, obj in scene.objects.items():
+        src = obj.source
+        if isinstance(src, OnLink):
+            frozen.add_object(name, obj.cloud, src.offset, robot=src.robot, link=src.link)
+        else:
+            frozen.add_object(name, obj.cloud, now[name])
+    for pair in scene.pairs:
+        frozen.watch(pair.a, pair.b, pair.margin, pair.kind)
+    return frozen
