@@ -528,7 +528,35 @@ def control_step(  # type: ignore[no-untyped-def]
 #: part's point in its link frame, the other end (world, or in the other link's frame),
 #: the margin, the tool-part flag and the age in ticks (0: an empty row).
 MEM_COLS = 11
-_AGE = 10
+#: Column of ``mem`` holding the age.
+MEM_AGE = 10
+
+
+@njit(cache=True)
+def _into_frame(T, p, out):  # type: ignore[no-untyped-def]
+    """``out = Rᵀ (p − t)``: the world point ``p`` in the coordinates of frame ``T``."""
+    for j in range(3):
+        acc = 0.0
+        for c in range(3):
+            acc += T[c, j] * (p[c] - T[c, 3])
+        out[j] = acc
+
+
+@njit(cache=True)
+def _out_of_frame(T, x, out):  # type: ignore[no-untyped-def]
+    """``out = R x + t``: the point ``x`` given in frame ``T``, in the world."""
+    for j in range(3):
+        out[j] = T[j, 0] * x[0] + T[j, 1] * x[1] + T[j, 2] * x[2] + T[j, 3]
+
+
+@njit(cache=True)
+def _same_line(x, y):  # type: ignore[no-untyped-def]
+    """Whether two remembered lines (6 coordinates, see :func:`_local_lines`) are the
+    same point pair."""
+    e = 0.0
+    for j in range(6):
+        e += abs(x[j] - y[j])
+    return e < 1e-9
 
 
 @njit(cache=True)
@@ -539,19 +567,9 @@ def _local_lines(F, a_link, a_pt, b_link, b_pt, normal, dist):  # type: ignore[n
     m = dist.shape[0]
     loc = np.empty((m, 6))
     for i in range(m):
-        A = F[a_link[i]]
-        for j in range(3):
-            acc = 0.0
-            for c in range(3):
-                acc += A[c, j] * (a_pt[i, c] - A[c, 3])
-            loc[i, j] = acc
+        _into_frame(F[a_link[i]], a_pt[i], loc[i, 0:3])
         if b_link[i] >= 0:
-            B = F[b_link[i]]
-            for j in range(3):
-                acc = 0.0
-                for c in range(3):
-                    acc += B[c, j] * (b_pt[i, c] - B[c, 3])
-                loc[i, 3 + j] = acc
+            _into_frame(F[b_link[i]], b_pt[i], loc[i, 3:6])
         else:
             for j in range(3):
                 loc[i, 3 + j] = a_pt[i, j] - dist[i] * normal[i, j]
@@ -600,17 +618,13 @@ def _recall(  # type: ignore[no-untyped-def]
     dd = np.empty(k)
     extra = 0
     for r in range(k):
-        if not 1.0 <= mem[r, _AGE] <= depth:
+        if not 1.0 <= mem[r, MEM_AGE] <= depth:
             continue
         al = int(mem[r, 0])
         bl = int(mem[r, 1])
-        A = F[al]
-        for j in range(3):
-            pa[r, j] = A[j, 0] * mem[r, 2] + A[j, 1] * mem[r, 3] + A[j, 2] * mem[r, 4] + A[j, 3]
+        _out_of_frame(F[al], mem[r, 2:5], pa[r])
         if bl >= 0:
-            B = F[bl]
-            for j in range(3):
-                pb[r, j] = B[j, 0] * mem[r, 5] + B[j, 1] * mem[r, 6] + B[j, 2] * mem[r, 7] + B[j, 3]
+            _out_of_frame(F[bl], mem[r, 5:8], pb[r])
         else:
             for j in range(3):
                 pb[r, j] = mem[r, 5 + j]
@@ -621,26 +635,17 @@ def _recall(  # type: ignore[no-untyped-def]
         if not (dd[r] > 1e-9 and dd[r] <= mem[r, 8]):
             continue
         # the same point pair as one of this tick's rows or an earlier recalled one
+        line = mem[r, 2:8]
         same = False
         for i in range(m):
-            if a_link[i] != al or b_link[i] != bl:
-                continue
-            e = 0.0
-            for j in range(6):
-                e += abs(loc[i, j] - mem[r, 2 + j])
-            if e < 1e-9:
+            if a_link[i] == al and b_link[i] == bl and _same_line(loc[i], line):
                 same = True
                 break
         for s in range(r):
             if same:
                 break
-            if not keep[s] or mem[s, 0] != mem[r, 0] or mem[s, 1] != mem[r, 1]:
-                continue
-            e = 0.0
-            for j in range(6):
-                e += abs(mem[s, 2 + j] - mem[r, 2 + j])
-            if e < 1e-9:
-                same = True
+            if keep[s] and mem[s, 0] == mem[r, 0] and mem[s, 1] == mem[r, 1]:
+                same = _same_line(mem[s, 2:8], line)
         if not same:
             keep[r] = True
             extra += 1
@@ -656,18 +661,16 @@ def _recall(  # type: ignore[no-untyped-def]
     task2 = np.empty(t, dtype=np.bool_)
     mu2 = np.zeros(t)
     recalled = np.zeros(t, dtype=np.bool_)
-    for i in range(m):
-        a_link2[i] = a_link[i]
-        b_link2[i] = b_link[i]
-        for j in range(3):
-            a_pt2[i, j] = a_pt[i, j]
-            b_pt2[i, j] = b_pt[i, j]
-            normal2[i, j] = normal[i, j]
-            vobs2[i, j] = vobs[i, j]
-        dist2[i] = dist[i]
-        rho02[i] = rho0[i]
-        task2[i] = task_pt[i]
-        mu2[i] = mu[i]
+    a_link2[:m] = a_link
+    b_link2[:m] = b_link
+    a_pt2[:m] = a_pt
+    b_pt2[:m] = b_pt
+    normal2[:m] = normal
+    vobs2[:m] = vobs
+    dist2[:m] = dist
+    rho02[:m] = rho0
+    task2[:m] = task_pt
+    mu2[:m] = mu
     i = m
     for r in range(k):
         if not keep[r]:
@@ -693,15 +696,15 @@ def _remember(mem, depth, a_link, b_link, loc, rho0, task_pt, static):  # type: 
     ``mem`` must hold ``depth`` × the largest number of rows per tick (the caller sees
     to it), so every new row finds an empty one."""
     for r in range(mem.shape[0]):
-        if mem[r, _AGE] >= depth:
-            mem[r, _AGE] = 0.0
-        elif mem[r, _AGE] > 0.0:
-            mem[r, _AGE] += 1.0
+        if mem[r, MEM_AGE] >= depth:
+            mem[r, MEM_AGE] = 0.0
+        elif mem[r, MEM_AGE] > 0.0:
+            mem[r, MEM_AGE] += 1.0
     r = 0
     for i in range(loc.shape[0]):
         if not static[i]:
             continue
-        while r < mem.shape[0] and mem[r, _AGE] != 0.0:
+        while r < mem.shape[0] and mem[r, MEM_AGE] != 0.0:
             r += 1
         if r == mem.shape[0]:
             return
@@ -711,7 +714,7 @@ def _remember(mem, depth, a_link, b_link, loc, rho0, task_pt, static):  # type: 
             mem[r, 2 + j] = loc[i, j]
         mem[r, 8] = rho0[i]
         mem[r, 9] = 1.0 if task_pt[i] else 0.0
-        mem[r, _AGE] = 1.0
+        mem[r, MEM_AGE] = 1.0
 
 
 @njit(cache=True)

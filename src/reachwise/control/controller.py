@@ -246,7 +246,6 @@ class Controller:
         self.locked = False
         self.reset()
         self._warm_up()
-        self.reset()
 
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
@@ -263,7 +262,7 @@ class Controller:
     def _forget(self) -> None:
         """Drop the guard's remembered collision lines (rows of ``K.MEM_COLS`` columns,
         see ``_kernel``; age 0 marks an empty row)."""
-        self._mem[:, -1] = 0.0
+        self._mem[:, K.MEM_AGE] = 0.0
 
     def _memory_for(self, rows: int) -> NDArray[np.float64]:
         """The memory, grown to hold ``guard_memory`` ticks of ``rows`` lines each."""
@@ -286,6 +285,7 @@ class Controller:
             )  # fmt: skip
             for dims in (3, 6):
                 self._kernel(q, Goal(T, dims), pts, True)
+        self._forget()  # the warm-up ticks remembered their made-up lines
 
     # ------------------------------------------------------------------ tick
     def step(
