@@ -1,18 +1,52 @@
-"""Errors raised for bad input: each names where the input came from, the field and why.
+"""The errors reachwise raises on purpose: one root, one class per kind of failure.
 
 A user who hands reachwise a broken robot file, task file or point cloud must learn
-which file, which entry and what is wrong, never read a numpy traceback.
+which file, which entry and what is wrong, never read a numpy traceback; a user who
+lacks an optional package must learn what to install; a controller whose collision
+server went silent must learn that it did, not that its input was bad.
+
+- :class:`ReachwiseError` — the root; catch it to catch everything below.
+- :class:`InputError` (also a ``ValueError``) — bad input: ``source`` (a file path or an
+  argument name), ``field`` and ``reason``. :class:`RobotFileError`,
+  :class:`TaskError` and :class:`CloudError` say which kind of input.
+- :class:`UnknownName` (also a ``KeyError``) — a lookup of a name that does not exist;
+  the message lists the valid names.
+- :class:`MissingDependency` (also an ``ImportError``) — an optional package is not
+  installed; the message says, in one format, what it is for and how to install it.
+- :class:`ServerUnavailable` (also a ``TimeoutError``) — a service did not answer.
+
+Each class carries the exit code the command line gives it (:attr:`exit_code`): bad
+input 2, missing dependency 3, unavailable service 4, anything else 1.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+from typing import ClassVar
 
-class ReachwiseError(ValueError):
+__all__ = [
+    "CloudError",
+    "InputError",
+    "MissingDependency",
+    "ReachwiseError",
+    "RobotFileError",
+    "ServerUnavailable",
+    "TaskError",
+    "UnknownName",
+]
+
+
+class ReachwiseError(Exception):
     """Base class of every error reachwise raises on purpose."""
 
+    #: Exit code of the ``reachwise`` command when this error ends it.
+    exit_code: ClassVar[int] = 1
 
-class InputError(ReachwiseError):
+
+class InputError(ReachwiseError, ValueError):
     """Bad input: ``source`` (a file path or an argument name), ``field`` and ``reason``."""
+
+    exit_code: ClassVar[int] = 2
 
     def __init__(self, source: str, field: str, reason: str) -> None:
         self.source = source
@@ -20,6 +54,9 @@ class InputError(ReachwiseError):
         self.reason = reason
         where = f"{source}: {field}" if field else source
         super().__init__(f"{where}: {reason}")
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else ""
 
 
 class RobotFileError(InputError):
@@ -32,3 +69,59 @@ class CloudError(InputError):
 
 class TaskError(InputError):
     """A task file or task definition is invalid."""
+
+
+#: How many valid names an :class:`UnknownName` message lists before it abbreviates.
+_LISTED = 30
+
+
+class UnknownName(InputError, KeyError):
+    """A lookup of ``name`` among ``valid`` names failed; the message lists the valid ones.
+
+    ``kind`` says what was looked up (``"robot"``, ``"object"``, ``"strategy"``, …).
+    It is a ``KeyError`` too, so code that looks names up in a mapping keeps working.
+    """
+
+    def __init__(self, source: str, kind: str, name: str, valid: Iterable[str]) -> None:
+        self.kind = kind
+        self.name = name
+        self.valid = tuple(sorted(str(v) for v in valid))
+        shown = ", ".join(self.valid[:_LISTED])
+        if len(self.valid) > _LISTED:
+            shown += f", … ({len(self.valid) - _LISTED} more)"
+        reason = f"unknown {kind} {name!r}; valid: {shown}" if self.valid else (
+            f"unknown {kind} {name!r}; there are none"
+        )
+        super().__init__(source, kind, reason)
+
+
+class MissingDependency(ReachwiseError, ImportError):
+    """An optional package is missing: ``purpose`` needs ``package``, from the ``extra``.
+
+    The message always has the same form::
+
+        the local-minimum escape needs the optional package 'ompl': pip install "reachwise[plan]"
+    """
+
+    exit_code: ClassVar[int] = 3
+
+    def __init__(self, package: str, extra: str, purpose: str) -> None:
+        self.package = package
+        self.extra = extra
+        self.purpose = purpose
+        self.hint = f'pip install "reachwise[{extra}]"'
+        super().__init__(
+            f"{purpose} needs the optional package {package!r}: {self.hint}", name=package
+        )
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+class ServerUnavailable(ReachwiseError, TimeoutError):
+    """A service (the collision server) did not answer within its deadline."""
+
+    exit_code: ClassVar[int] = 4
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else "the server did not answer"
