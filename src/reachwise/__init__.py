@@ -6,8 +6,7 @@ Public API (stable names, see DESIGN.md): ``load_robot``, ``Robot``, ``Joint``,
 
 from __future__ import annotations
 
-__version__ = "0.1.0"
-
+from reachwise._version import __version__
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_file import load_robot
 from reachwise.io.task_file import load_task

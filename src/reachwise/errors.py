@@ -89,8 +89,10 @@ class UnknownName(InputError, KeyError):
         shown = ", ".join(self.valid[:_LISTED])
         if len(self.valid) > _LISTED:
             shown += f", … ({len(self.valid) - _LISTED} more)"
-        reason = f"unknown {kind} {name!r}; valid: {shown}" if self.valid else (
-            f"unknown {kind} {name!r}; there are none"
+        reason = (
+            f"unknown {kind} {name!r}; valid: {shown}"
+            if self.valid
+            else (f"unknown {kind} {name!r}; there are none")
         )
         super().__init__(source, kind, reason)
 
