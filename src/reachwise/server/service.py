@@ -40,7 +40,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise import __version__
+from reachwise._version import __version__
 from reachwise.distance._common import NO_RISK, check_pose, cloud_tree
 from reachwise.distance.scene import Fixed, OnLink, Scene
 from reachwise.errors import InputError
