@@ -312,7 +312,9 @@ def _object_cloud(
     seed = getattr(spec, "seed", 0) if seed is None else seed
     where = f"objects.{name}"
     if getattr(spec, "scanner", None) is not None:
-        from reachwise.geometry.scanner import OcclusionFill, scan_scene
+        from reachwise.geometry.occlusion import OcclusionFill
+        from reachwise.geometry.scan_scene import scan_scene
+        from reachwise.sim.p5_scenes import get_scene
 
         occ = spec.occlusion
         fill = (
@@ -321,7 +323,8 @@ def _object_cloud(
             else None
         )
         try:
-            _, cloud = scan_scene(spec.scanner, rng=seed, noise=spec.noise, occlusion=fill)
+            target = get_scene(spec.scanner)
+            _, cloud = scan_scene(target, rng=seed, noise=spec.noise, occlusion=fill)
         except InputError as exc:
             raise InputError(sc.source, f"{where}.scanner", str(exc)) from None
         return PointCloud(cloud.points, name=name)
