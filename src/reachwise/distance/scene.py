@@ -42,9 +42,9 @@ from reachwise.distance._common import (
     as_cloud,
     check_margin,
     check_pose,
-    cloud_tree,
 )
 from reachwise.distance.engine import STRATEGIES, PairQuery
+from reachwise.distance.index import cloud_index
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
 
@@ -330,7 +330,7 @@ class Scene:
             self._pose_stamp[name] = self._stamp(None, f"object {name!r}")
         else:
             source = Fixed(P)
-        cloud_tree(c)
+        cloud_index(c)
         obj = SceneObject(name, c, source)
         self._objects[name] = obj
         return obj
@@ -351,7 +351,7 @@ class Scene:
         the warm starts of its pairs are dropped."""
         obj = self._object(name)
         c = as_cloud(cloud, name)
-        cloud_tree(c)
+        cloud_index(c)
         self._objects[name] = SceneObject(name, c, obj.source)
         for key in list(self._queries):
             if name in key:
