@@ -73,12 +73,11 @@ class Channel:
         :class:`ServerInputError` (the request's content was rejected) or
         :class:`ServerError` (any other typed error or an invalid reply).
         """
-        limit = deadline
         reply_type = P.REPLIES[request.OP]
         sock = self._socket()
         self._next_id += 1
         rid = self._next_id
-        end = time.monotonic() + limit
+        end = time.monotonic() + deadline
         try:
             sock.send(P.encode_request(rid, request), zmq.NOBLOCK)
         except zmq.Again:
@@ -88,7 +87,7 @@ class Channel:
         if not self._poller.poll(wait_ms):
             self.reset()
             raise ServerUnavailable(
-                f"no reply to {request.OP} from {self.address} within {limit * 1e3:.1f} ms"
+                f"no reply to {request.OP} from {self.address} within {deadline * 1e3:.1f} ms"
             )
         raw = sock.recv()
         try:
