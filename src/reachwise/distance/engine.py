@@ -3,8 +3,8 @@
 Three strategies answer the same question and must agree with each other exactly:
 
 - ``"default"`` (:func:`default_closest`): dual-tree branch and bound. Each cloud has a
-  k-d tree of AABBs built once in its own frame (its :class:`~reachwise.distance.index.
-  CloudIndex`, kept by the distance layer). Per
+  tree of AABBs built once in its own frame (its
+  :class:`~reachwise.distance.index.CloudIndex`, kept by the distance layer). Per
   query the smaller cloud's boxes and points are mapped into the larger cloud's frame
   by the relative pose (lazily: only the nodes the search reaches), node pairs are
   expanded depth first, nearer child pair first, while their box distance is below the

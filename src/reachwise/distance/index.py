@@ -1,8 +1,8 @@
 """A cloud's spatial index, kept by the distance layer (P-V Table 1, initialization phase).
 
 A :class:`~reachwise.geometry.cloud.PointCloud` holds its points and nothing else. What
-the distance strategies derive from the points — the k-d tree of AABBs in the cloud's
-own frame (:mod:`reachwise.distance._kernels`), the centroid and the tight AABB — is a
+the distance strategies derive from the points — the tree of AABBs in the cloud's own
+frame (:mod:`reachwise.distance._build`), the centroid and the tight AABB — is a
 :class:`CloudIndex`, built once per cloud and looked up by the cloud:
 
 - :func:`build_index` is a pure function of the points: no shared state, no lock, and
@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from reachwise.distance import _kernels as K
+from reachwise.distance._build import build_tree
 from reachwise.errors import InputError
 from reachwise.geometry.boxes import AABB
 from reachwise.geometry.cloud import PointCloud
@@ -45,7 +46,7 @@ __all__ = [
     "cloud_index",
 ]
 
-#: Leaf size of the per-cloud k-d tree (points per leaf at most).
+#: Leaf size of the per-cloud tree (points per leaf at most).
 LEAF_SIZE = 8
 
 
@@ -53,7 +54,7 @@ LEAF_SIZE = 8
 class CloudIndex:
     """Everything the distance strategies derive from a cloud's points, in its frame.
 
-    The k-d tree (:func:`reachwise.distance._kernels.build_tree`): ``points`` in tree
+    The tree (:func:`reachwise.distance._build.build_tree`): ``points`` in tree
     order, ``perm[k]`` the input row of tree point ``k``, ``inverse`` the reverse map,
     ``boxes`` (M, 6) node AABBs (lo, hi; node 0 is the root), ``info`` (M, 3) start,
     end, right child. ``centroid`` the mean point (the direction rule at distance 0),
@@ -82,7 +83,7 @@ def build_index(points: ArrayLike, *, version: int = 0, leaf_size: int = LEAF_SI
     if not 1 <= leaf_size <= K.LEAF_MAX:
         raise InputError("leaf_size", "", f"must be in 1..{K.LEAF_MAX}, got {leaf_size}")
     pts = np.array(points, dtype=np.float64, order="C", copy=True)
-    tp, perm, boxes, info = K.build_tree(pts, leaf_size)
+    tp, perm, boxes, info = build_tree(pts, leaf_size)
     inverse = np.empty_like(perm)
     inverse[perm] = np.arange(perm.shape[0])
     centroid = np.ascontiguousarray(pts.mean(axis=0))
