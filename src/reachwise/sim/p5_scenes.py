@@ -153,5 +153,5 @@ SCENES: dict[str, Callable[[], ScanScene]] = {
 def get_scene(name: str) -> ScanScene:
     """The built-in scene ``name`` (see :data:`SCENES`)."""
     if name not in SCENES:
-        raise UnknownName("scanner", "scene", name, SCENES)
+        raise UnknownName("scene", "scene", name, SCENES)
     return SCENES[name]()
