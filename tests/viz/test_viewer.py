@@ -123,7 +123,7 @@ def test_skeleton_joins_the_frame_origins(rng: np.random.Generator, classic: boo
 def test_status_colours_are_those_of_the_figures() -> None:
     from matplotlib.colors import to_rgb
 
-    from reachwise.viz.plots import STATUS_COLOURS
+    from reachwise.report.plots import STATUS_COLOURS
 
     for status, name in STATUS_COLOURS.items():
         expect = np.round(np.array(to_rgb(name)) * 255)
@@ -218,7 +218,7 @@ def test_synthesis_browser_shows_each_configuration(viewer: Viewer, tmp_path: Pa
 
     task = reachwise.load_task("tunnel-87").subset(np.arange(0, 87, 20), name="tunnel-87")
     res = synthesize(task, "sb60", runs=1, seed=0)
-    folder = write_synthesis(res, tmp_path / "synth", figures=False)
+    folder = write_synthesis(res, tmp_path / "synth")
     viewer.show(folder)
     assert viewer.mode == "synthesis"
     browser = viewer.active

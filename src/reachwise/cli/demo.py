@@ -123,7 +123,7 @@ def demo(
 
     A rerun reuses the stages already complete in --out; Ctrl-C keeps them.
     """
-    from reachwise.viz.report_demo import write_demo_report
+    from reachwise.report.demo import write_demo_report
 
     console = Console(quiet=json_out)
     ctx = Ctx(
@@ -319,8 +319,8 @@ def _task(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
 def _synthesis(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
     from reachwise.io.synthesis_out import summary, write_synthesis
     from reachwise.io.task_file import save_task
+    from reachwise.report.synthesis import save_synthesis_figures, write_synthesis_report
     from reachwise.synthesis.synthesize import synthesize
-    from reachwise.viz.report_synthesis import write_synthesis_report
 
     task = ctx.task()
     runs = p["runs"]
@@ -332,8 +332,8 @@ def _synthesis(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
 
         result = synthesize(task, "sb60", runs=runs, seed=ctx.seed, on_run=on_run)
     write_synthesis(result, folder)
+    pngs = save_synthesis_figures(result, folder)
     save_task(task, folder / "task.yaml")
-    pngs = {n: folder / f"{n}.png" for n in ("configurations", "lci")}
     report = write_synthesis_report(result, folder, pngs)
     d = summary(result)
     b = d["best"]
@@ -363,11 +363,11 @@ def _synthesis(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
 
 
 def _topology(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
-    from reachwise.io.sweep_report import write_report
     from reachwise.io.sweep_store import SweepStore
+    from reachwise.report.ranking import write_report
+    from reachwise.report.topology import write_topology_report
     from reachwise.synthesis.sweep import SweepConfig, run_sweep
     from reachwise.synthesis.topology import builtin_set
-    from reachwise.viz.report_topology import write_topology_report
 
     task = ctx.task()
     topos = builtin_set("p2")
@@ -440,10 +440,10 @@ def _topology(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
 
 
 def _simulate(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
+    from reachwise.report.sim_plots import save_figures
+    from reachwise.report.simulate import leg_lengths, scene_cloud, write_simulation_report
     from reachwise.sim.scenarios import load_scenario
     from reachwise.sim.simulate import simulate
-    from reachwise.viz.report_simulate import leg_lengths, scene_cloud, write_simulation_report
-    from reachwise.viz.sim_plots import save_figures
 
     name = p["scenario"]
     sc = load_scenario(name)
@@ -591,7 +591,7 @@ def _distance(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
 
 # ---- summary -----------------------------------------------------------------------------
 def _print_summary(ctx: Ctx, stages: list[Stage], elapsed: float, report: Path) -> None:
-    from reachwise.viz.report_demo import key_figures
+    from reachwise.report.demo import key_figures
 
     c = ctx.console
     c.rule("summary")

@@ -126,7 +126,7 @@ def simulate(
             ref.save(out / "reference")
         cloud, pngs = None, None
         if figures:
-            from reachwise.viz.sim_plots import save_figures
+            from reachwise.report.sim_plots import save_figures
 
             world = build_world(sc)
             objs = [o for o in world.scene.objects.values() if "/" not in o.name]
@@ -140,7 +140,7 @@ def simulate(
             pngs = {p.stem: p for p in save_figures(out, main, base, cloud)}
         (out / "summary.json").write_text(json.dumps(data, indent=2))
         data["out"] = str(out)  # type: ignore[assignment]
-        from reachwise.viz.report_simulate import write_simulation_report
+        from reachwise.report.simulate import write_simulation_report
 
         report = write_simulation_report(out, sc, logs, pngs or False, cloud)
         data["report"] = str(report)  # type: ignore[assignment]

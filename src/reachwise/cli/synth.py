@@ -32,9 +32,9 @@ def synth(
     from reachwise.io.robot_file import load_robot
     from reachwise.io.synthesis_out import summary, write_synthesis
     from reachwise.io.task_file import load_task
+    from reachwise.report.synthesis import save_synthesis_figures, write_synthesis_report
     from reachwise.synthesis.problem import SynthesisProblem, locked_from_spec
     from reachwise.synthesis.synthesize import SOLVERS, RunResult, result_of, run_once
-    from reachwise.viz.report_synthesis import write_synthesis_report
 
     if solver not in SOLVERS:
         raise typer.BadParameter(f"choose one of {SOLVERS}", param_hint="--solver")
@@ -61,8 +61,8 @@ def synth(
         console.print("interrupted before the first run finished: nothing written")
         raise typer.Exit(130)
     result = result_of(problem, done, solver)
-    folder = write_synthesis(result, out, figures=figures)
-    pngs = {n: folder / f"{n}.png" for n in ("configurations", "lci")} if figures else False
+    folder = write_synthesis(result, out)
+    pngs = save_synthesis_figures(result, folder) if figures else False
     report = write_synthesis_report(result, folder, pngs)
     data = summary(result)
     data["interrupted"] = interrupted

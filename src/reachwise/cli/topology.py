@@ -73,9 +73,10 @@ def topology(
     what is done. Ctrl-C stops submitting, waits for the running runs, stores them and
     exits (130); a killed sweep loses nothing it stored.
     """
-    from reachwise.io.sweep_report import write_report
     from reachwise.io.sweep_store import SweepStore
     from reachwise.io.task_file import load_task
+    from reachwise.report.ranking import write_report
+    from reachwise.report.topology import write_topology_report
     from reachwise.synthesis.rank import RANK_KEYS
     from reachwise.synthesis.sweep import SweepConfig, SweepInterrupted, dask_executor, run_sweep
     from reachwise.synthesis.topology import (
@@ -86,7 +87,6 @@ def topology(
         parse_rules,
         topologies_from_specs,
     )
-    from reachwise.viz.report_topology import write_topology_report
 
     if sum(x is not None and x != [] for x in (set_name, rules, specs or None)) != 1:
         raise typer.BadParameter("give exactly one of --set, --enumerate, --spec")

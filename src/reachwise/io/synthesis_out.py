@@ -1,5 +1,6 @@
-"""Write a synthesis result to a folder: design.yaml, design.urdf, summary.json,
-points.csv, runs.csv and the figures of P-I Figs. 4–6."""
+"""A synthesis result as files in a folder: design.yaml, design.urdf, summary.json and
+points.csv, written and read back (the figures and the HTML report are
+:mod:`reachwise.report.synthesis`'s)."""
 
 from __future__ import annotations
 
@@ -77,8 +78,8 @@ def _atomic_write(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
-def write_synthesis(result: SynthesisResult, out: str | Path, figures: bool = True) -> Path:
-    """Write every output file of ``result`` into folder ``out``; return the folder."""
+def write_synthesis(result: SynthesisResult, out: str | Path) -> Path:
+    """Write the files of ``result`` (module docstring) into folder ``out``; return it."""
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
     best = result.best
@@ -102,23 +103,7 @@ def write_synthesis(result: SynthesisResult, out: str | Path, figures: bool = Tr
                         repr(float(best.orientation_error[k])), best.status[k],
                         repr(float(best.lci_initial[k])), repr(float(best.lci_final[k])),
                         *map(repr, map(float, best.q[k]))])  # fmt: skip
-    if figures:
-        fig = _configurations(result)
-        fig.savefig(folder / "configurations.png", dpi=110)
-        from reachwise.viz.plots import lci_figure
-
-        lci_figure(best.lci_initial, best.lci_final, f"{prob.template.name} on {task.name}") \
-            .savefig(folder / "lci.png", dpi=110)  # fmt: skip
     return folder
-
-
-def _configurations(result: SynthesisResult) -> Any:
-    from reachwise.viz.plots import configurations_figure
-
-    best = result.best
-    return configurations_figure(
-        best.robot, best.q, result.problem.task.poses, best.status, every=2
-    )
 
 
 def design_rows(result: SynthesisResult) -> list[list[str]]:

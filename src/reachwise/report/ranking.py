@@ -171,7 +171,7 @@ def write_report(
         entry = {"rank": i, "topology": name, "yaml": str(stem.with_suffix(".yaml")),
                  "urdf": str(stem.with_suffix(".urdf"))}  # fmt: skip
         if figures:
-            from reachwise.viz.plots import configurations_figure
+            from reachwise.report.plots import configurations_figure
 
             best = result.final.best_result(name)
             fig = configurations_figure(

@@ -1,4 +1,4 @@
-"""Building blocks of the self-contained HTML reports (``reachwise.viz.report``).
+"""Building blocks of the self-contained HTML reports (``reachwise.report``).
 
 A report is one HTML file: CSS inline, figures embedded as base64 PNG ``data:`` URIs,
 no external URL, no JavaScript. Every string that may come from user input (robot,
