@@ -322,14 +322,14 @@ def test_files_and_report_folders_are_recognised(viewer: Viewer, tmp_path: Path)
     from reachwise.viz.sources import find_results
 
     robot = reachwise.load_robot("puma560")
-    robot.save(str(tmp_path / "arm.yaml"))
+    reachwise.save_robot(robot, tmp_path / "arm.yaml")
     (tmp_path / "scene.yaml").write_text(
         "name: one-arm\nduration: 1\nrobots:\n"
         "  - {name: arm, robot: arm.yaml, q0: [0, -0.5, 0.5, 0, 0.3, 0]}\n"
     )
     topo = tmp_path / "topology"
     (topo / "designs").mkdir(parents=True)
-    robot.save(str(topo / "designs" / "01-RRR.yaml"))
+    reachwise.save_robot(robot, topo / "designs" / "01-RRR.yaml")
     (topo / "ranking.json").write_text(json.dumps({"task": "tunnel-87"}))
     for path, mode in ((tmp_path / "arm.yaml", "robot"), (tmp_path / "scene.yaml", "scenario")):
         entries = find_results(path)

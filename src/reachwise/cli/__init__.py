@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import typer
 
-from reachwise import __version__
+from reachwise._version import __version__
 from reachwise.cli import bench, cloud, demo, robot, serve, synth, task, topology, view
 from reachwise.cli import simulate as sim_cli
 

@@ -14,7 +14,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise import __version__
+from reachwise._version import __version__
+from reachwise.io.robot_file import save_robot
 from reachwise.kinematics.indices import gci, kci
 from reachwise.synthesis.synthesize import SynthesisResult
 
@@ -84,7 +85,7 @@ def write_synthesis(result: SynthesisResult, out: str | Path) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     best = result.best
     prob = result.problem
-    best.robot.save(str(folder / "design.yaml"))
+    save_robot(best.robot, folder / "design.yaml")
     from reachwise.io.urdf import export_urdf
 
     export_urdf(best.robot, folder / "design.urdf")

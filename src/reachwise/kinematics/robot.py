@@ -358,12 +358,6 @@ class Robot:
             name=self.name if name is None else name,
         )
 
-    def save(self, path: str) -> None:
-        """Write the robot as a YAML robot file (schema in DESIGN.md); round-trips."""
-        from reachwise.io.robot_file import save_robot
-
-        save_robot(self, path)
-
 
 def _ro(a: NDArray[Any]) -> NDArray[Any]:
     a.setflags(write=False)

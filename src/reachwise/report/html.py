@@ -20,7 +20,7 @@ from pathlib import Path
 from string import Template
 from typing import TYPE_CHECKING, Any
 
-from reachwise import __version__
+from reachwise._version import __version__
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

@@ -24,7 +24,8 @@ import re
 from pathlib import Path
 from typing import Any
 
-from reachwise import __version__
+from reachwise._version import __version__
+from reachwise.io.robot_file import save_robot
 from reachwise.synthesis.sweep import SweepResult, versions
 
 _FIELDS = ("rank", "topology", "round", "feasible", "reached", "points", "gci", "kci", "mean",
@@ -164,7 +165,7 @@ def write_report(
         ddir.mkdir(exist_ok=True)
         robot = result.robot(name)
         stem = ddir / f"{i:02d}-{safe_name(name)}"
-        robot.save(str(stem.with_suffix(".yaml")))
+        save_robot(robot, stem.with_suffix(".yaml"))
         from reachwise.io.urdf import export_urdf
 
         export_urdf(robot, stem.with_suffix(".urdf"))

@@ -58,6 +58,7 @@ import numpy as np
 import zmq
 from numpy.typing import ArrayLike, NDArray
 
+import reachwise.server.protocol as P
 from reachwise.distance._common import (
     NO_RISK,
     DistanceResult,
@@ -81,7 +82,6 @@ from reachwise.errors import InputError, ReachwiseError
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_file import robot_from_dict, robot_to_dict
 from reachwise.kinematics.robot import Robot
-from reachwise.server import protocol as P
 from reachwise.server.security import ClientKeys, load_client_keys, secure_client_socket
 
 #: Default deadline of the per-tick calls (s): one 10 ms control cycle of P-V.

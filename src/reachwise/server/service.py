@@ -40,14 +40,14 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise import __version__
+import reachwise.server.protocol as P
+from reachwise._version import __version__
 from reachwise.distance._common import NO_RISK, check_pose, cloud_tree
 from reachwise.distance.scene import Fixed, OnLink, Scene
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_file import robot_from_dict
 from reachwise.kinematics.robot import Robot
-from reachwise.server import protocol as P
 from reachwise.server.counters import Metrics, SequenceCounter
 from reachwise.server.state import (
     JointState,

@@ -32,7 +32,7 @@ from pathlib import Path
 import zmq
 import zmq.auth.thread
 
-from reachwise.server import protocol as P
+import reachwise.server.protocol as P
 from reachwise.server.security import DEFAULT_BIND, BindPlan, plan_bind, secure_server_socket
 from reachwise.server.service import LIVE_INTERVAL, SceneService, answer
 from reachwise.server.state import StateStore

@@ -180,7 +180,7 @@ def versions() -> dict[str, str]:
     """Versions the results were computed with (stored per item)."""
     import scipy
 
-    from reachwise import __version__
+    from reachwise._version import __version__
 
     return {
         "reachwise": __version__,
