@@ -37,6 +37,8 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
+from reachwise.io.atomic import atomic_write
+
 SCENARIOS = ("p3-self-collision", "p5-crane-obstacle")
 TOPOLOGY_FOLDER = "topology-p2-tunnel-87"
 SYNTHESIS_FOLDER = "synthesis-sb60-tunnel-87"
@@ -163,7 +165,7 @@ def demo(
     }
     report = write_demo_report(out, [(s, ctx.done.get(s.key)) for s in stages], figures)
     figures["report"] = str(report.resolve())
-    (out / "demo.json").write_text(json.dumps(figures, indent=2, default=str))
+    atomic_write(out / "demo.json", json.dumps(figures, indent=2, default=str))
     if interrupted is not None:
         console.print(
             f"[bold red]interrupted[/] during {interrupted}: {len(ctx.done)} finished stages "
@@ -280,9 +282,8 @@ def _run_stage(ctx: Ctx, st: Stage) -> dict[str, Any]:
     }
     for line in rec["lines"]:
         ctx.console.print(line)
-    tmp = st.marker(ctx.out).with_suffix(".tmp")
-    tmp.write_text(json.dumps(rec, indent=2, default=str))
-    tmp.replace(st.marker(ctx.out))  # written last: the stage is complete
+    # written last: the stage is complete
+    atomic_write(st.marker(ctx.out), json.dumps(rec, indent=2, default=str))
     rec["status"] = "done"
     return rec
 
@@ -463,7 +464,7 @@ def _simulate(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
     for label, log in logs.items():
         log.save(folder / label)
     summaries = {k: v.summary() for k, v in logs.items()}
-    (folder / "summary.json").write_text(json.dumps(summaries, indent=2))
+    atomic_write(folder / "summary.json", json.dumps(summaries, indent=2))
     cloud = scene_cloud(sc)
     paths = save_figures(folder, logs["avoidance"], logs["baseline"], cloud)
     report = write_simulation_report(folder, sc, logs, {p.stem: p for p in paths}, cloud)

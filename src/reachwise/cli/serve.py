@@ -72,8 +72,8 @@ def serve(
     """Run the collision server until SIGINT/SIGTERM (or --max-runtime)."""
     if ctx.invoked_subcommand is not None:
         return
+    from reachwise.io.atomic import atomic_write
     from reachwise.server.protocol import Limits
-    from reachwise.server.state import atomic_write
     from reachwise.server.transport import CollisionServer
 
     logging.basicConfig(

@@ -10,6 +10,8 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeElapsedColumn
 
+from reachwise.io.atomic import atomic_write
+
 
 def simulate(
     scenario: str = typer.Argument(
@@ -138,7 +140,7 @@ def simulate(
                     [o.cloud.points @ poses[o.name][:3, :3].T + poses[o.name][:3, 3] for o in objs]
                 )
             pngs = {p.stem: p for p in save_figures(out, main, base, cloud)}
-        (out / "summary.json").write_text(json.dumps(data, indent=2))
+        atomic_write(out / "summary.json", json.dumps(data, indent=2))
         data["out"] = str(out)  # type: ignore[assignment]
         from reachwise.report.simulate import write_simulation_report
 

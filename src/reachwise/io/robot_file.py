@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from reachwise.errors import InputError, RobotFileError
 from reachwise.io._builtin import builtin_names, builtin_text
+from reachwise.io.atomic import atomic_write
 from reachwise.kinematics.robot import (
     BASE_PARAMS,
     DH_PARAMS,
@@ -263,7 +264,7 @@ def robot_to_dict(robot: Robot) -> dict[str, Any]:
 
 def save_robot(robot: Robot, path: str | Path) -> None:
     """Write ``robot`` as a YAML robot file."""
-    Path(path).write_text(yaml.safe_dump(robot_to_dict(robot), sort_keys=False))
+    atomic_write(path, yaml.safe_dump(robot_to_dict(robot), sort_keys=False))
 
 
 def load_robot_file(path: str | Path) -> Robot:

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import csv
 import json
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -15,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from reachwise._version import __version__
+from reachwise.io.atomic import atomic_open, atomic_write
 from reachwise.io.robot_file import save_robot
 from reachwise.kinematics.indices import gci, kci
 from reachwise.synthesis.synthesize import SynthesisResult
@@ -73,12 +73,6 @@ def summary(result: SynthesisResult) -> dict[str, Any]:
     }
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
-
-
 def write_synthesis(result: SynthesisResult, out: str | Path) -> Path:
     """Write the files of ``result`` (module docstring) into folder ``out``; return it."""
     folder = Path(out)
@@ -89,9 +83,9 @@ def write_synthesis(result: SynthesisResult, out: str | Path) -> Path:
     from reachwise.io.urdf import export_urdf
 
     export_urdf(best.robot, folder / "design.urdf")
-    _atomic_write(folder / "summary.json", json.dumps(summary(result), indent=2))
+    atomic_write(folder / "summary.json", json.dumps(summary(result), indent=2))
     task = prob.task
-    with open(folder / "points.csv", "w", newline="") as fh:
+    with atomic_open(folder / "points.csv", "w", newline="") as fh:
         w = csv.writer(fh)
         qcols = [f"q{i}" for i in range(best.q.shape[1])]
         header = ["index", "name", "group", "dims", "x", "y", "z", "position_error_m",

@@ -54,6 +54,7 @@ from scipy.spatial.transform import Rotation
 
 from reachwise.errors import TaskError
 from reachwise.io._builtin import builtin_names, builtin_text
+from reachwise.io.atomic import atomic_write
 from reachwise.tasks.task import (
     DEFAULT_TOL_ORIENTATION,
     DEFAULT_TOL_POSITION,
@@ -480,7 +481,7 @@ def save_task(
     ``comment`` heads a YAML file; ``decimals`` rounds coordinates, quaternions and
     axes. The envelope is kept in YAML and JSON only."""
     p = Path(path)
-    p.write_text(render_task(task, _format(p, fmt), comment=comment, decimals=decimals))
+    atomic_write(p, render_task(task, _format(p, fmt), comment=comment, decimals=decimals))
 
 
 def load_task_file(path: str | Path) -> Task:

@@ -24,6 +24,7 @@ from reachwise.report.html import (
     write_page,
     yes_no,
 )
+from reachwise.report.png import save_png
 
 if TYPE_CHECKING:
     from reachwise.kinematics.robot import Robot
@@ -64,7 +65,7 @@ def save_synthesis_figures(result: SynthesisResult, folder: str | Path) -> dict[
     paths = {}
     for name, fig in synthesis_figures(result).items():
         paths[name] = out / f"{name}.png"
-        fig.savefig(paths[name], dpi=110)
+        save_png(fig, paths[name], dpi=110)
     return paths
 
 

@@ -44,6 +44,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from reachwise.errors import InputError
+from reachwise.io.atomic import TEMP_SUFFIX, atomic_write
 
 #: Version of the state files; another version is refused (not guessed at).
 STATE_VERSION = 1
@@ -161,29 +162,6 @@ def matrix4(a: NDArray[np.float64]) -> Matrix4:
     return (r[0], r[1], r[2], r[3])  # type: ignore[return-value]
 
 
-def atomic_write(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically (temp file, fsync, os.replace, fsync dir)."""
-    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex}.tmp")
-    try:
-        with open(tmp, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    _fsync_dir(path.parent)
-
-
-def _fsync_dir(folder: Path) -> None:
-    fd = os.open(folder, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
 def _json_bytes(model: BaseModel) -> bytes:
     # json (not pydantic's serializer) so that an infinite margin stays ``Infinity``
     return json.dumps(model.model_dump(mode="python"), indent=1).encode()
@@ -227,7 +205,7 @@ class StateStore:
         for folder in (self.root, clouds):
             for p in folder.iterdir():
                 stale_cloud = folder == clouds and p.suffix == ".npy" and p.name not in keep
-                if p.is_file() and (stale_cloud or p.name.endswith(".tmp")):
+                if p.is_file() and (stale_cloud or p.name.endswith(TEMP_SUFFIX)):
                     p.unlink(missing_ok=True)
                     removed.append(p.name)
         return removed
