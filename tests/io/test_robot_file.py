@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from reachwise import load_robot, save_robot
-from reachwise.errors import RobotFileError
+from reachwise.errors import RobotFileError, UnknownName
 from reachwise.io.robot_file import builtin_robots, load_robot_file, robot_to_dict
 
 GOOD = {
@@ -118,5 +118,5 @@ def test_not_yaml_and_missing_file(tmp_path: Path) -> None:
         load_robot(str(p))
     with pytest.raises(RobotFileError, match="no such file"):
         load_robot(str(tmp_path / "missing.yaml"))
-    with pytest.raises(RobotFileError, match="built-in"):
+    with pytest.raises(UnknownName, match=r"unknown built-in robot 'no-such-robot'; valid: .*sb60"):
         load_robot("no-such-robot")

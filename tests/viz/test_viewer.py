@@ -362,7 +362,8 @@ def test_busy_port_moves_to_a_free_one() -> None:
 
 
 def test_bad_path_is_an_input_error() -> None:
-    with pytest.raises(InputError, match="no such file or folder"):
+    unknown = r"unknown file, folder, built-in robot or scenario 'no-such-thing'; valid: .*sb60"
+    with pytest.raises(InputError, match=unknown):
         serve_results("no-such-thing", port=0, block=False)
 
 

@@ -45,6 +45,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from reachwise.errors import InputError
 from reachwise.io.atomic import TEMP_SUFFIX, atomic_write
+from reachwise.io.validation import input_error
 
 #: Version of the state files; another version is refused (not guessed at).
 STATE_VERSION = 1
@@ -257,9 +258,7 @@ def _read_model(path: Path, model: type[_M]) -> _M:
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        where = ".".join(str(p) for p in err["loc"])
-        raise StateError(str(path), where, err["msg"]) from None
+        raise input_error(exc, str(path), StateError) from None
 
 
 __all__ = [
