@@ -44,6 +44,12 @@ def simulate(
     server_deadline: float = typer.Option(
         0.1, "--server-deadline", min=0.0001, help="Per-tick reply deadline on --server (s)."
     ),
+    server_timeout: float = typer.Option(
+        30.0,
+        "--server-timeout",
+        min=0.0,
+        help="How long to wait for --server to be ready (s); then exit code 4.",
+    ),
     server_keys: Path | None = typer.Option(
         None, "--server-keys", help="CURVE key folder (`reachwise serve keygen`) for --server."
     ),
@@ -62,14 +68,15 @@ def simulate(
     ),
 ) -> None:
     """Simulate a scenario with collision avoidance (thesis §3.3, P-III/P-IV/P-V)."""
+    from reachwise.errors import check_choice
     from reachwise.sim.log import SimulationLog
+    from reachwise.sim.plant import PLANT_NAMES, PlantName
     from reachwise.sim.scenarios import load_scenario
     from reachwise.sim.simulate import simulate as run
     from reachwise.sim.world import build_world
 
-    if plant not in ("scenario", "mujoco"):
-        raise typer.BadParameter(f"scenario or mujoco, got {plant!r}", param_hint="--plant")
-    if plant == "mujoco":
+    plant_name = check_choice(plant, PLANT_NAMES, source="--plant", kind="plant")
+    if plant_name == "mujoco":
         from reachwise.sim.mujoco_model import require_mujoco
 
         require_mujoco()  # a clear error naming the missing extra, before any work
@@ -78,7 +85,9 @@ def simulate(
     if server is not None:
         from reachwise.server.client import ServerOptions
 
-        link = ServerOptions(server, deadline=server_deadline, keys=server_keys)
+        link = ServerOptions(
+            server, deadline=server_deadline, keys=server_keys, ready_timeout=server_timeout
+        )
     console = Console(stderr=True)
     live = None
     if view:
@@ -87,7 +96,9 @@ def simulate(
         live = LiveSession(sc, echo=console.print)
     logs: dict[str, SimulationLog] = {}
     modes = [True, False] if baseline else [True]
-    runs = [(m, plant) for m in modes] + ([(True, "scenario")] if plant == "mujoco" else [])
+    runs: list[tuple[bool, PlantName]] = [(m, plant_name) for m in modes]
+    if plant_name == "mujoco":
+        runs.append((True, "scenario"))
     total = duration if duration is not None else sc.spec.duration
     with Progress(
         TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.fields[t]}"),
@@ -95,7 +106,7 @@ def simulate(
     ) as bar:  # fmt: skip
         for avoid, kind in runs:
             label = "avoidance" if avoid else "baseline"
-            if plant == "mujoco" and kind != plant:
+            if plant_name == "mujoco" and kind != plant_name:
                 label = "reference"  # the same scenario on its own plant, for comparison
             job = bar.add_task(f"{sc.name} {label}", total=total, t="")
 

@@ -59,7 +59,7 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from reachwise.errors import CloudError, InputError
+from reachwise.errors import CloudError, InputError, MissingDependency, UnknownName
 from reachwise.geometry.cloud import (
     DEFAULT_VOXEL,
     PointCloud,
@@ -482,7 +482,7 @@ def cast_rays(
         engine = "embree" if trimesh.ray.has_embree else "triangle"
     if engine == "embree":
         if not trimesh.ray.has_embree:
-            raise InputError(_SRC, "engine", "Embree is not installed (pip install embreex)")
+            raise MissingDependency("embreex", "", "the Embree ray backend of the scanner")
         from trimesh.ray import ray_pyembree
 
         intersector: object = ray_pyembree.RayMeshIntersector(mesh)
@@ -492,13 +492,8 @@ def cast_rays(
         raise InputError(_SRC, "engine", f"expected auto, embree or triangle, got {engine!r}")
     try:
         tri = np.asarray(intersector.intersects_first(o, d), dtype=np.int64)  # type: ignore[attr-defined]
-    except ImportError as exc:  # ray_triangle needs rtree, which trimesh does not require
-        raise InputError(
-            _SRC,
-            "engine",
-            f"trimesh's {engine!r} ray backend is unavailable ({exc}); "
-            "install rtree (pip install rtree) or Embree (pip install embreex)",
-        ) from None
+    except ImportError:  # ray_triangle needs rtree, which trimesh does not require
+        raise MissingDependency("rtree", "", f"trimesh's {engine!r} ray backend") from None
     dist = np.full(len(o), np.inf)
     hit = tri >= 0
     if hit.any():
@@ -712,7 +707,7 @@ SCENES: dict[str, Callable[[], ScanScene]] = {
 def get_scene(name: str) -> ScanScene:
     """The built-in scene ``name`` (see :data:`SCENES`)."""
     if name not in SCENES:
-        raise InputError("scene", "name", f"unknown scene {name!r}; built in: {', '.join(SCENES)}")
+        raise UnknownName("scene", "scene", name, SCENES)
     return SCENES[name]()
 
 

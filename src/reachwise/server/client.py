@@ -58,6 +58,7 @@ import numpy as np
 import zmq
 from numpy.typing import ArrayLike, NDArray
 
+import reachwise.errors as errors
 import reachwise.server.protocol as P
 from reachwise.distance._common import (
     NO_RISK,
@@ -69,6 +70,7 @@ from reachwise.distance._common import (
 from reachwise.distance.scene import (
     Fixed,
     OnLink,
+    PairKind,
     PairResult,
     RobotLike,
     Runtime,
@@ -78,7 +80,7 @@ from reachwise.distance.scene import (
     SceneResult,
     WatchedPair,
 )
-from reachwise.errors import InputError, ReachwiseError
+from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_file import robot_from_dict, robot_to_dict
 from reachwise.kinematics.robot import Robot
@@ -135,8 +137,9 @@ def _nan3() -> NDArray[np.float64]:
 MISSING = DistanceResult(math.nan, _nan3(), _nan3(), _nan3(), -1, -1, False)
 
 
-class ServerError(ReachwiseError):
-    """The collision server could not answer: ``code`` (None when there was no reply)."""
+class ServerError(errors.ServerUnavailable):
+    """The collision server could not answer: ``code`` (None when there was no reply).
+    An unavailable service to the caller (:class:`reachwise.errors.ServerUnavailable`)."""
 
     def __init__(self, message: str, code: P.ErrorCode | None = None, field: str = "") -> None:
         self.code = code
@@ -512,7 +515,7 @@ class SceneClient:
         a: str,
         b: str,
         margin: float,
-        kind: str = "custom",
+        kind: PairKind = "custom",
         *,
         deadline: float | None = None,
     ) -> WatchedPair:
@@ -541,7 +544,7 @@ class SceneClient:
         out = tuple(_watched(p) for p in rep.pairs)
         if self._mirror is not None:
             for w in out:
-                self._mirror.watch(w.a, w.b, w.margin, w.kind)
+                self._mirror.watch(w.a, w.b, w.margin, kind=w.kind)
         return out
 
     def watch_self(

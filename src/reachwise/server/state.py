@@ -43,6 +43,8 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
+from reachwise.distance.engine import StrategyName
+from reachwise.distance.scene import PairKind
 from reachwise.errors import InputError
 from reachwise.io.atomic import TEMP_SUFFIX, atomic_write
 from reachwise.io.validation import input_error
@@ -99,7 +101,7 @@ class PairState(BaseModel):
     a: str = Field(min_length=1)
     b: str = Field(min_length=1)
     margin: float = Field(ge=0.0)
-    kind: str
+    kind: PairKind
 
     @field_validator("margin")
     @classmethod
@@ -115,7 +117,7 @@ class Manifest(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
     version: Literal[1] = 1
-    strategy: str
+    strategy: StrategyName
     robots: tuple[RobotState, ...] = ()
     objects: tuple[ObjectState, ...] = ()
     pairs: tuple[PairState, ...] = ()

@@ -17,12 +17,12 @@ from reachwise.control.avoidance import SceneConverter
 from reachwise.control.controller import Controller, ControllerConfig, Goal
 from reachwise.control.safety import SafetyConfig
 from reachwise.distance.scene import OnLink, Scene
-from reachwise.errors import InputError
+from reachwise.errors import InputError, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.kinematics.robot import Robot
 from reachwise.sim.contact import Solid, solid_of_geometry, solid_of_mesh
 from reachwise.sim.motion import Trajectory
-from reachwise.sim.plant import Plant, PlantConfig
+from reachwise.sim.plant import PLANT_NAMES, Plant, PlantConfig, PlantName
 from reachwise.sim.scenarios import (
     GoalSpec,
     ObjectSpec,
@@ -95,8 +95,8 @@ def _controller_config(spec: RobotSpec, dt: float, avoidance: bool) -> Controlle
 def build_world(
     scenario: Scenario | str | Path,
     avoidance: bool = True,
-    plant: str = "scenario",
     *,
+    plant: PlantName = "scenario",
     server: str | ServerOptions | None = None,
     clock: Callable[[], float] | None = None,
 ) -> World:
@@ -105,8 +105,7 @@ def build_world(
     :mod:`reachwise.sim.mujoco_plant`). The scene is in process, or with ``server``
     (an address or :class:`~reachwise.server.client.ServerOptions`) on a collision
     server (:func:`_server_scene`); ``clock`` stamps its inputs and answers."""
-    if plant not in ("scenario", "mujoco"):
-        raise InputError("simulate", "plant", f"scenario or mujoco, got {plant!r}")
+    plant = check_choice(plant, PLANT_NAMES, source="simulate", kind="plant")
     from reachwise.io.robot_clouds import link_cloud, link_mesh
 
     sc = load_scenario(scenario)
@@ -181,7 +180,7 @@ def build_world(
                     for o in (a, b):
                         if o not in scene.objects:
                             raise InputError(sc.source, where, f"no cloud {o!r}")
-                    made.append(scene.watch(a, b, qm, "self"))
+                    made.append(scene.watch(a, b, qm, kind="self"))
             else:
                 keep = set(w.links) if w.links is not None else set(r.link_names)
                 excl = [
@@ -195,12 +194,12 @@ def build_world(
             mine = _robot_objects(scene, w.robot, w.links, sc.source, where)
             for o in mine:
                 for e in w.environment:
-                    made.append(scene.watch(o, e, qm, "robot-environment"))
+                    made.append(scene.watch(o, e, qm, kind="robot-environment"))
         elif w.robots is not None:
             ra, rb = w.robots
             for o in _robot_objects(scene, ra, w.links, sc.source, where):
                 for p in _robot_objects(scene, rb, w.links, sc.source, where):
-                    made.append(scene.watch(o, p, qm, "robot-robot"))
+                    made.append(scene.watch(o, p, qm, kind="robot-robot"))
         for pair in made:
             control[(pair.a, pair.b)] = w.margin
     agents = []
@@ -269,7 +268,9 @@ class SimClock:
         return self.now
 
 
-def _make_plant(kind: str, robot: Robot, q0: list[float], pc: PlantConfig) -> Plant | MujocoPlant:
+def _make_plant(
+    kind: PlantName, robot: Robot, q0: list[float], pc: PlantConfig
+) -> Plant | MujocoPlant:
     if kind == "mujoco":
         from reachwise.sim.mujoco_plant import MujocoPlant, MujocoPlantConfig
 
@@ -405,7 +406,7 @@ def move_objects(
 def frozen_scene(scene: Scene) -> Scene:
     """A copy of ``scene`` in which every object not on a robot stays where it is now,
     with its current cloud: the world a static-world controller believes in."""
-    frozen = Scene(scene.strategy)
+    frozen = Scene(strategy=scene.strategy)
     for r in scene.robots.values():
         frozen.add_robot(r)
     now = scene.poses()
@@ -416,5 +417,5 @@ def frozen_scene(scene: Scene) -> Scene:
         else:
             frozen.add_object(name, obj.cloud, now[name])
     for pair in scene.pairs:
-        frozen.watch(pair.a, pair.b, pair.margin, pair.kind)
+        frozen.watch(pair.a, pair.b, pair.margin, kind=pair.kind)
     return frozen
