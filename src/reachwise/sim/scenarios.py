@@ -75,6 +75,7 @@ from reachwise.io._builtin import builtin_names, load_named
 from reachwise.io.robot_file import FrameModel
 from reachwise.io.validation import input_error
 from reachwise.sim.motion import ConstantVelocity, Trajectory, WaypointTrajectory
+from reachwise.sim.plant import PlantKind
 
 __all__ = [
     "CloudAtSpec",
@@ -179,7 +180,7 @@ class ControllerSpec(BaseModel):
 
 class PlantSpec(BaseModel):
     model_config = _STRICT
-    kind: Literal["kinematic", "hydraulic"] = "kinematic"
+    kind: PlantKind = "kinematic"
     time_constant: float = Field(default=0.1, gt=0.0)
     rate_limit: float = Field(default=math.inf, gt=0.0, allow_inf_nan=True)
     hang_axis: V3 = (1.0, 0.0, 0.0)
