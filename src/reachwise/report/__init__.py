@@ -15,6 +15,12 @@ come from user input is HTML-escaped (:func:`reachwise.report.html.esc`).
 * :func:`write_simulation_report` — thesis §3.3: outcome with and without avoidance,
   goals, distances, P-III Fig. 3 / P-V Figs. 4–5 style figures, the thesis's numbers;
 * :func:`write_demo_report` — the demo's overview linking the per-run reports.
+
+Their figures are drawn by :mod:`~reachwise.report.plots` (synthesis, P-I Figs. 4–6)
+and :mod:`~reachwise.report.sim_plots` (simulation) and saved by
+:func:`reachwise.report.png.save_png`; :mod:`~reachwise.report.ranking` writes a
+topology sweep's ranking tables and best designs. This layer sits above ``sim`` and
+below ``viz``: it reads results, it never computes them.
 """
 
 from __future__ import annotations
