@@ -54,7 +54,7 @@ import math
 import numbers
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Literal, get_args
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -489,7 +489,7 @@ def cast_rays(
     elif engine == "triangle":
         intersector = ray_triangle.RayMeshIntersector(mesh)
     else:
-        raise InputError(_SRC, "engine", f"expected auto, embree or triangle, got {engine!r}")
+        raise UnknownName(_SRC, "ray engine", str(engine), get_args(Engine))
     try:
         tri = np.asarray(intersector.intersects_first(o, d), dtype=np.int64)  # type: ignore[attr-defined]
     except ImportError:  # ray_triangle needs rtree, which trimesh does not require
