@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from reachwise.distance import _kernels as K
+import reachwise.distance._kernels as K
 from reachwise.distance.index import cloud_centroid
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud

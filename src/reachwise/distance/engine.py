@@ -28,11 +28,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Literal, get_args
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from reachwise.distance import _kernels as K
+import reachwise.distance._kernels as K
 from reachwise.distance._common import (
     NO_RISK,
     DistanceResult,
@@ -44,10 +45,13 @@ from reachwise.distance._common import (
 from reachwise.distance.brute import brute_closest
 from reachwise.distance.index import CloudIndex, cloud_index
 from reachwise.distance.thesis import thesis_closest
-from reachwise.errors import InputError
+from reachwise.errors import check_choice
 from reachwise.geometry.cloud import PointCloud
 
-STRATEGIES: tuple[str, ...] = ("default", "thesis", "brute")
+#: A distance strategy, all exact: ``default`` (dual-tree branch and bound with warm
+#: starts), ``thesis`` (the P-III/P-V Table 1 pipeline), ``brute`` (every pair).
+StrategyName = Literal["default", "thesis", "brute"]
+STRATEGIES: tuple[StrategyName, ...] = get_args(StrategyName)
 
 Strategy = Callable[
     [PointCloud, PointCloud, NDArray[np.float64], NDArray[np.float64], float], DistanceResult
@@ -111,20 +115,15 @@ def default_closest(
     return _run_default(cloud_index(a), cloud_index(b), pose_a, pose_b, margin, (-1, -1))[0]
 
 
-_STRATEGY_FUNCS: dict[str, Strategy] = {
+_STRATEGY_FUNCS: dict[StrategyName, Strategy] = {
     "default": default_closest,
     "thesis": thesis_closest,
     "brute": brute_closest,
 }
 
 
-def _check_strategy(strategy: str) -> Strategy:
-    fn = _STRATEGY_FUNCS.get(strategy) if isinstance(strategy, str) else None
-    if fn is None:
-        raise InputError(
-            "strategy", "", f"unknown strategy {strategy!r}; choose one of {list(STRATEGIES)}"
-        )
-    return fn
+def _check_strategy(strategy: object) -> Strategy:
+    return _STRATEGY_FUNCS[check_choice(strategy, STRATEGIES, source="strategy", kind="strategy")]
 
 
 def closest_points(
@@ -133,7 +132,8 @@ def closest_points(
     pose_a: ArrayLike | None = None,
     pose_b: ArrayLike | None = None,
     margin: float = math.inf,
-    strategy: str = "default",
+    *,
+    strategy: StrategyName = "default",
 ) -> DistanceResult:
     """Exact shortest distance between clouds ``a`` and ``b`` placed by their poses.
 
@@ -147,7 +147,8 @@ def closest_points(
     use :class:`PairQuery`, which warm-starts from the previous closest pair.
 
     Raises :class:`~reachwise.errors.CloudError` for bad clouds and
-    :class:`~reachwise.errors.InputError` for bad poses, margin or strategy.
+    :class:`~reachwise.errors.InputError` for bad poses or margin, and
+    :class:`~reachwise.errors.UnknownName` for an unknown strategy.
     """
     fn = _check_strategy(strategy)
     ca = as_cloud(a, "cloud a")
@@ -178,7 +179,7 @@ class PairQuery:
         b: PointCloud | ArrayLike,
         *,
         margin: float = math.inf,
-        strategy: str = "default",
+        strategy: StrategyName = "default",
     ) -> None:
         self._fn = _check_strategy(strategy)
         self.strategy = strategy

@@ -40,7 +40,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise.distance import _kernels as K
+import reachwise.distance._kernels as K
 from reachwise.distance._common import NO_RISK, DistanceResult, result_from_pair, world
 from reachwise.distance.index import cloud_index
 from reachwise.geometry.boxes import eobb, obb_overlap, overlap_box

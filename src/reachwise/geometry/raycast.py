@@ -10,12 +10,12 @@ triangle's plane, so both give the same points to rounding.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Literal, get_args
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from reachwise.errors import InputError
+from reachwise.errors import InputError, MissingDependency, UnknownName
 
 if TYPE_CHECKING:
     from typing import TypeAlias
@@ -110,23 +110,18 @@ def cast_rays(
         engine = "embree" if trimesh.ray.has_embree else "triangle"
     if engine == "embree":
         if not trimesh.ray.has_embree:
-            raise InputError(_SRC, "engine", "Embree is not installed (pip install embreex)")
+            raise MissingDependency("embreex", "", "the Embree ray backend of the scanner")
         from trimesh.ray import ray_pyembree
 
         intersector: object = ray_pyembree.RayMeshIntersector(mesh)
     elif engine == "triangle":
         intersector = ray_triangle.RayMeshIntersector(mesh)
     else:
-        raise InputError(_SRC, "engine", f"expected auto, embree or triangle, got {engine!r}")
+        raise UnknownName(_SRC, "ray engine", str(engine), get_args(Engine))
     try:
         tri = np.asarray(intersector.intersects_first(o, d), dtype=np.int64)  # type: ignore[attr-defined]
-    except ImportError as exc:  # ray_triangle needs rtree, which trimesh does not require
-        raise InputError(
-            _SRC,
-            "engine",
-            f"trimesh's {engine!r} ray backend is unavailable ({exc}); "
-            "install rtree (pip install rtree) or Embree (pip install embreex)",
-        ) from None
+    except ImportError:  # ray_triangle needs rtree, which trimesh does not require
+        raise MissingDependency("rtree", "", f"trimesh's {engine!r} ray backend") from None
     dist = np.full(len(o), np.inf)
     hit = tri >= 0
     if hit.any():

@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 from reachwise.control.controller import ControlStatus
 from reachwise.distance.scene import SceneLike, SceneResult
 from reachwise.sim.log import Event, GoalRecord, SimulationLog
+from reachwise.sim.plant import PlantName
 from reachwise.sim.scenarios import EscapeSpec, Scenario
 from reachwise.sim.world import (
     Agent,
@@ -60,7 +61,7 @@ def simulate(
     duration: float | None = None,
     progress: Callable[[float, float], None] | None = None,
     on_tick: Callable[[float, dict[str, NDArray[np.float64]], SceneResult], None] | None = None,
-    plant: str = "scenario",
+    plant: PlantName = "scenario",
     static_world: bool = False,
     server: str | ServerOptions | None = None,
     escape: bool | EscapeSpec | None = None,
@@ -90,7 +91,7 @@ def simulate(
     (distances and the first overlap into the :class:`_Recorder`) and :func:`_act`
     (each robot's goal bookkeeping in :class:`_Goals`, controller and plant)."""
     clock = SimClock()
-    world = build_world(scenario, avoidance, plant, server=server, clock=clock)
+    world = build_world(scenario, avoidance, plant=plant, server=server, clock=clock)
     spec = world.scenario.spec
     dt = spec.dt
     T_end = spec.duration if duration is None else float(duration)

@@ -17,12 +17,12 @@ from reachwise.control.avoidance import SceneConverter
 from reachwise.control.controller import Controller, ControllerConfig, Goal
 from reachwise.control.safety import SafetyConfig
 from reachwise.distance.scene import OnLink, Scene, SceneLike, WatchedPair
-from reachwise.errors import InputError
+from reachwise.errors import InputError, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.kinematics.robot import Robot
 from reachwise.sim.contact import Solid, solid_of_geometry, solid_of_mesh
 from reachwise.sim.motion import Trajectory
-from reachwise.sim.plant import Plant, PlantConfig
+from reachwise.sim.plant import PLANT_NAMES, Plant, PlantConfig, PlantName
 from reachwise.sim.robots import robot_of
 from reachwise.sim.scenarios import (
     GoalSpec,
@@ -88,8 +88,8 @@ def _controller_config(spec: RobotSpec, dt: float, avoidance: bool) -> Controlle
 def build_world(
     scenario: Scenario | str | Path,
     avoidance: bool = True,
-    plant: str = "scenario",
     *,
+    plant: PlantName = "scenario",
     server: str | ServerOptions | None = None,
     clock: Callable[[], float] | None = None,
 ) -> World:
@@ -103,8 +103,7 @@ def build_world(
     (:func:`_add_robots`), the other objects (:func:`_add_objects`), the watched pairs
     (:func:`_watch_pairs`), one agent per robot (:func:`_make_agent`) and the shared
     jobs (:func:`_shared_jobs`)."""
-    if plant not in ("scenario", "mujoco"):
-        raise InputError("simulate", "plant", f"scenario or mujoco, got {plant!r}")
+    plant = check_choice(plant, PLANT_NAMES, source="simulate", kind="plant")
     sc = load_scenario(scenario)
     scene = _make_scene(server, clock)
     robots, solids = _add_robots(scene, sc)
@@ -230,7 +229,7 @@ def _watch_rule(
                 for o in (a, b):
                     if o not in scene.objects:
                         raise InputError(sc.source, where, f"no cloud {o!r}")
-                made.append(scene.watch(a, b, qm, "self"))
+                made.append(scene.watch(a, b, qm, kind="self"))
         else:
             keep = set(w.links) if w.links is not None else set(r.link_names)
             excl = [
@@ -244,12 +243,12 @@ def _watch_rule(
         mine = _robot_objects(scene, w.robot, w.links, sc.source, where)
         for o in mine:
             for e in w.environment:
-                made.append(scene.watch(o, e, qm, "robot-environment"))
+                made.append(scene.watch(o, e, qm, kind="robot-environment"))
     elif w.robots is not None:
         ra, rb = w.robots
         for o in _robot_objects(scene, ra, w.links, sc.source, where):
             for p in _robot_objects(scene, rb, w.links, sc.source, where):
-                made.append(scene.watch(o, p, qm, "robot-robot"))
+                made.append(scene.watch(o, p, qm, kind="robot-robot"))
     return made
 
 
@@ -324,7 +323,9 @@ class SimClock:
         return self.now
 
 
-def _make_plant(kind: str, robot: Robot, q0: list[float], pc: PlantConfig) -> Plant | MujocoPlant:
+def _make_plant(
+    kind: PlantName, robot: Robot, q0: list[float], pc: PlantConfig
+) -> Plant | MujocoPlant:
     if kind == "mujoco":
         from reachwise.sim.mujoco_plant import MujocoPlant, MujocoPlantConfig
 
@@ -461,7 +462,7 @@ def move_objects(world: World, t: float) -> Twists:
 def frozen_scene(scene: SceneLike) -> Scene:
     """A copy of ``scene`` in which every object not on a robot stays where it is now,
     with its current cloud: the world a static-world controller believes in."""
-    frozen = Scene(scene.strategy)
+    frozen = Scene(strategy=scene.strategy)
     for r in scene.robots.values():
         frozen.add_robot(r)
     now = scene.poses()
@@ -472,5 +473,5 @@ def frozen_scene(scene: SceneLike) -> Scene:
         else:
             frozen.add_object(name, obj.cloud, now[name])
     for pair in scene.pairs:
-        frozen.watch(pair.a, pair.b, pair.margin, pair.kind)
+        frozen.watch(pair.a, pair.b, pair.margin, kind=pair.kind)
     return frozen

@@ -14,7 +14,7 @@ import time
 
 import zmq
 
-from reachwise.server import protocol as P
+import reachwise.server.protocol as P
 from reachwise.server.client.errors import ServerError, ServerInputError, ServerUnavailable
 from reachwise.server.security import ClientKeys, secure_client_socket
 

@@ -3,14 +3,16 @@ time, or rejected the request's content."""
 
 from __future__ import annotations
 
-from reachwise.errors import InputError, ReachwiseError
-from reachwise.server import protocol as P
+import reachwise.errors as errors
+from reachwise.errors import InputError
+import reachwise.server.protocol as P
 
 __all__ = ["ServerError", "ServerInputError", "ServerUnavailable"]
 
 
-class ServerError(ReachwiseError):
-    """The collision server could not answer: ``code`` (None when there was no reply)."""
+class ServerError(errors.ServerUnavailable):
+    """The collision server could not answer: ``code`` (None when there was no reply).
+    An unavailable service to the caller (:class:`reachwise.errors.ServerUnavailable`)."""
 
     def __init__(self, message: str, code: P.ErrorCode | None = None, field: str = "") -> None:
         self.code = code

@@ -61,6 +61,7 @@ from reachwise.distance._common import as_cloud, check_margin, check_pose
 from reachwise.distance.scene import (
     Fixed,
     OnLink,
+    PairKind,
     RobotLike,
     Runtime,
     Scene,
@@ -72,7 +73,7 @@ from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_file import robot_from_dict, robot_to_dict
 from reachwise.kinematics.robot import Robot
-from reachwise.server import protocol as P
+import reachwise.server.protocol as P
 from reachwise.server.client.channel import Channel
 from reachwise.server.client.errors import ServerError, ServerInputError, ServerUnavailable
 from reachwise.server.client.results import (
@@ -377,7 +378,7 @@ class SceneClient:
         a: str,
         b: str,
         margin: float,
-        kind: str = "custom",
+        kind: PairKind = "custom",
         *,
         deadline: float | None = None,
     ) -> WatchedPair:
@@ -406,7 +407,7 @@ class SceneClient:
         out = tuple(watched_pair(p) for p in rep.pairs)
         if self._mirror is not None:
             for w in out:
-                self._mirror.watch(w.a, w.b, w.margin, w.kind)
+                self._mirror.watch(w.a, w.b, w.margin, kind=w.kind)
         return out
 
     def watch_self(

@@ -21,7 +21,7 @@ from reachwise.distance.scene import (
     WatchedPair,
 )
 from reachwise.geometry.cloud import PointCloud
-from reachwise.server import protocol as P
+import reachwise.server.protocol as P
 from reachwise.server.client.errors import ServerError
 
 __all__ = [
