@@ -195,7 +195,7 @@ def test_replace_cloud_rebuilds_and_answers_with_the_new_cloud() -> None:
     scene.watch("part", "env", 2.0)
     assert scene.query_all().pairs[0].result.distance == pytest.approx(1.0)
     new = PointCloud(np.array([[0.0, 0.0, 0.25], [3.0, 0.0, 0.0]]), name="rescan")
-    scene.replace_cloud("env", new)
+    scene.replace_cloud("env", new, block=True)
     assert INDICES.peek(new) is not None  # indexed at once
     r = scene.query_all().pairs[0].result
     assert r.distance == pytest.approx(0.25) and r.index_b == 0

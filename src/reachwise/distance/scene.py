@@ -30,8 +30,9 @@ from __future__ import annotations
 import math
 import numbers
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
+from types import MappingProxyType
 from typing import Literal, Protocol, get_args, runtime_checkable
 
 import numpy as np
@@ -44,7 +45,8 @@ from reachwise.distance._common import (
     check_pose,
 )
 from reachwise.distance.engine import STRATEGIES, PairQuery, StrategyName
-from reachwise.distance.index import cloud_index
+from reachwise.distance.index import INDICES, cloud_index
+from reachwise.distance.ingest import CloudIngest, Ready, ready_cloud
 from reachwise.errors import InputError, UnknownName, check_choice
 from reachwise.geometry.cloud import PointCloud
 
@@ -124,13 +126,16 @@ class WatchedPair:
 @dataclass(frozen=True)
 class PairResult:
     """One watched pair's answer: object names, margin, kind and the distance result
-    (``point_a`` on ``a``; ``direction`` from ``b`` to ``a``)."""
+    (``point_a`` on ``a``; ``direction`` from ``b`` to ``a``), and ``versions``, the
+    versions of the two objects' clouds it was computed on (0: the cloud the object was
+    added with; see :meth:`Scene.replace_cloud`)."""
 
     a: str
     b: str
     margin: float
     kind: PairKind
     result: DistanceResult
+    versions: tuple[int, int] = (0, 0)
 
 
 @dataclass(frozen=True)
@@ -144,6 +149,12 @@ class SceneResult:
     ready (NaN without a clock). ``valid`` False with a ``reason`` marks missing data
     (a remote scene whose server did not answer: every distance is then NaN); the
     controller makes a protective stop on it.
+
+    ``versions`` maps each object to the version of its cloud the answer used, and
+    ``cloud_stamps`` to the time stamp (s) of that cloud's measurement: ``+inf`` for a
+    cloud that does not age (a CAD part, a map: added without a stamp), NaN when it is
+    unknown. A controller bounds the age of the clouds it relies on with them, as it
+    bounds the age of the joint states with ``measured_at``.
     """
 
     sequence: int
@@ -152,6 +163,8 @@ class SceneResult:
     computed_at: float = math.nan
     valid: bool = True
     reason: str = ""
+    versions: Mapping[str, int] = field(default_factory=dict)
+    cloud_stamps: Mapping[str, float] = field(default_factory=dict)
 
     def at_risk(self) -> tuple[PairResult, ...]:
         """Pairs within their margin, nearest first."""
@@ -165,7 +178,8 @@ class SceneResult:
             if (p.a, p.b) == (a, b):
                 return p
             if (p.a, p.b) == (b, a):
-                return PairResult(a, b, p.margin, p.kind, p.result.swapped())
+                va, vb = p.versions
+                return PairResult(a, b, p.margin, p.kind, p.result.swapped(), (vb, va))
         raise UnknownName(
             "scene", "watched pair", f"({a}, {b})", (f"({p.a}, {p.b})" for p in self.pairs)
         )
@@ -208,7 +222,14 @@ class SceneLike(Protocol):
 
     def set_pose(self, name: str, pose: ArrayLike, *, stamp: float | None = None) -> None: ...
 
-    def replace_cloud(self, name: str, cloud: PointCloud | ArrayLike) -> None: ...
+    def replace_cloud(
+        self,
+        name: str,
+        cloud: PointCloud | ArrayLike,
+        *,
+        block: bool = False,
+        stamp: float | None = None,
+    ) -> int: ...
 
     def watch(self, a: str, b: str, margin: float, *, kind: PairKind = "custom") -> WatchedPair: ...
 
@@ -258,6 +279,13 @@ class Scene:
         self._pairs: dict[tuple[str, str], WatchedPair] = {}
         self._queries: dict[tuple[str, str], PairQuery] = {}
         self._sequence = 0
+        # cloud versions: the one in use per object, the last one handed over, and the
+        # time stamp of the one in use (+inf: does not age); the read-only snapshots
+        # the answers carry are replaced, never changed, when a cloud is swapped in
+        self._versions: Mapping[str, int] = MappingProxyType({})
+        self._cloud_stamps: Mapping[str, float] = MappingProxyType({})
+        self._issued: dict[str, int] = {}
+        self._ingest = CloudIngest()
 
     # ------------------------------------------------------------------ contents
     @property
@@ -276,6 +304,16 @@ class Scene:
     def sequence(self) -> int:
         """How many times :meth:`query_all` has answered."""
         return self._sequence
+
+    @property
+    def versions(self) -> Mapping[str, int]:
+        """The version of each object's cloud in use now (see :meth:`replace_cloud`)."""
+        return self._versions
+
+    @property
+    def ingest(self) -> CloudIngest:
+        """The worker that indexes handed-over clouds (its counters, errors, ``wait``)."""
+        return self._ingest
 
     def add_robot(
         self, robot: RobotLike, q: ArrayLike | None = None, *, stamp: float | None = None
@@ -341,6 +379,8 @@ class Scene:
         cloud_index(c)
         obj = SceneObject(name, c, source)
         self._objects[name] = obj
+        self._issued[name] = 0
+        self._set_version(name, 0, math.inf)
         return obj
 
     def set_pose(self, name: str, pose: ArrayLike, *, stamp: float | None = None) -> None:
@@ -354,17 +394,41 @@ class Scene:
         self._runtime[name] = P
         self._pose_stamp[name] = t
 
-    def replace_cloud(self, name: str, cloud: PointCloud | ArrayLike) -> None:
-        """Swap object ``name``'s cloud (e.g. a new scan); its index is rebuilt now and
-        the warm starts of its pairs are dropped."""
-        obj = self._object(name)
-        c = as_cloud(cloud, name)
-        cloud_index(c)
-        self._objects[name] = SceneObject(name, c, obj.source)
-        for key in list(self._queries):
-            if name in key:
-                pair = self._pairs[key]
-                self._queries[key] = self._make_query(pair)
+    def replace_cloud(
+        self,
+        name: str,
+        cloud: PointCloud | ArrayLike,
+        *,
+        block: bool = False,
+        stamp: float | None = None,
+    ) -> int:
+        """Hand over a new cloud for object ``name`` (a new scan or camera frame),
+        measured at ``stamp`` (s; default: the scene's clock, or unknown); returns its
+        version (1, 2, … per object; the cloud it was added with is version 0).
+
+        ``block=False`` (the default) returns at once: the cloud is checked and indexed
+        on the scene's worker thread (:class:`~reachwise.distance.ingest.CloudIngest`)
+        and swapped in at the start of the first :meth:`query_all` after it is ready, so
+        a query never waits for a build. Until then the answers use the previous
+        cloud, and say so (:attr:`SceneResult.versions`). A newer hand-over for the
+        same object supersedes one still waiting; a cloud with bad points is never
+        swapped in (its error is in :meth:`CloudIngest.errors`). An array is read on
+        the worker thread: do not write into it afterwards.
+
+        ``block=True`` checks and indexes the cloud now, in the caller, and swaps it in
+        before returning (bad points raise :class:`~reachwise.errors.CloudError`).
+        Either way the warm starts of the object's pairs are dropped at the swap."""
+        self._object(name)
+        t = self._stamp(stamp, f"object {name!r}")
+        version = self._issued[name] + 1
+        points = cloud if isinstance(cloud, PointCloud) else np.asarray(cloud, dtype=np.float64)
+        if block:
+            self._install(ready_cloud(name, version, points, t))
+            self._issued[name] = version
+            return version
+        self._issued[name] = version
+        self._ingest.submit(name, version, points, t)
+        return version
 
     # ------------------------------------------------------------------ rules
     def watch(self, a: str, b: str, margin: float, *, kind: PairKind = "custom") -> WatchedPair:
@@ -456,12 +520,16 @@ class Scene:
 
     def query_all(self) -> SceneResult:
         """Answer every watched pair at the current joint states and poses; the result
-        carries its sequence number and time stamps (see :class:`SceneResult`)."""
+        carries its sequence number, time stamps and cloud versions (see
+        :class:`SceneResult`). Clouds indexed since the last call are swapped in first."""
+        for ready in self._ingest.take_ready():
+            self._install(ready)
         clock = self.clock
         measured = clock() if clock is not None else math.inf
         fk: dict[str, NDArray[np.float64]] = {}
         cache: dict[str, NDArray[np.float64]] = {}
         out = []
+        versions = self._versions
         for key, pair in self._pairs.items():
             for n in key:
                 if n not in cache:
@@ -471,7 +539,16 @@ class Scene:
                     if t != t or t < measured:  # unknown (NaN, then kept) or older
                         measured = t
             res = self._queries[key](cache[pair.a], cache[pair.b])
-            out.append(PairResult(pair.a, pair.b, pair.margin, pair.kind, res))
+            out.append(
+                PairResult(
+                    pair.a,
+                    pair.b,
+                    pair.margin,
+                    pair.kind,
+                    res,
+                    (versions[pair.a], versions[pair.b]),
+                )
+            )
         self._sequence += 1
         computed = clock() if clock is not None else math.nan
         return SceneResult(
@@ -479,10 +556,32 @@ class Scene:
             tuple(out),
             measured_at=measured if measured != math.inf else math.nan,
             computed_at=computed,
+            versions=versions,
+            cloud_stamps=self._cloud_stamps,
         )
 
     def close(self) -> None:
-        """Nothing to release in process (a remote scene disconnects here)."""
+        """Stop the cloud-ingestion worker (a remote scene disconnects here)."""
+        self._ingest.close()
+
+    def _install(self, ready: Ready) -> None:
+        """Swap in a built cloud (unless a newer version is in use already): the object
+        takes the cloud, the index registry its index, its pairs fresh warm starts."""
+        if ready.version <= self._versions.get(ready.name, -1):
+            return
+        obj = self._objects[ready.name]
+        INDICES.put(ready.cloud, ready.index)
+        self._objects[ready.name] = SceneObject(ready.name, ready.cloud, obj.source)
+        self._set_version(ready.name, ready.version, ready.stamp)
+        for key in list(self._queries):
+            if ready.name in key:
+                self._queries[key] = self._make_query(self._pairs[key])
+
+    def _set_version(self, name: str, version: int, stamp: float) -> None:
+        """New read-only snapshots of the versions and cloud stamps (answers already
+        given keep theirs)."""
+        self._versions = MappingProxyType({**self._versions, name: version})
+        self._cloud_stamps = MappingProxyType({**self._cloud_stamps, name: stamp})
 
     # ------------------------------------------------------------------ helpers
     def _stamp(self, stamp: float | None, source: str) -> float:

@@ -457,7 +457,7 @@ class SceneService:
         try:
             with self.lock:
                 self._object(req.name, "body.name")
-                self.scene.replace_cloud(req.name, cloud)
+                self.scene.replace_cloud(req.name, cloud, block=True)
                 old = self._meta[req.name]
                 self._meta[req.name] = _ObjectMeta(cloud_file, old.stamp_of)
                 manifest = self._manifest()

@@ -455,7 +455,7 @@ def move_objects(world: World, t: float) -> Twists:
             m.scans += 1
             due = _object_cloud(m.spec, world.scenario, seed=m.spec.seed + m.scans)
         if due is not None:
-            scene.replace_cloud(name, due)
+            scene.replace_cloud(name, due, block=True)
     return twists
 
 

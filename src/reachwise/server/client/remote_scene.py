@@ -146,6 +146,7 @@ class SceneClient:
         self._last_pairs: tuple[P.PairInfo, ...] = ()
         self._robot_cache: dict[str, Robot] = {}
         self._mirror: Scene | None = Scene() if mirror else None
+        self._cloud_versions: dict[str, int] = {}
 
     # ------------------------------------------------------------------ channel
     @property
@@ -368,13 +369,26 @@ class SceneClient:
         return SceneObject(name, c, source)
 
     def replace_cloud(
-        self, name: str, cloud: PointCloud | ArrayLike, *, deadline: float | None = None
-    ) -> None:
-        """Swap object ``name``'s cloud (e.g. a new scan); the server rebuilds its index."""
+        self,
+        name: str,
+        cloud: PointCloud | ArrayLike,
+        *,
+        block: bool = False,
+        stamp: float | None = None,
+        deadline: float | None = None,
+    ) -> int:
+        """Swap object ``name``'s cloud (e.g. a new scan); returns its version (1, 2, …
+        per object, counted here in the order the server applies them). The server
+        indexes the cloud before it replies, so the call returns once the new cloud is
+        in use whatever ``block`` says; ``stamp`` is not sent (the server stamps the
+        cloud when it arrives)."""
         c = as_cloud(cloud, name)
         self._setup(P.ReplaceCloud(name, c.points), P.ObjectReply, deadline)
+        version = self._cloud_versions.get(name, 0) + 1
+        self._cloud_versions[name] = version
         if self._mirror is not None:
-            self._mirror.replace_cloud(name, c)
+            self._mirror.replace_cloud(name, c, block=True, stamp=stamp)
+        return version
 
     def watch(
         self,
