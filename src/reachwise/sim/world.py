@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
@@ -20,9 +20,10 @@ from reachwise.distance.scene import OnLink, Scene
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
 from reachwise.kinematics.robot import Robot
-from reachwise.sim.contact import Solid, solid_of_geometry, solid_of_mesh
+from reachwise.sim.contact import Solid, solid_of_link, solid_of_mesh
 from reachwise.sim.motion import Trajectory
 from reachwise.sim.plant import Plant, PlantConfig
+from reachwise.sim.scenario_inputs import check_requirements, scan_target, watched_self_pairs
 from reachwise.sim.scenarios import (
     GoalSpec,
     ObjectSpec,
@@ -75,15 +76,9 @@ class World:
 
 
 def robot_of(spec: RobotSpec, scenario: Scenario) -> Robot:
-    from reachwise.io.robot_file import builtin_robots, load_robot
+    from reachwise.sim.scenario_inputs import scenario_robot
 
-    try:
-        r = load_robot(spec.robot if spec.robot in builtin_robots() else scenario.path(spec.robot))
-    except InputError as exc:
-        raise InputError(scenario.source, f"robots.{spec.name}.robot", str(exc)) from None
-    if spec.base is not None:
-        r = r.with_parameters(base=spec.base.matrix())
-    return replace(r, name=spec.name)
+    return scenario_robot(spec, scenario)
 
 
 def _controller_config(spec: RobotSpec, dt: float, avoidance: bool) -> ControllerConfig:
@@ -107,10 +102,11 @@ def build_world(
     server (:func:`_server_scene`); ``clock`` stamps its inputs and answers."""
     if plant not in ("scenario", "mujoco"):
         raise InputError("simulate", "plant", f"scenario or mujoco, got {plant!r}")
-    from reachwise.io.robot_clouds import link_cloud, link_mesh
+    from reachwise.io.robot_clouds import link_cloud, shape_meshes
 
     sc = load_scenario(scenario)
     spec = sc.spec
+    check_requirements(sc)
     scene = Scene(clock=clock) if server is None else _server_scene(server, clock)
     robots: dict[str, Robot] = {}
     solids: dict[str, tuple[Solid, str, str]] = {}
@@ -127,21 +123,14 @@ def build_world(
             obj = f"{rs.name}/{link}"
             over = rs.link_clouds.get(link)
             if over is not None:
-                import trimesh
-
                 from reachwise.geometry.cloud import sample_mesh_surface
+                from reachwise.io.meshes import load_mesh
 
-                path = sc.path(over.mesh)
                 try:
-                    mesh = trimesh.load(str(path), force="mesh", process=True)
-                except Exception as exc:
-                    raise InputError(
-                        sc.source, f"robots.{rs.name}.link_clouds.{link}.mesh", f"{exc}"
-                    ) from None
-                if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-                    raise InputError(
-                        sc.source, f"robots.{rs.name}.link_clouds.{link}.mesh", "no triangles"
-                    )
+                    mesh = load_mesh(sc.path(over.mesh))
+                except InputError as exc:
+                    where = f"robots.{rs.name}.link_clouds.{link}.mesh"
+                    raise InputError(sc.source, where, str(exc)) from None
                 mesh.apply_transform(over.pose.matrix())
                 rng = np.random.default_rng([rs.seed, robot.link_index(link)])
                 cloud = sample_mesh_surface(mesh, n=over.points, seed=rng, frame=link, name=obj)
@@ -151,9 +140,10 @@ def build_world(
                     raise InputError(
                         sc.source, f"robots.{rs.name}.links", f"link {link!r} has no geometry"
                     )
-                cloud = link_cloud(robot, link, rs.points, rs.seed)
-                g = robot.geometry[link]
-                solid = solid_of_geometry(g, link_mesh(robot, link) if g.shape == "mesh" else None)
+                cloud = link_cloud(robot, link, rs.points, rs.seed, density=rs.density)
+                shapes = robot.geometry[link]
+                has_mesh = any(g.shape == "mesh" for g in shapes)
+                solid = solid_of_link(shapes, shape_meshes(robot, link) if has_mesh else None)
             scene.add_object(obj, cloud, robot=rs.name, link=link)
             solids[obj] = (solid, rs.name, link)
     movers: list[_Mover] = []
@@ -175,8 +165,10 @@ def build_world(
         made = []
         if w.self_ is not None:
             r = robots[w.self_]
-            if w.pairs is not None:
-                for la, lb in w.pairs:
+            rspec = next(x for x in spec.robots if x.name == w.self_)
+            listed = watched_self_pairs(w, r, rspec, scene, sc, where)
+            if listed is not None:
+                for la, lb in listed:
                     a, b = f"{w.self_}/{la}", f"{w.self_}/{lb}"
                     for o in (a, b):
                         if o not in scene.objects:
@@ -321,7 +313,8 @@ def _object_cloud(
             else None
         )
         try:
-            _, cloud = scan_scene(spec.scanner, rng=seed, noise=spec.noise, occlusion=fill)
+            target = scan_target(spec.scanner, sc, name)
+            _, cloud = scan_scene(target, rng=seed, noise=spec.noise, occlusion=fill)
         except InputError as exc:
             raise InputError(sc.source, f"{where}.scanner", str(exc)) from None
         return PointCloud(cloud.points, name=name)
