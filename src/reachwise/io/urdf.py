@@ -342,7 +342,7 @@ def _chain(model: UrdfModel, tip: str | None) -> list[UrdfJoint]:
                 source,
                 f"link {link!r}",
                 f"branches into joints {[k.name for k in kids]}; reachwise handles serial "
-                "chains only (pass tip=LINK to take the chain from the root to LINK)",
+                "chains only (pass tip=LINK, or --tip LINK, for the chain from the root to LINK)",
             )
         out.append(kids[0])
         link = kids[0].child
