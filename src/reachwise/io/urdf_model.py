@@ -34,9 +34,14 @@ The rules:
 - the links form one tree: every link has at most one parent joint, there is exactly
   one root, and every link is reached from it (no cycles).
 
+Elements reachwise does not use are checked too, so that a broken file is never taken
+for a good one: ``<inertial>`` (``mass value`` ≥ 0, six finite ``inertia`` numbers),
+``<material><color rgba>`` (four numbers in [0, 1]), ``<dynamics>``,
+``<safety_controller>``, ``<calibration>`` (finite numbers).
+
 With ``lenient=True`` a problem inside a ``<collision>`` or ``<visual>`` element drops
-that element instead, and the log (logger ``reachwise.io.urdf``) says so, with the same
-message; everything else stays an error. Numbers are decimal (``1``, ``-0.5``,
+that element instead, a problem in an unused element is ignored, and the log (logger
+``reachwise.io.urdf``) says so, with the same message; everything else stays an error. Numbers are decimal (``1``, ``-0.5``,
 ``2.5e-3``); ``nan``/``inf`` are read but rejected as not finite.
 """
 
@@ -284,10 +289,60 @@ def _shape(
     return UrdfShape(kind="mesh", mesh=filename.strip(), scale=sc, **common)  # type: ignore[arg-type]
 
 
+def _numbers_of(err: _Err, what: str, el: XmlElement, attrs: dict[str, int | None]) -> None:
+    """Check the numeric attributes ``attrs`` of ``el`` (name -> how many numbers; ``None``:
+    one, optional)."""
+    for attr, count in attrs.items():
+        if count is None:
+            _scalar(err, what, el, attr)
+        else:
+            _numbers(err, what, el, attr, (count,), None)
+
+
+def _unused(err: _Err, what: str, el: XmlElement, lenient: bool) -> None:
+    """Elements reachwise does not use are still checked, so a broken file is not
+    taken for a good one: ``<inertial>`` (``origin``, ``mass value`` ≥ 0, the six
+    ``inertia`` numbers), ``<material><color rgba>`` (four numbers in [0, 1]),
+    ``<dynamics>``, ``<safety_controller>``, ``<calibration>`` (finite numbers). With
+    ``lenient`` a problem is logged and ignored."""
+    try:
+        if el.tag == "link":
+            inertial = _optional(err, what, el, "inertial")
+            if inertial is not None:
+                _origin(err, what, inertial)
+                mass = _child(err, what, inertial, "mass")
+                if _required(err, what, mass, "value") < 0:
+                    raise err(what, mass, "must be ≥ 0", "value")
+                inertia = _child(err, what, inertial, "inertia")
+                names = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+                _numbers_of(err, what, inertia, dict.fromkeys(names, 1))
+            for vis in el.findall("visual"):
+                for mat in vis.findall("material"):
+                    for color in mat.findall("color"):
+                        rgba = _numbers(err, what, color, "rgba", (4,), None)
+                        if not all(0.0 <= v <= 1.0 for v in rgba):
+                            raise err(what, color, "rgba values must lie in [0, 1]", "rgba")
+        else:
+            for tag, attrs in (
+                ("dynamics", ("damping", "friction")),
+                ("safety_controller", ("soft_lower_limit", "soft_upper_limit", "k_position",
+                                       "k_velocity")),
+                ("calibration", ("rising", "falling", "reference_position")),
+            ):  # fmt: skip
+                sub = _optional(err, what, el, tag)
+                if sub is not None:
+                    _numbers_of(err, what, sub, dict.fromkeys(attrs))
+    except RobotFileError as exc:
+        if not lenient:
+            raise
+        log.warning("%s (lenient: ignored; reachwise does not use it)", exc)
+
+
 def _link(err: _Err, el: XmlElement, lenient: bool) -> UrdfLink:
     name = el.get("name")
     if name is None or not name.strip():
         raise err("link", el, "name is required")
+    _unused(err, f"link {name!r}", el, lenient)
     out: dict[str, list[UrdfShape]] = {"collision": [], "visual": []}
     for kind in ("collision", "visual"):
         for i, c in enumerate(el.findall(kind), start=1):
@@ -301,11 +356,12 @@ def _link(err: _Err, el: XmlElement, lenient: bool) -> UrdfLink:
 
 
 # ---- joints ---------------------------------------------------------------------------
-def _joint(err: _Err, el: XmlElement) -> UrdfJoint:
+def _joint(err: _Err, el: XmlElement, lenient: bool) -> UrdfJoint:
     name = el.get("name")
     if name is None or not name.strip():
         raise err("joint", el, "name is required")
     what = f"joint {name!r}"
+    _unused(err, what, el, lenient)
     jtype = el.get("type")
     if jtype is None:
         raise err(what, None, "type is required (revolute, continuous, prismatic, fixed, …)")
@@ -409,7 +465,7 @@ def read_urdf(path: str | Path, *, lenient: bool = False, source: str | None = N
         raise err("", root, "a robot needs at least one <link>")
     joints: dict[str, UrdfJoint] = {}
     for el in root.findall("joint"):
-        j = _joint(err, el)
+        j = _joint(err, el, lenient)
         if j.name in joints:
             raise err(f"joint {j.name!r}", el, f"a second joint named {j.name!r} "
                       f"(the first is on line {joints[j.name].line})")  # fmt: skip
@@ -438,12 +494,24 @@ def _tree(source: str, links: dict[str, UrdfLink], joints: dict[str, UrdfJoint])
         parent_of[j.child] = j
         children.setdefault(j.parent, []).append(j.child)
     roots = [lk for lk in links if lk not in parent_of]
-    if len(roots) != 1:
+    if not roots:  # every link has a parent: name a joint of a cycle
+        link = next(iter(links))
+        visited: set[str] = set()
+        while link not in visited:
+            visited.add(link)
+            link = parent_of[link].parent
+        j = parent_of[link]
+        raise RobotFileError(
+            source,
+            f"joint {j.name!r} (line {j.line})",
+            f"closes a cycle through link {link!r}: the links have no root",
+        )
+    if len(roots) > 1:
         raise RobotFileError(
             source,
             "links",
-            f"expected one root link, found {len(roots)}: {roots[:5]}"
-            + (" (the joints form a cycle)" if not roots else ""),
+            f"expected one root link, found {len(roots)}: {roots[:5]} (a link no joint "
+            "connects, or a joint naming the wrong parent)",
         )
     seen = {roots[0]}
     todo = [roots[0]]
