@@ -41,8 +41,9 @@ for a good one: ``<inertial>`` (``mass value`` ≥ 0, six finite ``inertia`` num
 
 With ``lenient=True`` a problem inside a ``<collision>`` or ``<visual>`` element drops
 that element instead, a problem in an unused element is ignored, and the log (logger
-``reachwise.io.urdf``) says so, with the same message; everything else stays an error. Numbers are decimal (``1``, ``-0.5``,
-``2.5e-3``); ``nan``/``inf`` are read but rejected as not finite.
+``reachwise.io.urdf``) says so, with the same message; everything else stays an error.
+Numbers are decimal (``1``, ``-0.5``, ``2.5e-3``); ``nan``/``inf`` are read but rejected
+as not finite.
 """
 
 from __future__ import annotations
