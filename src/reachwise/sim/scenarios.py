@@ -221,7 +221,7 @@ class RobotFileSpec(BaseModel):
 class RobotSpec(BaseModel):
     model_config = _STRICT
     name: str = Field(min_length=1)
-    robot: str | RobotFileSpec
+    robot: RobotFileSpec | str  # RobotFileSpec first: its errors are the ones shown
     base: FrameSpec | None = None
     q0: list[float]
     links: list[str] | None = None
@@ -385,7 +385,7 @@ class ObjectSpec(BaseModel):
 
     model_config = _STRICT
     name: str = Field(min_length=1)
-    scanner: str | ScanSpec | None = None
+    scanner: ScanSpec | str | None = None  # ScanSpec first: its errors are the ones shown
     mesh: str | None = None
     file: str | None = None
     box: V3 | None = None
