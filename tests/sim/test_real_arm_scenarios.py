@@ -44,3 +44,12 @@ def test_panda_shelf_avoidance_reaches_both_goals(shelf: tuple[SimulationLog, ..
 def test_panda_shelf_baseline_hits_the_shelf(shelf: tuple[SimulationLog, ...]) -> None:
     _collides(shelf[1], "shelf")
     assert 0.5 < shelf[1].first_collision < 5.0
+
+
+def test_panda_self_collision_baseline_folds_the_wrist_avoidance_does_not() -> None:
+    base = reachwise.simulate("panda-self-collision", avoidance=False)
+    _collides(base, "arm/link_5|arm/link_7")
+    assert 1.0 < base.first_collision < 4.0
+    avoid = reachwise.simulate("panda-self-collision")
+    _avoids(avoid)
+    assert all(p.count("arm/") == 2 for p in avoid.pairs)  # self pairs only, picked for us
