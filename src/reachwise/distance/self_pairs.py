@@ -342,11 +342,13 @@ def self_collision_pairs(
     samples: int = 10_000,
     seed: int = 0,
     home: ArrayLike | None = None,
+    local_search: bool = True,
 ) -> SelfPairs:
     """The self-collision pairs of ``robot`` whose link ``clouds`` (each in its link's
     frame, keyed by link name) are given (see the module docstring). ``margin`` (m): the
     distance within which a pair counts as close; ``home``: the start configuration
-    (default: 0 moved into the limits)."""
+    (default: 0 moved into the limits); ``local_search=False`` excludes on the samples
+    alone (MoveIt's rule; for comparison)."""
     if not (isinstance(margin, int | float) and math.isfinite(margin) and margin > 0):
         raise InputError(robot.name, "margin", f"must be finite and > 0, got {margin!r}")
     if int(samples) < 1:
@@ -384,7 +386,7 @@ def self_collision_pairs(
                     break
             review = d_home <= margin
             closest = math.inf
-            if hit < 0 and not review:
+            if hit < 0 and not review and local_search:
                 search = _LocalSearch(robot, clouds[la], clouds[lb], idx[la], idx[lb], margin)
                 closest = search.run(Q, F, placer.bounds(F, la, lb), seed)
                 if closest > margin:
@@ -394,6 +396,10 @@ def self_collision_pairs(
                     )
                     out.append(PairRule(la, lb, "never", detail, d_home))
                     continue
+            elif hit < 0 and not review:
+                detail = f"never within {margin:g} m in {len(Q)} random configurations"
+                out.append(PairRule(la, lb, "never", detail, d_home))
+                continue
             if review:
                 detail = f"within the margin at the home configuration ({d_home:.3f} m): review"
             elif hit >= 0:
