@@ -9,7 +9,7 @@ from __future__ import annotations
 from reachwise._version import __version__
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_clouds import link_clouds
-from reachwise.io.robot_file import load_robot
+from reachwise.io.robot_file import load_robot, save_robot
 from reachwise.io.task_file import load_task
 from reachwise.kinematics.ik import IKResult
 from reachwise.kinematics.robot import Joint, Robot
@@ -31,6 +31,7 @@ __all__ = [
     "link_clouds",
     "load_robot",
     "load_task",
+    "save_robot",
     "simulate",
     "synthesize",
 ]

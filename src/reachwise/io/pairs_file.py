@@ -35,6 +35,7 @@ import yaml
 
 from reachwise.distance.self_pairs import PairRule, SelfPairs
 from reachwise.errors import InputError
+from reachwise.io.atomic import atomic_write
 
 __all__ = ["RULES", "load_pairs", "pairs_to_dict", "save_pairs"]
 
@@ -83,19 +84,9 @@ def save_pairs(
     pairs: SelfPairs, path: str | os.PathLike[str], *, source: str = "", key: str = ""
 ) -> Path:
     """Write ``pairs`` as YAML to ``path`` (written whole, then renamed into place)."""
-    target = Path(path)
-    tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
     data = pairs_to_dict(pairs, source=source, key=key)
     head = "# reachwise self-collision pairs (MoveIt Setup Assistant method, exact distances)\n"
-    try:
-        tmp.write_text(head + yaml.safe_dump(data, sort_keys=False, width=100))
-        os.replace(tmp, target)
-    except OSError as exc:
-        raise InputError(str(path), "", f"cannot write: {exc.strerror or exc}") from None
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    return target
+    return atomic_write(path, head + yaml.safe_dump(data, sort_keys=False, width=100))
 
 
 def load_pairs(path: str | os.PathLike[str]) -> tuple[SelfPairs, str]:

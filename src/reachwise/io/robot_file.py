@@ -18,8 +18,10 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from reachwise.errors import InputError, RobotFileError
-from reachwise.io._builtin import builtin_names, builtin_text
+from reachwise.io._builtin import Builtin, builtin_names, load_named
+from reachwise.io.atomic import atomic_write
 from reachwise.io.robot_geometry import GeometryModel, geometry_to_dict, resolve_meshes
+from reachwise.io.validation import input_error
 from reachwise.kinematics.robot import (
     BASE_PARAMS,
     DH_PARAMS,
@@ -127,16 +129,6 @@ class RobotModel(BaseModel):
     design: DesignModel = DesignModel()
 
 
-def _field_path(loc: tuple[Any, ...]) -> str:
-    out = ""
-    for part in loc:
-        if isinstance(part, int):
-            out += f"[{part}]"
-        else:
-            out += ("." if out else "") + str(part)
-    return out
-
-
 def robot_from_dict(data: Any, source: str = "robot") -> Robot:
     """Build a Robot from parsed YAML, raising ``RobotFileError`` naming ``source``."""
     if not isinstance(data, dict):
@@ -144,12 +136,7 @@ def robot_from_dict(data: Any, source: str = "robot") -> Robot:
     try:
         m = RobotModel.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        # drop pydantic's model-name/union tags from the location
-        loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and p.startswith("function-")))
-        more = f" (and {len(exc.errors()) - 1} more)" if len(exc.errors()) > 1 else ""
-        msg = err["msg"].removeprefix("Value error, ")
-        raise RobotFileError(source, _field_path(loc), msg + more) from None
+        raise input_error(exc, source, RobotFileError) from None
     joints = []
     for i, jm in enumerate(m.joints):
         try:
@@ -225,7 +212,7 @@ def robot_to_dict(robot: Robot) -> dict[str, Any]:
 
 def save_robot(robot: Robot, path: str | Path) -> None:
     """Write ``robot`` as a YAML robot file."""
-    Path(path).write_text(yaml.safe_dump(robot_to_dict(robot), sort_keys=False))
+    atomic_write(path, yaml.safe_dump(robot_to_dict(robot), sort_keys=False))
 
 
 def load_robot_file(
@@ -275,16 +262,19 @@ def load_robot(
     ``ROS_PACKAGE_PATH``, ``AMENT_PREFIX_PATH``, the Python environment and the file's
     own folders: :mod:`reachwise.io.mesh_uri`). ``lenient=True`` leaves out (and logs)
     shapes that are invalid or whose mesh cannot be found instead of raising."""
-    s = str(name_or_path)
-    if s in builtin_robots():
+
+    def builtin(b: Builtin) -> Robot:
         if tip is not None:
-            raise RobotFileError(f"built-in robot {s}", "tip", "tip is for URDF files")
-        data = yaml.safe_load(builtin_text("robots", s))
-        return robot_from_dict(data, f"built-in robot {s}")
-    p = Path(s)
-    if p.suffix.lower() in (".yaml", ".yml", ".urdf") or p.exists():
-        return load_robot_file(p, tip=tip, package_dirs=package_dirs, lenient=lenient)
-    raise RobotFileError(s, "", f"no such file or built-in robot; built-ins: {builtin_robots()}")
+            raise RobotFileError(b.label, "tip", "tip is for URDF files")
+        return robot_from_dict(yaml.safe_load(b.text()), b.label)
+
+    return load_named(
+        "robots",
+        name_or_path,
+        from_builtin=builtin,
+        from_file=lambda p: load_robot_file(p, tip=tip, package_dirs=package_dirs, lenient=lenient),
+        suffixes=(".yaml", ".yml", ".urdf"),
+    )
 
 
 __all__ = [

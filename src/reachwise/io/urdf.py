@@ -67,6 +67,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from reachwise.errors import RobotFileError
+from reachwise.io.atomic import atomic_write
 from reachwise.io.urdf_model import PASSIVE_MARK, UrdfJoint, UrdfModel, read_urdf
 from reachwise.kinematics.robot import Joint, JointType, LinkGeometry, Robot
 from reachwise.kinematics.transforms import matrix_from_rpy, rpy_from_matrix
@@ -309,7 +310,7 @@ def export_urdf(robot: Robot, path: str | Path | None = None) -> str:
     ET.indent(root, space="  ")
     xml = '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
     if path is not None:
-        Path(path).write_text(xml)
+        atomic_write(path, xml)
     return xml
 
 

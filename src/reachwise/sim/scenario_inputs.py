@@ -4,10 +4,8 @@ of its own meshes, automatic self-collision pairs.
 - :func:`check_requirements` — a scenario's ``requires: {package: extra}``: a missing
   package is one clear :class:`~reachwise.errors.MissingDependency` line (the real-arm
   scenarios need ``example-robot-data``, the ``robots`` extra).
-- :func:`scenario_robot` — ``robot: NAME | FILE | {file, tip, package_dirs, lenient}``:
-  a built-in robot, a YAML or URDF file relative to the scenario, or a
-  ``package://``/``file://`` URI resolved like a mesh URI
-  (:func:`reachwise.io.mesh_uri.resolve_uri`).
+- the robot files themselves (``robot: {file, tip, package_dirs, lenient}``) are read
+  by :func:`reachwise.sim.robots.robot_of`.
 - :func:`scan_target` — ``scanner: NAME | {meshes, pose, …}``: a built-in scan scene,
   or a :class:`~reachwise.geometry.scanner.ScanScene` of the scenario's own meshes.
 - :func:`watched_self_pairs` — the link pairs of a ``self`` watch, ``pairs: auto``
@@ -17,7 +15,6 @@ of its own meshes, automatic self-collision pairs.
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from importlib import metadata
 from typing import TYPE_CHECKING
 
@@ -25,13 +22,13 @@ import numpy as np
 
 from reachwise.errors import InputError, MissingDependency
 from reachwise.kinematics.robot import Robot
-from reachwise.sim.scenarios import RobotFileSpec, RobotSpec, ScanSpec, Scenario, WatchSpec
+from reachwise.sim.scenarios import RobotSpec, ScanSpec, Scenario, WatchSpec
 
 if TYPE_CHECKING:
-    from reachwise.distance.scene import Scene
-    from reachwise.geometry.scanner import ScanScene
+    from reachwise.distance.scene import SceneLike
+    from reachwise.geometry.scan_scene import ScanScene
 
-__all__ = ["check_requirements", "scan_target", "scenario_robot", "watched_self_pairs"]
+__all__ = ["check_requirements", "scan_target", "watched_self_pairs"]
 
 
 def check_requirements(sc: Scenario) -> None:
@@ -44,48 +41,18 @@ def check_requirements(sc: Scenario) -> None:
             raise MissingDependency(package, extra, f"the scenario {sc.name!r}") from None
 
 
-def scenario_robot(spec: RobotSpec, sc: Scenario) -> Robot:
-    """The robot of ``spec`` (see the module docstring), renamed to ``spec.name`` and
-    placed at ``spec.base`` when given; errors name the scenario and the field."""
-    from reachwise.io.mesh_uri import resolve_uri
-    from reachwise.io.robot_file import builtin_robots, load_robot
-
-    where = f"robots.{spec.name}.robot"
-    r = spec.robot
-    try:
-        if isinstance(r, RobotFileSpec):
-            if "://" in r.file:
-                path = resolve_uri(
-                    r.file, robot_file=None, source=sc.source, field=f"{where}.file",
-                    folder=sc.folder, package_dirs=[sc.path(d) for d in r.package_dirs],
-                )  # fmt: skip
-            else:
-                path = sc.path(r.file)
-            robot = load_robot(
-                path,
-                tip=r.tip,
-                package_dirs=[sc.path(d) for d in r.package_dirs],
-                lenient=r.lenient,
-            )
-        else:
-            robot = load_robot(r if r in builtin_robots() else sc.path(r))
-    except MissingDependency:
-        raise
-    except InputError as exc:
-        raise InputError(sc.source, where, str(exc)) from None
-    if spec.base is not None:
-        robot = robot.with_parameters(base=spec.base.matrix())
-    return replace(robot, name=spec.name)
-
-
-def scan_target(scanner: str | ScanSpec, sc: Scenario, name: str) -> str | ScanScene:
-    """What :func:`reachwise.geometry.scanner.scan_scene` scans for an object's
-    ``scanner``: a built-in scene name as is, or the scene of a :class:`ScanSpec`."""
+def scan_target(scanner: str | ScanSpec, sc: Scenario, name: str) -> ScanScene:
+    """What :func:`reachwise.geometry.scan_scene.scan_scene` scans for an object's
+    ``scanner``: a built-in scene (:mod:`reachwise.sim.p5_scenes`) or the scene of a
+    :class:`ScanSpec`."""
     if isinstance(scanner, str):
-        return scanner
+        from reachwise.sim.p5_scenes import get_scene
+
+        return get_scene(scanner)
     import trimesh
 
-    from reachwise.geometry.scanner import LaserScanner, ScanScene
+    from reachwise.geometry.scan_scene import ScanScene
+    from reachwise.geometry.scanner import LaserScanner
     from reachwise.io.meshes import load_mesh
 
     meshes = []
@@ -128,7 +95,7 @@ def scan_target(scanner: str | ScanSpec, sc: Scenario, name: str) -> str | ScanS
 
 
 def watched_self_pairs(
-    w: WatchSpec, robot: Robot, spec: RobotSpec, scene: Scene, sc: Scenario, where: str
+    w: WatchSpec, robot: Robot, spec: RobotSpec, scene: SceneLike, sc: Scenario, where: str
 ) -> list[tuple[str, str]] | None:
     """The link pairs a ``self`` watch lists, or picks with ``pairs: auto`` among the
     robot's clouds in ``scene`` (restricted to ``links``); ``None`` when the watch
