@@ -25,7 +25,7 @@ their bounds and centroid (:func:`~reachwise.distance._build.checked_copy`), and
 the tree from them (:func:`~reachwise.distance.index.index_of_checked`); both release
 the GIL, and the Python between them is a few microseconds, so the querying thread is
 never held up for long by this one. The querying thread never blocks on it either:
-:meth:`CloudIngest.take_ready` with ``block=False`` gives up at once when the worker
+:meth:`CloudIngest.try_take_ready` gives up at once when the worker
 holds the lock (the swap then waits for the next query), and clouds swapped out are
 handed back (:meth:`CloudIngest.retire`) so that their memory is freed on the worker,
 not in a control tick. With ``voxel`` set, each handed-over cloud is thinned to one
@@ -142,7 +142,8 @@ class CloudIngest:
         self._thread: threading.Thread | None = None
         self._closed = False
         self._retired: list[object] = []
-        self._build = build
+        #: What the worker runs per hand-over (``ready_cloud``; a test may hold it open).
+        self.build = build
         self.voxel = voxel
         self.builds = 0
         self.superseded = 0
@@ -183,13 +184,21 @@ class CloudIngest:
         """Whether a built cloud waits to be taken (a plain read, no lock)."""
         return bool(self._ready)
 
-    def take_ready(self, *, block: bool = True) -> list[Ready] | None:
-        """The clouds built since the last call (the newest per object), in no order.
-        With ``block=False`` it never waits: None when the worker holds the lock at
-        this instant (take them next time)."""
+    def take_ready(self) -> list[Ready]:
+        """The clouds built since the last call (the newest per object), in no order."""
         if not self._ready:  # a plain read: a build finishing now is taken next time
             return []
-        if not self._cond.acquire(blocking=block):
+        with self._cond:
+            out = list(self._ready.values())
+            self._ready.clear()
+        return out
+
+    def try_take_ready(self) -> list[Ready] | None:
+        """:meth:`take_ready` that never waits: None when the worker holds the lock at
+        this instant (take them next time)."""
+        if not self._ready:
+            return []
+        if not self._cond.acquire(blocking=False):
             return None
         try:
             out = list(self._ready.values())
@@ -245,7 +254,7 @@ class CloudIngest:
                 job = self._jobs.pop(name)
                 self.building = name
             try:
-                ready = self._build(job.name, job.version, job.points, job.stamp, self.voxel)
+                ready = self.build(job.name, job.version, job.points, job.stamp, self.voxel)
             except ReachwiseError as exc:
                 with self._cond:
                     self.building = None

@@ -358,6 +358,12 @@ class Scene:
         """The worker that indexes handed-over clouds (its counters, errors, ``wait``)."""
         return self._ingest
 
+    def swap_in(self) -> None:
+        """Swap in the clouds indexed since the last swap now (:meth:`query_all` does
+        this first); e.g. a server that waited for a cloud puts it in use at once."""
+        for ready in self._ingest.take_ready():
+            self._install(ready)
+
     @property
     def swaps(self) -> int:
         """Clouds swapped in by :meth:`query_all` (built on the worker)."""
@@ -605,7 +611,7 @@ class Scene:
         (never waiting for the worker: see :attr:`swaps_deferred`)."""
         ingest = self._ingest
         if ingest.has_ready:
-            taken = ingest.take_ready(block=False)
+            taken = ingest.try_take_ready()
             if taken is None:
                 self._deferred += 1
             else:
