@@ -132,7 +132,7 @@ _SIG = types.int64(
 )
 
 
-@njit(_SIG, cache=True, nogil=True)
+@njit(_SIG, cache=True)
 def query_pairs(  # type: ignore[no-untyped-def]
     rows,
     objects,
