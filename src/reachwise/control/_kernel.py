@@ -22,6 +22,7 @@ import numpy as np
 from numba import njit
 
 from reachwise.kinematics._kernels import frames, point_jacobian_rows, tool_jacobian
+from reachwise.kinematics.dls import damped_pinv
 
 DIAG = 9
 
@@ -76,47 +77,6 @@ def quaternion_error(R, Rd, e):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def damped_pinv(Phi, lam_max, eps, exact_proj):  # type: ignore[no-untyped-def]
-    """Damped right pseudo-inverse ``Φᵀ(ΦΦᵀ + λ²I)⁻¹`` (Eq. 3.6) with the σ_min damping
-    schedule of P-I Eq. 14, and (if asked) the exact projector ``Φ⁺Φ``.
-
-    Returns ``(M, P, σ_min, λ)``; ``P`` is ``(n, n)`` (empty when not asked).
-    """
-    r, n = Phi.shape
-    G = Phi @ Phi.T
-    ev, V = np.linalg.eigh(G)
-    smin = math.sqrt(max(ev[0], 0.0))
-    lam2 = 0.0
-    if smin < eps:
-        lam2 = (1.0 - (smin / eps) ** 2) * lam_max * lam_max
-    damped = np.empty(r)
-    exact = np.empty(r)
-    cut = 1e-12 * max(ev[r - 1], 1e-300)
-    for i in range(r):
-        damped[i] = 1.0 / max(ev[i] + lam2, 1e-300)
-        exact[i] = 1.0 / ev[i] if ev[i] > cut else 0.0
-    PV = Phi.T @ V  # (n, r)
-    M = np.empty((n, r))
-    for k in range(n):
-        for j in range(r):
-            acc = 0.0
-            for i in range(r):
-                acc += PV[k, i] * damped[i] * V[j, i]
-            M[k, j] = acc
-    if exact_proj:
-        P = np.empty((n, n))
-        for k in range(n):
-            for j in range(n):
-                acc = 0.0
-                for i in range(r):
-                    acc += PV[k, i] * exact[i] * PV[j, i]
-                P[k, j] = acc
-    else:
-        P = np.empty((0, 0))
-    return M, P, smin, math.sqrt(lam2)
-
-
-@njit(cache=True)
 def _bounded(v, vmax):  # type: ignore[no-untyped-def]
     """Eq. 3.12/3.13: scale a 3-vector down to norm ``vmax`` if it is longer."""
     nrm = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
@@ -160,8 +120,8 @@ def control_step(  # type: ignore[no-untyped-def]
     kw,
     vlin,
     wmax,
-    lam_max,
-    eps,
+    lambda_max,
+    epsilon,
     lower,
     upper,
     vmax,
@@ -373,7 +333,7 @@ def control_step(  # type: ignore[no-untyped-def]
         for j in range(r):
             for k in range(n):
                 Phi[j, k] = J[j, k] * w[k]
-        M, P, smin, lam = damped_pinv(Phi, lam_max, eps, True)
+        M, P, smin, lam = damped_pinv(Phi, epsilon, lambda_max, True)
         # ---- secondary goal: Eq. 3.18, every body point through the null space
         unull[:] = 0.0
         if avoid_on:
@@ -385,7 +345,7 @@ def control_step(  # type: ignore[no-untyped-def]
                 for j in range(3):
                     for k in range(n):
                         PhiO[j, k] = JO[i, j, k] * w[k]
-                MO, _, _, _ = damped_pinv(PhiO, lam_max, eps, False)
+                MO = damped_pinv(PhiO, epsilon, lambda_max, False).inverse
                 for k in range(n):
                     acc = 0.0
                     for j in range(3):

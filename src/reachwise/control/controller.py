@@ -90,6 +90,7 @@ from reachwise.control import _kernel as K
 from reachwise.control.avoidance import AvoidancePoints
 from reachwise.control.safety import DataCheck, SafetyConfig, check_data, stop_ramp
 from reachwise.errors import InputError
+from reachwise.kinematics.dls import EPSILON_CONTROL, LAMBDA_MAX
 from reachwise.kinematics.robot import Robot
 from reachwise.kinematics.transforms import check_pose
 
@@ -104,7 +105,7 @@ class ControllerConfig:
 
     ``kv`` (1/s) and ``kw`` (1/s): position and orientation gains (Eq. 3.8, 3.10);
     ``v_max`` (m/s), ``w_max`` (rad/s): task velocity bounds (Eq. 3.12–3.13);
-    ``lambda_max``, ``epsilon``: damping schedule (P-I Eq. 14);
+    ``lambda_max``, ``epsilon``: damping schedule (P-I Eq. 14, ``reachwise.kinematics.dls``);
     ``mu`` (m⁴/s): Khatib coefficient (Eq. 3.17), ``v_rep_max`` (m/s) caps a repulsive
     speed; ``k_limit`` (1/s): position-limit velocity damper, ``limit_zone`` (rad or
     m): where the limit weighting starts; ``guard``, ``stop_distance`` ``ρ_s`` (m) and
@@ -121,8 +122,8 @@ class ControllerConfig:
     kw: float = 1.0
     v_max: float = 0.5
     w_max: float = 0.3
-    lambda_max: float = 0.05
-    epsilon: float = 0.05
+    lambda_max: float = LAMBDA_MAX
+    epsilon: float = EPSILON_CONTROL
     mu: float = 2e-4
     v_rep_max: float = 1.0
     k_limit: float = 2.0

@@ -8,6 +8,7 @@ import numpy as np
 from numba import njit
 
 from reachwise.kinematics._kernels import frames, tool_jacobian
+from reachwise.kinematics.dls import damped_solve
 
 
 @njit(cache=True)
@@ -82,49 +83,23 @@ def axis_rows(zd, F, Jw, e, J5, r0):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def dls_step(J, e, w, lam_max, eps, znull, dq):  # type: ignore[no-untyped-def]
+def dls_step(J, e, w, epsilon, lambda_max, znull, dq):  # type: ignore[no-untyped-def]
     """Weighted damped least squares (P-II Eq. 25–28) with the σ_min damping of
-    P-I Eq. 14 and a null-space term (thesis Eq. 3.7):
+    P-I Eq. 14 and a null-space term (thesis Eq. 3.7), see ``reachwise.kinematics.dls``:
 
-        Φ = J W,   λ² = (1 − (σ_min/ε)²) λ_max² if σ_min < ε else 0,
-        Δq = W Φᵀ (Φ Φᵀ + λ² I)⁻¹ e + W (I − Φ⁺ Φ) W z.
+        Φ = J W,   Δq = W Φ̃⁺ e + W (I − Φ⁺ Φ) W z.
 
-    The null-space projector uses the exact (rank-truncated) pseudo-inverse ``Φ⁺`` so
-    the secondary motion never disturbs the task, even while the primary solution is
-    damped. Returns σ_min of Φ.
+    Returns σ_min of Φ.
     """
     r, n = J.shape
     Phi = np.empty((r, n))
     for i in range(r):
         for k in range(n):
             Phi[i, k] = J[i, k] * w[k]
-    # Gram matrix of the smaller side: σ_min² is its smallest eigenvalue.
-    wide = r <= n
-    G = Phi @ Phi.T if wide else Phi.T @ Phi
-    ev, V = np.linalg.eigh(G)
-    smin = math.sqrt(max(ev[0], 0.0))
-    lam2 = 0.0
-    if smin < eps:
-        lam2 = (1.0 - (smin / eps) ** 2) * lam_max * lam_max
-    m = ev.shape[0]
-    damped = np.empty(m)
-    exact = np.empty(m)
-    cut = 1e-12 * max(ev[m - 1], 1e-300)
-    for i in range(m):
-        damped[i] = 1.0 / max(ev[i] + lam2, 1e-300)
-        exact[i] = 1.0 / ev[i] if ev[i] > cut else 0.0
-    if wide:
-        x = Phi.T @ (V @ (damped * (V.T @ e)))
-    else:
-        x = V @ (damped * (V.T @ (Phi.T @ e)))
-    wz = w * znull
-    if wide:
-        nz = wz - Phi.T @ (V @ (exact * (V.T @ (Phi @ wz))))
-    else:
-        nz = wz - V @ ((exact * ev) * (V.T @ wz))
+    d = damped_solve(Phi, e, w * znull, epsilon, lambda_max)
     for k in range(n):
-        dq[k] = w[k] * (x[k] + nz[k])
-    return smin
+        dq[k] = w[k] * (d.step[k] + d.null_motion[k])
+    return d.sigma_min
 
 
 @njit(cache=True)
@@ -145,8 +120,8 @@ def ik_loop(  # type: ignore[no-untyped-def]
     tol_p,
     tol_o,
     max_iter,
-    lam_max,
-    eps,
+    lambda_max,
+    epsilon,
     k_null,
     err_ref,
 ):
@@ -221,7 +196,7 @@ def ik_loop(  # type: ignore[no-untyped-def]
         # Near the solution the damping fades with the error (Levenberg–Marquardt
         # style) so the last steps converge quadratically even inside the singular
         # region; far from it, λ_max applies as in P-I Eq. 14.
-        lam = lam_max * min(1.0, score / err_ref)
+        lam = lambda_max * min(1.0, score / err_ref)
         for k in range(n):
             if math.isfinite(span[k]) and span[k] > 0.0:
                 znull[k] = -k_null * (q[k] - mid[k]) / (span[k] * span[k])
@@ -231,7 +206,7 @@ def ik_loop(  # type: ignore[no-untyped-def]
         # Dynamic weighting (P-II Eq. 25–28): a joint at a bound that the step drives
         # further out gets weight 0, and the step is solved again without it.
         for _ in range(n + 1):
-            dls_step(J, e, w, lam, eps, znull, dq)
+            dls_step(J, e, w, epsilon, lam, znull, dq)
             changed = False
             for k in range(n):
                 if w[k] > 0.0 and (

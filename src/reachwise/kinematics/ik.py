@@ -29,6 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from reachwise.errors import InputError
 from reachwise.kinematics._ik_kernel import ik_loop
+from reachwise.kinematics.dls import EPSILON_SOLVER, LAMBDA_MAX
 from reachwise.kinematics.transforms import check_pose
 
 if TYPE_CHECKING:
@@ -108,8 +109,8 @@ def solve_ik(
     tol_orientation: float = 1e-6,
     max_iter: int = 100,
     restarts: int = 50,
-    lam_max: float = 0.05,
-    eps: float = 0.02,
+    lambda_max: float = LAMBDA_MAX,
+    epsilon: float = EPSILON_SOLVER,
     k_null: float = 0.05,
     err_ref: float = 0.01,
 ) -> IKResult:
@@ -118,7 +119,8 @@ def solve_ik(
     ``q0`` is the first initial guess (default: mid-range); up to ``restarts`` further
     attempts start from random configurations drawn from ``rng`` (a Generator or seed;
     default seed 0, so results are reproducible). Returns the first attempt that
-    converges, else the best one with ``success=False``.
+    converges, else the best one with ``success=False``. ``lambda_max`` and ``epsilon``
+    set the damping schedule (``reachwise.kinematics.dls``).
     """
     Td = np.ascontiguousarray(check_pose(T, f"{robot.name}: ik target"))
     rows, axis_mode = task_rows(mask)
@@ -145,7 +147,7 @@ def solve_ik(
             c.kind, c.qidx, c.dh, c.classic, c.base, c.tool, Td, rows, axis_mode,
             np.ascontiguousarray(start, dtype=np.float64), robot.lower.copy(),
             robot.upper.copy(), max_step, tol_position, tol_orientation, max_iter,
-            lam_max, eps, k_null, err_ref,
+            lambda_max, epsilon, k_null, err_ref,
         )  # fmt: skip
         total += int(it)
         ok = bool(ep <= tol_position and eo <= tol_orientation and robot.within_limits(q))
