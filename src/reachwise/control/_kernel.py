@@ -23,57 +23,9 @@ from numba import njit
 
 from reachwise.kinematics._kernels import frames, point_jacobian_rows, tool_jacobian
 from reachwise.kinematics.dls import damped_pinv
+from reachwise.kinematics.orientation import quaternion_error_into
 
 DIAG = 9
-
-
-@njit(cache=True)
-def quat_of(R):  # type: ignore[no-untyped-def]
-    """Unit quaternion ``(x, y, z, w)`` of a rotation matrix (Shepperd's method)."""
-    t = R[0, 0] + R[1, 1] + R[2, 2]
-    out = np.empty(4)
-    if t > 0.0:
-        s = math.sqrt(t + 1.0) * 2.0
-        out[3] = 0.25 * s
-        out[0] = (R[2, 1] - R[1, 2]) / s
-        out[1] = (R[0, 2] - R[2, 0]) / s
-        out[2] = (R[1, 0] - R[0, 1]) / s
-    elif R[0, 0] > R[1, 1] and R[0, 0] > R[2, 2]:
-        s = math.sqrt(1.0 + R[0, 0] - R[1, 1] - R[2, 2]) * 2.0
-        out[3] = (R[2, 1] - R[1, 2]) / s
-        out[0] = 0.25 * s
-        out[1] = (R[0, 1] + R[1, 0]) / s
-        out[2] = (R[0, 2] + R[2, 0]) / s
-    elif R[1, 1] > R[2, 2]:
-        s = math.sqrt(1.0 + R[1, 1] - R[0, 0] - R[2, 2]) * 2.0
-        out[3] = (R[0, 2] - R[2, 0]) / s
-        out[0] = (R[0, 1] + R[1, 0]) / s
-        out[1] = 0.25 * s
-        out[2] = (R[1, 2] + R[2, 1]) / s
-    else:
-        s = math.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1]) * 2.0
-        out[3] = (R[1, 0] - R[0, 1]) / s
-        out[0] = (R[0, 2] + R[2, 0]) / s
-        out[1] = (R[1, 2] + R[2, 1]) / s
-        out[2] = 0.25 * s
-    return out
-
-
-@njit(cache=True)
-def quaternion_error(R, Rd, e):  # type: ignore[no-untyped-def]
-    """``e_O = η ε_d − η_d ε − S(ε_d) ε`` (thesis Eq. 3.9) into ``e``; returns the angle."""
-    q = quat_of(R)
-    qd = quat_of(Rd)
-    if q[0] * qd[0] + q[1] * qd[1] + q[2] * qd[2] + q[3] * qd[3] < 0.0:
-        for i in range(4):
-            qd[i] = -qd[i]
-    eta = q[3]
-    eta_d = qd[3]
-    e[0] = eta * qd[0] - eta_d * q[0] - (qd[1] * q[2] - qd[2] * q[1])
-    e[1] = eta * qd[1] - eta_d * q[1] - (qd[2] * q[0] - qd[0] * q[2])
-    e[2] = eta * qd[2] - eta_d * q[2] - (qd[0] * q[1] - qd[1] * q[0])
-    s = math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
-    return 2.0 * math.asin(min(s, 1.0))
 
 
 @njit(cache=True)
@@ -174,7 +126,7 @@ def control_step(  # type: ignore[no-untyped-def]
     ang = 0.0
     if six:
         eo = np.empty(3)
-        ang = quaternion_error(T[:3, :3], Td[:3, :3], eo)
+        ang = quaternion_error_into(T[:3, :3], Td[:3, :3], eo)
         for i in range(3):
             wG[i] = kw * eo[i]
     diag[0] = math.sqrt(ep2)

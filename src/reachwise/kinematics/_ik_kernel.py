@@ -9,74 +9,21 @@ from numba import njit
 
 from reachwise.kinematics._kernels import frames, tool_jacobian
 from reachwise.kinematics.dls import damped_solve
-
-
-@njit(cache=True)
-def rotvec_error(Rd, F, out):  # type: ignore[no-untyped-def]
-    """Rotation vector of ``Rd Rᵀ`` (R = rotation of the 4x4 ``F``) into ``out[0:3]``."""
-    E = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            E[i, j] = Rd[i, 0] * F[j, 0] + Rd[i, 1] * F[j, 1] + Rd[i, 2] * F[j, 2]
-    vx = 0.5 * (E[2, 1] - E[1, 2])
-    vy = 0.5 * (E[0, 2] - E[2, 0])
-    vz = 0.5 * (E[1, 0] - E[0, 1])
-    s = math.sqrt(vx * vx + vy * vy + vz * vz)
-    c = 0.5 * (E[0, 0] + E[1, 1] + E[2, 2] - 1.0)
-    phi = math.atan2(s, c)
-    if s > 1e-7:
-        f = phi / s
-        out[0] = f * vx
-        out[1] = f * vy
-        out[2] = f * vz
-    elif c > 0.0:
-        out[0] = vx
-        out[1] = vy
-        out[2] = vz
-    else:
-        # φ ≈ π: axis from the symmetric part, E ≈ 2 u uᵀ − I.
-        k = 0
-        for i in range(1, 3):
-            if E[i, i] > E[k, k]:
-                k = i
-        u = np.empty(3)
-        for i in range(3):
-            u[i] = 0.5 * (E[i, k] + E[k, i])
-        u[k] = math.sqrt(max(0.5 * (E[k, k] + 1.0), 0.0))
-        nrm = math.sqrt(u[0] ** 2 + u[1] ** 2 + u[2] ** 2)
-        for i in range(3):
-            out[i] = phi * u[i] / nrm
+from reachwise.kinematics.orientation import axis_error_into, rotation_error_into
 
 
 @njit(cache=True)
 def axis_rows(zd, F, Jw, e, J5, r0):  # type: ignore[no-untyped-def]
-    """5-D rows: angular error and Jacobian rows on the two directions normal to the
-    current tool axis z (rotation about z does not change the axis)."""
-    z = F[:3, 2]
-    cx = z[1] * zd[2] - z[2] * zd[1]
-    cy = z[2] * zd[0] - z[0] * zd[2]
-    cz = z[0] * zd[1] - z[1] * zd[0]
-    s = math.sqrt(cx * cx + cy * cy + cz * cz)
-    c = z[0] * zd[0] + z[1] * zd[1] + z[2] * zd[2]
-    phi = math.atan2(s, c)
-    if s > 1e-12:
-        ex = phi * cx / s
-        ey = phi * cy / s
-        ez = phi * cz / s
-    elif c < 0:
-        ex = math.pi * F[0, 0]
-        ey = math.pi * F[1, 0]
-        ez = math.pi * F[2, 0]
-    else:
-        ex = 0.0
-        ey = 0.0
-        ez = 0.0
-    # basis of the plane normal to z: the tool's own x and y axes
+    """5-D rows from ``r0`` on: the axis error (``orientation.axis_error_into``) and the
+    angular Jacobian rows on the two directions normal to the current tool axis z, the
+    tool's own x and y axes (rotation about z does not change the axis). Returns φ."""
+    ev = np.empty(3)
+    phi = axis_error_into(F, zd, ev)
     for b in range(2):
         ux = F[0, b]
         uy = F[1, b]
         uz = F[2, b]
-        e[r0 + b] = ux * ex + uy * ey + uz * ez
+        e[r0 + b] = ux * ev[0] + uy * ev[1] + uz * ev[2]
         for k in range(Jw.shape[1]):
             J5[r0 + b, k] = ux * Jw[3, k] + uy * Jw[4, k] + uz * Jw[5, k]
     return phi
@@ -173,7 +120,7 @@ def ik_loop(  # type: ignore[no-untyped-def]
         if axis_mode:
             eo = axis_rows(zd, Tt, Jg, e, J, row)
         else:
-            rotvec_error(Rd, Tt, e6)
+            rotation_error_into(Tt, Rd, e6)
             eo2 = 0.0
             for i in range(3):
                 if rows[3 + i]:
