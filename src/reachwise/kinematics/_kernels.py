@@ -1,6 +1,6 @@
 """Compiled kinematics kernels (numba): frames, tool/point/parameter Jacobians.
 
-Everything here works on the packed chain of ``robot.ChainArrays``. Rigid transforms
+Everything here works on the packed chain ``Chain`` (``Robot.arrays``). Rigid transforms
 are multiplied as ``[R p; 0 1]`` blocks. The kernels are compiled once and cached on
 disk (``cache=True``); ``warm_up`` triggers compilation outside any control loop.
 
