@@ -1,13 +1,18 @@
-"""Compiled inner loop of the damped-least-squares inverse kinematics (see ``ik.py``)."""
+"""Compiled inner loop of the damped-least-squares inverse kinematics (see ``ik.py``),
+on typed groups: the ``Chain``, an ``IKTarget``, ``IKBounds`` and ``IKSettings``."""
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+from numpy.typing import NDArray
 
+from reachwise.kinematics._jit import RO_F8_1D, Field, group_type
 from reachwise.kinematics._kernels import frames, tool_jacobian
+from reachwise.kinematics.chain import CHAIN, Chain
 from reachwise.kinematics.dls import damped_solve
 from reachwise.kinematics.orientation import axis_error_into, rotation_error_into
 
@@ -49,34 +54,87 @@ def dls_step(J, e, w, epsilon, lambda_max, znull, dq):  # type: ignore[no-untype
     return d.sigma_min
 
 
-@njit(cache=True)
-def ik_loop(  # type: ignore[no-untyped-def]
-    kind,
-    qidx,
-    dh,
-    classic,
-    base,
-    tool,
-    Td,
-    rows,
-    axis_mode,
-    q0,
-    lo,
-    hi,
-    max_step,
-    tol_p,
-    tol_o,
-    max_iter,
-    lambda_max,
-    epsilon,
-    k_null,
-    err_ref,
-):
-    """Iterate DLS steps from ``q0``; returns (q, iterations, position err, orientation err).
+class IKTarget(NamedTuple):
+    """What one solve aims at: the tool ``pose`` (4, 4), the task ``rows`` (6 bools:
+    x y z rx ry rz, world frame) and ``axis_mode`` (the 5-D tool-axis error instead of
+    the rotation-vector rows)."""
 
-    ``rows`` (6 bools) selects the position rows and, unless ``axis_mode``, the
-    rotation-vector rows; ``axis_mode`` uses the 5-D tool-axis error instead.
-    """
+    pose: NDArray[np.float64]
+    rows: NDArray[np.bool_]
+    axis_mode: bool
+
+
+class IKBounds(NamedTuple):
+    """Per joint variable ``(n,)``: the limits ``lower``, ``upper`` (may be infinite)
+    and the step cap ``max_step`` of one iteration."""
+
+    lower: NDArray[np.float64]
+    upper: NDArray[np.float64]
+    max_step: NDArray[np.float64]
+
+
+class IKSettings(NamedTuple):
+    """Tolerances ``tol_position`` (m), ``tol_orientation`` (rad), ``max_iter``; the
+    damping schedule ``lambda_max``, ``epsilon`` (``reachwise.kinematics.dls``), faded
+    by ``min(1, error/err_ref)``; ``k_null`` the mid-range gain in the null space."""
+
+    tol_position: float
+    tol_orientation: float
+    max_iter: int
+    lambda_max: float
+    epsilon: float
+    k_null: float
+    err_ref: float
+
+
+class IKAttempt(NamedTuple):
+    """Outcome of one attempt: final ``q``, ``iterations``, ``position_error`` (m) and
+    ``orientation_error`` (rad) over the constrained rows."""
+
+    q: NDArray[np.float64]
+    iterations: int
+    position_error: float
+    orientation_error: float
+
+
+TARGET_SPEC = {
+    "pose": Field(np.float64, (4, 4)),
+    "rows": Field(np.bool_, (6,)),
+    "axis_mode": Field(bool),
+}
+BOUNDS_SPEC = {
+    "lower": Field(np.float64, ("n",)),
+    "upper": Field(np.float64, ("n",)),
+    "max_step": Field(np.float64, ("n",)),
+}
+SETTINGS_SPEC = {
+    "tol_position": Field(float),
+    "tol_orientation": Field(float),
+    "max_iter": Field(int),
+    "lambda_max": Field(float),
+    "epsilon": Field(float),
+    "k_null": Field(float),
+    "err_ref": Field(float),
+}
+
+
+@njit(cache=True)
+def _iterate(chain, target, bounds, settings, q0):  # type: ignore[no-untyped-def]
+    """The iteration of :func:`ik_loop` (below) on named groups."""
+    kind = chain.kind
+    qidx = chain.qidx
+    classic = chain.classic
+    Td = target.pose
+    rows = target.rows
+    axis_mode = target.axis_mode
+    lo = bounds.lower
+    hi = bounds.upper
+    max_step = bounds.max_step
+    tol_p = settings.tol_position
+    tol_o = settings.tol_orientation
+    lambda_max = settings.lambda_max
+    epsilon = settings.epsilon
+    k_null = settings.k_null
     N = kind.shape[0]
     n = q0.shape[0]
     F = np.empty((N + 2, 4, 4))
@@ -104,7 +162,7 @@ def ik_loop(  # type: ignore[no-untyped-def]
     best = 1e300
     stall = 0
     while True:
-        frames(kind, qidx, dh, classic, base, tool, q, F)
+        frames(kind, qidx, chain.dh, classic, chain.base, chain.tool, q, F)
         tool_jacobian(kind, qidx, classic, F, n, Jg)
         Tt = F[N + 1]
         row = 0
@@ -129,7 +187,7 @@ def ik_loop(  # type: ignore[no-untyped-def]
                     eo2 += e6[i] * e6[i]
                     row += 1
             eo = math.sqrt(eo2)
-        if (ep <= tol_p and eo <= tol_o) or it >= max_iter:
+        if (ep <= tol_p and eo <= tol_o) or it >= settings.max_iter:
             break
         score = ep + eo
         if score < 0.999 * best:
@@ -143,7 +201,7 @@ def ik_loop(  # type: ignore[no-untyped-def]
         # Near the solution the damping fades with the error (Levenberg–Marquardt
         # style) so the last steps converge quadratically even inside the singular
         # region; far from it, λ_max applies as in P-I Eq. 14.
-        lam = lambda_max * min(1.0, score / err_ref)
+        lam = lambda_max * min(1.0, score / settings.err_ref)
         for k in range(n):
             if math.isfinite(span[k]) and span[k] > 0.0:
                 znull[k] = -k_null * (q[k] - mid[k]) / (span[k] * span[k])
@@ -170,39 +228,20 @@ def ik_loop(  # type: ignore[no-untyped-def]
                 scale = max_step[k] / a
         for k in range(n):
             q[k] = min(max(q[k] + scale * dq[k], lo[k]), hi[k])
-    return q, it, ep, eo
+    return IKAttempt(q, it, ep, eo)
 
 
-def warm_up() -> None:
-    """Compile the IK kernel for the signatures used at run time."""
-    kind = np.array([0, 1], dtype=np.int64)
-    qidx = np.array([0, 1], dtype=np.int64)
-    dh = np.zeros((2, 4))
-    eye = np.eye(4)
-    rows = np.ones(6, dtype=np.bool_)
-    lo = np.full(2, -1.0)
-    hi = np.full(2, 1.0)
-    for classic in (False, True):
-        for axis_mode in (False, True):
-            ik_loop(
-                kind,
-                qidx,
-                dh,
-                classic,
-                eye,
-                eye,
-                eye,
-                rows,
-                axis_mode,
-                np.zeros(2),
-                lo,
-                hi,
-                np.full(2, 0.5),
-                1e-6,
-                1e-6,
-                2,
-                0.1,
-                0.01,
-                0.0,
-                0.01,
-            )
+@njit(
+    (
+        CHAIN,
+        group_type(IKTarget, TARGET_SPEC),
+        group_type(IKBounds, BOUNDS_SPEC),
+        group_type(IKSettings, SETTINGS_SPEC),
+        RO_F8_1D,
+    ),
+    cache=True,
+)
+def ik_loop(chain, target, bounds, settings, q0):  # type: ignore[no-untyped-def]
+    """Iterate DLS steps from ``q0`` (groups as plain tuples, see ``_jit``); returns an
+    :class:`IKAttempt`."""
+    return _iterate(Chain(*chain), IKTarget(*target), IKBounds(*bounds), IKSettings(*settings), q0)

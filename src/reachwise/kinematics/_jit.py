@@ -45,6 +45,7 @@ __all__ = [
     "RO_I8_1D",
     "W_F8_1D",
     "W_F8_2D",
+    "W_F8_3D",
     "Field",
     "check_group",
     "group_type",
@@ -64,6 +65,7 @@ RO_B1_1D = _ro(types.boolean, 1)
 #: Writable C-contiguous arrays (outputs, state a kernel updates).
 W_F8_1D = types.Array(types.float64, 1, "C")
 W_F8_2D = types.Array(types.float64, 2, "C")
+W_F8_3D = types.Array(types.float64, 3, "C")
 
 
 # --------------------------------------------------------------------------- groups
