@@ -11,6 +11,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from reachwise import PointCloud
 from reachwise.distance import PairQuery, Scene, closest_points
+from reachwise.distance.index import INDICES
 from reachwise.distance.scene import RobotLike
 from reachwise.errors import InputError
 
@@ -191,7 +192,7 @@ def test_replace_cloud_rebuilds_and_answers_with_the_new_cloud() -> None:
     assert scene.query_all().pairs[0].result.distance == pytest.approx(1.0)
     new = PointCloud(np.array([[0.0, 0.0, 0.25], [3.0, 0.0, 0.0]]), name="rescan")
     scene.replace_cloud("env", new)
-    assert new.cache  # indexed at once
+    assert INDICES.peek(new) is not None  # indexed at once
     r = scene.query_all().pairs[0].result
     assert r.distance == pytest.approx(0.25) and r.index_b == 0
 

@@ -8,8 +8,8 @@ import copy
 import numpy as np
 import pytest
 
-from reachwise.geometry.scanner import get_scene
 from reachwise.sim.log import SimulationLog
+from reachwise.sim.p5_scenes import get_scene
 from reachwise.sim.scenarios import load_scenario, scenario_from_dict
 from reachwise.sim.simulate import simulate
 from reachwise.sim.world import build_world

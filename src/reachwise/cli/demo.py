@@ -552,10 +552,11 @@ def _distance(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
 
     from reachwise.distance import PairQuery, closest_points
     from reachwise.geometry.cloud import sample_mesh_surface
-    from reachwise.geometry.scanner import scan_scene
+    from reachwise.geometry.scan_scene import scan_scene
     from reachwise.kinematics.transforms import pose_from_xyz_rpy
+    from reachwise.sim.p5_scenes import p5_floor_obstacle
 
-    _, env = scan_scene("p5-floor-obstacle", np.random.default_rng(ctx.seed))
+    _, env = scan_scene(p5_floor_obstacle(), np.random.default_rng(ctx.seed))
     part = sample_mesh_surface(trimesh.creation.box((0.6, 0.4, 0.3)), n=1000, seed=ctx.seed)
     rng = np.random.default_rng(ctx.seed)
     query = PairQuery(part, env, margin=0.5)

@@ -3,7 +3,8 @@
 Three strategies answer the same question and must agree with each other exactly:
 
 - ``"default"`` (:func:`default_closest`): dual-tree branch and bound. Each cloud has a
-  k-d tree of AABBs built once in its own frame (kept in ``PointCloud.cache``). Per
+  tree of AABBs built once in its own frame (its
+  :class:`~reachwise.distance.index.CloudIndex`, kept by the distance layer). Per
   query the smaller cloud's boxes and points are mapped into the larger cloud's frame
   by the relative pose (lazily: only the nodes the search reaches), node pairs are
   expanded depth first, nearer child pair first, while their box distance is below the
@@ -34,15 +35,14 @@ from numpy.typing import ArrayLike, NDArray
 from reachwise.distance import _kernels as K
 from reachwise.distance._common import (
     NO_RISK,
-    CloudTree,
     DistanceResult,
     as_cloud,
     check_margin,
     check_pose,
-    cloud_tree,
     pose_array,
 )
 from reachwise.distance.brute import brute_closest
+from reachwise.distance.index import CloudIndex, cloud_index
 from reachwise.distance.thesis import thesis_closest
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
@@ -63,8 +63,8 @@ def _fast_pose(pose: ArrayLike | None, name: str) -> NDArray[np.float64]:
 
 
 def _run_default(
-    ta: CloudTree,
-    tb: CloudTree,
+    ta: CloudIndex,
+    tb: CloudIndex,
     pose_a: NDArray[np.float64],
     pose_b: NDArray[np.float64],
     margin: float,
@@ -108,7 +108,7 @@ def default_closest(
     margin: float,
 ) -> DistanceResult:
     """Exact closest pair by dual-tree branch and bound (validated inputs)."""
-    return _run_default(cloud_tree(a), cloud_tree(b), pose_a, pose_b, margin, (-1, -1))[0]
+    return _run_default(cloud_index(a), cloud_index(b), pose_a, pose_b, margin, (-1, -1))[0]
 
 
 _STRATEGY_FUNCS: dict[str, Strategy] = {
@@ -185,8 +185,8 @@ class PairQuery:
         self.a = as_cloud(a, "cloud a")
         self.b = as_cloud(b, "cloud b")
         self.margin = check_margin(margin)
-        self._ta = cloud_tree(self.a)
-        self._tb = cloud_tree(self.b)
+        self._ta = cloud_index(self.a)
+        self._tb = cloud_index(self.b)
         self._warm: tuple[int, int] = (-1, -1)
 
     def reset(self) -> None:

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Protocol, runtime_checkable
@@ -42,9 +42,9 @@ from reachwise.distance._common import (
     as_cloud,
     check_margin,
     check_pose,
-    cloud_tree,
 )
 from reachwise.distance.engine import STRATEGIES, PairQuery
+from reachwise.distance.index import cloud_index
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
 
@@ -167,7 +167,14 @@ class SceneResult:
 @runtime_checkable
 class SceneLike(Protocol):
     """The scene interface a controller and a simulation use: :class:`Scene` in
-    process, :class:`reachwise.server.client.SceneClient` over the network."""
+    process, :class:`reachwise.server.client.SceneClient` over the network. Code
+    written against it never knows which of the two it talks to."""
+
+    @property
+    def strategy(self) -> str: ...
+
+    @property
+    def robots(self) -> Mapping[str, RobotLike]: ...
 
     @property
     def objects(self) -> dict[str, SceneObject]: ...
@@ -217,6 +224,8 @@ class SceneLike(Protocol):
     def poses(self) -> dict[str, NDArray[np.float64]]: ...
 
     def query_all(self) -> SceneResult: ...
+
+    def close(self) -> None: ...
 
 
 class Scene:
@@ -330,7 +339,7 @@ class Scene:
             self._pose_stamp[name] = self._stamp(None, f"object {name!r}")
         else:
             source = Fixed(P)
-        cloud_tree(c)
+        cloud_index(c)
         obj = SceneObject(name, c, source)
         self._objects[name] = obj
         return obj
@@ -351,7 +360,7 @@ class Scene:
         the warm starts of its pairs are dropped."""
         obj = self._object(name)
         c = as_cloud(cloud, name)
-        cloud_tree(c)
+        cloud_index(c)
         self._objects[name] = SceneObject(name, c, obj.source)
         for key in list(self._queries):
             if name in key:
@@ -471,6 +480,9 @@ class Scene:
             measured_at=measured if measured != math.inf else math.nan,
             computed_at=computed,
         )
+
+    def close(self) -> None:
+        """Nothing to release in process (a remote scene disconnects here)."""
 
     # ------------------------------------------------------------------ helpers
     def _stamp(self, stamp: float | None, source: str) -> float:

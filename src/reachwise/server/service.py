@@ -40,8 +40,9 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise import __version__
-from reachwise.distance._common import NO_RISK, check_pose, cloud_tree
+from reachwise._version import __version__
+from reachwise.distance._common import NO_RISK, check_pose
+from reachwise.distance.index import cloud_index
 from reachwise.distance.scene import Fixed, OnLink, Scene
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
@@ -679,7 +680,7 @@ class SceneService:
 def _cloud(points: NDArray[np.float64], name: str, frame: str) -> PointCloud:
     """A validated cloud with its k-d tree built (P-V Table 1 initialization)."""
     cloud = PointCloud(points, frame=frame, name=name)
-    cloud_tree(cloud)
+    cloud_index(cloud)
     return cloud
 
 

@@ -16,8 +16,8 @@ from numpy.typing import NDArray
 
 from reachwise.errors import InputError
 from reachwise.kinematics.robot import Robot
+from reachwise.sim.robots import robot_of
 from reachwise.sim.scenarios import Scenario, load_scenario
-from reachwise.sim.world import robot_of
 
 __all__ = ["Event", "GoalRecord", "SimulationLog", "load_log"]
 

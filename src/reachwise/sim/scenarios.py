@@ -292,7 +292,7 @@ class RescanSpec(BaseModel):
 
 
 class OcclusionSpec(BaseModel):
-    """Occlusion fill of a scanned object (:func:`reachwise.geometry.scanner.shadow_points`):
+    """Occlusion fill of a scanned object (:func:`reachwise.geometry.occlusion.shadow_points`):
     the unseen space up to ``depth`` (m) behind every return counts as occupied;
     ``spacing`` (m, default the scan's voxel) between virtual points; ``ground`` (world
     z, default the scene's floor) below which none is kept."""

@@ -1,0 +1,32 @@
+"""What a collision-server call raises: the server could not answer, did not answer in
+time, or rejected the request's content."""
+
+from __future__ import annotations
+
+from reachwise.errors import InputError, ReachwiseError
+from reachwise.server import protocol as P
+
+__all__ = ["ServerError", "ServerInputError", "ServerUnavailable"]
+
+
+class ServerError(ReachwiseError):
+    """The collision server could not answer: ``code`` (None when there was no reply)."""
+
+    def __init__(self, message: str, code: P.ErrorCode | None = None, field: str = "") -> None:
+        self.code = code
+        self.field = field
+        super().__init__(message)
+
+
+class ServerUnavailable(ServerError):
+    """No reply within the deadline (the socket has been recreated)."""
+
+
+class ServerInputError(InputError):
+    """The server rejected the request's content: ``code`` and ``field`` as sent."""
+
+    def __init__(self, address: str, error: P.ErrorReply) -> None:
+        self.code = error.code
+        super().__init__(
+            f"collision server {address}", error.field, f"{error.message} [{error.code}]"
+        )
