@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -118,13 +118,14 @@ class AvoidancePoints:
         for name in ("a_point", "b_point", "normal", "distance", "margin", "obstacle_velocity"):
             v = np.ascontiguousarray(getattr(self, name), np.float64)
             object.__setattr__(self, name, v)
+        velocity: NDArray[np.float64] = self.obstacle_velocity  # type: ignore[assignment]
         rows = AvoidanceRows(
             a_link=self.a_link,
             a_point=self.a_point,
             b_link=self.b_link,
             b_point=self.b_point,
             normal=self.normal,
-            obstacle_velocity=cast(NDArray[np.float64], self.obstacle_velocity),
+            obstacle_velocity=velocity,
             distance=self.distance,
             margin=self.margin,
             task_space=self.task_space,
