@@ -11,7 +11,6 @@ import numpy as np
 from numba import njit
 
 from reachwise.control.tick.joints import limit_scale
-from reachwise.control.tick.solve import task_rows_velocity
 from reachwise.control.tick.task import task_velocity
 
 
@@ -35,19 +34,23 @@ def deflect_for_tool_parts(pG, pR, rows, pts, settings):  # type: ignore[no-unty
     xi = settings.approach_speed
     normal = rows.normal
     rho0 = rows.margin
+    task_space = rows.task_space
+    active = pts.active
+    deff = pts.deff
+    approach = pts.approach
     m = rows.distance.shape[0]
     for _ in range(3):
         for i in range(m):
-            if not (pts.active[i] and rows.task_space[i]):
+            if not (active[i] and task_space[i]):
                 continue
             span = max(rho0[i] - rho_stop, 1e-9)
-            frac = min(max((pts.deff[i] - rho_stop) / span, 0.0), 1.0)
+            frac = min(max((deff[i] - rho_stop) / span, 0.0), 1.0)
             rate = 0.0
             for j in range(3):
                 rate += normal[i, j] * (pG[j] + pR[j])
             lo = -xi * frac
-            if pts.approach[i] > 0.0:
-                lo = moving_bound(pts.deff[i], rho0[i], rho_stop, xi, pts.approach[i])
+            if approach[i] > 0.0:
+                lo = moving_bound(deff[i], rho0[i], rho_stop, xi, approach[i])
             if rate < lo:
                 for j in range(3):
                     pG[j] += (lo - rate) * normal[i, j]
@@ -64,12 +67,14 @@ def guard_scales(sol, w, rec, xrec, pG, pR, wG, six, q, limits, rows, pts, gains
     rho0 = rows.margin
     active = pts.active
     approach = pts.approach
+    deff = pts.deff
+    JO = pts.JO
     M = sol.M
     unull = sol.unull
     n, r = M.shape
     m = rows.distance.shape[0]
     xd = np.empty(r)
-    qd1 = sol.qd.copy()
+    qd1 = np.empty(n)
     s = 1.0
     guard = 1.0
     g = np.zeros((m, n))
@@ -81,14 +86,14 @@ def guard_scales(sol, w, rec, xrec, pG, pR, wG, six, q, limits, rows, pts, gains
         for k in range(n):
             acc = 0.0
             for j in range(3):
-                acc += normal[i, j] * pts.JO[i, j, k]
+                acc += normal[i, j] * JO[i, j, k]
             g[i, k] = acc
         span = max(rho0[i] - rho_stop, 1e-9)
-        frac = min(max((pts.deff[i] - rho_stop) / span, 0.0), 1.0)
+        frac = min(max((deff[i] - rho_stop) / span, 0.0), 1.0)
         lo_static[i] = -xi * frac
         lo_rate[i] = lo_static[i]
         if approach[i] > 0.0:
-            lo_rate[i] = moving_bound(pts.deff[i], rho0[i], rho_stop, xi, approach[i])
+            lo_rate[i] = moving_bound(deff[i], rho0[i], rho_stop, xi, approach[i])
     qs = np.empty(n)
     moving = False
     for i in range(m):
@@ -100,7 +105,11 @@ def guard_scales(sol, w, rec, xrec, pG, pR, wG, six, q, limits, rows, pts, gains
     for it in range(16):
         trial = 1.0 if it == 0 else (0.0 if it == 1 else 0.5 * (lo_s + hi_s))
         task_velocity(trial, pG, pR, wG, six, gains, xd)
-        task_rows_velocity(M, w, unull, rec, xd, xrec, qs)
+        for k in range(n):
+            acc = 0.0
+            for j in range(r):
+                acc += M[k, j] * (xd[j] - xrec[j])
+            qs[k] = w[k] * (acc + unull[k]) + rec[k]
         ok = True
         # a moving obstacle's pair is checked on the command actually sent, after
         # the joint-speed scaling (scaling slows a retreat down as well)
@@ -133,7 +142,11 @@ def guard_scales(sol, w, rec, xrec, pG, pR, wG, six, q, limits, rows, pts, gains
                 hi_s = trial
         s = lo_s
     task_velocity(s, pG, pR, wG, six, gains, xd)
-    task_rows_velocity(M, w, unull, rec, xd, xrec, qd1)
+    for k in range(n):
+        acc = 0.0
+        for j in range(r):
+            acc += M[k, j] * (xd[j] - xrec[j])
+        qd1[k] = w[k] * (acc + unull[k]) + rec[k]
     # still closing in too fast with no task left: slow the whole motion down. Only
     # the robot's own approach can be slowed (the static damper); a robot too slow
     # to outrun an approaching obstacle keeps retreating as fast as it can

@@ -13,15 +13,19 @@ def joint_weights(q, limits, k_limit):  # type: ignore[no-untyped-def]
     """Weights ``w`` (1 for a usable joint inside its range, else 0) and the recovery
     velocities ``rec`` of usable joints outside their range (inward, at most ``vmax``)."""
     n = q.shape[0]
+    lower = limits.lower
+    upper = limits.upper
+    vmax = limits.vmax
+    usable = limits.usable
     rec = np.zeros(n)
     w = np.zeros(n)
     for k in range(n):
-        if not limits.usable[k]:
+        if not usable[k]:
             continue
-        if q[k] < limits.lower[k]:
-            rec[k] = min(k_limit * (limits.lower[k] - q[k]), limits.vmax[k])
-        elif q[k] > limits.upper[k]:
-            rec[k] = -min(k_limit * (q[k] - limits.upper[k]), limits.vmax[k])
+        if q[k] < lower[k]:
+            rec[k] = min(k_limit * (lower[k] - q[k]), vmax[k])
+        elif q[k] > upper[k]:
+            rec[k] = -min(k_limit * (q[k] - upper[k]), vmax[k])
         else:
             w[k] = 1.0
     return w, rec
@@ -31,16 +35,18 @@ def joint_weights(q, limits, k_limit):  # type: ignore[no-untyped-def]
 def limit_scale(qd, guard, rec, q, limits, k_limit):  # type: ignore[no-untyped-def]
     """The factor ``α ≤ guard`` that brings ``guard · qd`` within every joint's speed
     bound and position-limit damper (a recovering joint may only move inward)."""
+    lower = limits.lower
+    upper = limits.upper
+    vmax = limits.vmax
     alpha = guard
     for k in range(qd.shape[0]):
         v = qd[k] * guard
-        vmax = limits.vmax[k]
         if rec[k] != 0.0:
-            hi = vmax if rec[k] > 0.0 else 0.0
-            lo = -vmax if rec[k] < 0.0 else 0.0
+            hi = vmax[k] if rec[k] > 0.0 else 0.0
+            lo = -vmax[k] if rec[k] < 0.0 else 0.0
         else:
-            hi = min(vmax, max(k_limit * (limits.upper[k] - q[k]), 0.0))
-            lo = max(-vmax, min(k_limit * (limits.lower[k] - q[k]), 0.0))
+            hi = min(vmax[k], max(k_limit * (upper[k] - q[k]), 0.0))
+            lo = max(-vmax[k], min(k_limit * (lower[k] - q[k]), 0.0))
         if v > hi:
             alpha = min(alpha, guard * hi / v if v > 0.0 else 0.0)
         elif v < lo:

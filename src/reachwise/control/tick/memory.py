@@ -48,15 +48,21 @@ def local_lines(F, rows):  # type: ignore[no-untyped-def]
     """This tick's collision lines in the form they are remembered, ``(m, 6)``: the robot
     part's point in its link frame, then the other end — in its link frame for a
     self-collision pair, else the obstacle point ``p_a − ρ n`` in the world."""
-    m = rows.distance.shape[0]
+    a_link = rows.a_link
+    a_pt = rows.a_point
+    b_link = rows.b_link
+    b_pt = rows.b_point
+    dist = rows.distance
+    normal = rows.normal
+    m = dist.shape[0]
     loc = np.empty((m, 6))
     for i in range(m):
-        _into_frame(F[rows.a_link[i]], rows.a_point[i], loc[i, 0:3])
-        if rows.b_link[i] >= 0:
-            _into_frame(F[rows.b_link[i]], rows.b_point[i], loc[i, 3:6])
+        _into_frame(F[a_link[i]], a_pt[i], loc[i, 0:3])
+        if b_link[i] >= 0:
+            _into_frame(F[b_link[i]], b_pt[i], loc[i, 3:6])
         else:
             for j in range(3):
-                loc[i, 3 + j] = rows.a_point[i, j] - rows.distance[i] * rows.normal[i, j]
+                loc[i, 3 + j] = a_pt[i, j] - dist[i] * normal[i, j]
     return loc
 
 
@@ -64,14 +70,17 @@ def local_lines(F, rows):  # type: ignore[no-untyped-def]
 def static_rows(rows, loc):  # type: ignore[no-untyped-def]
     """Rows worth remembering: within their margin, finite, and against a still
     obstacle (a moving obstacle's point has moved on by the next tick)."""
-    m = rows.distance.shape[0]
+    dist = rows.distance
+    rho0 = rows.margin
+    vobs = rows.obstacle_velocity
+    m = dist.shape[0]
     out = np.zeros(m, dtype=np.bool_)
     for i in range(m):
-        if not rows.distance[i] <= rows.margin[i]:
+        if not dist[i] <= rho0[i]:
             continue
         ok = True
         for j in range(3):
-            if rows.obstacle_velocity[i, j] != 0.0:
+            if vobs[i, j] != 0.0:
                 ok = False
         for j in range(6):
             if not math.isfinite(loc[i, j]):

@@ -27,18 +27,6 @@ class JointSolution(NamedTuple):
 
 
 @njit(cache=True)
-def task_rows_velocity(M, w, unull, rec, xd, xrec, out):  # type: ignore[no-untyped-def]
-    """``out = W (M (ẋ − ẋ_rec) + u_null) + q̇_rec``: the joint velocity for the task
-    velocity ``xd`` once the recovering joints' share ``xrec`` is taken out."""
-    n, r = M.shape
-    for k in range(n):
-        acc = 0.0
-        for j in range(r):
-            acc += M[k, j] * (xd[j] - xrec[j])
-        out[k] = w[k] * (acc + unull[k]) + rec[k]
-
-
-@njit(cache=True)
 def solve_joints(J, w, rec, xrec, pG, pR, wG, six, q, limits, rows, pts, recalled, gains, avoid):  # type: ignore[no-untyped-def]
     """``q̇ = W (J̃⁺ (ẋ − ẋ_rec) + Σ_i (I − J⁺J) J̃_Oi⁺ ẋ_Oi) + q̇_rec`` (Eq. 3.18) for
     the weighted Jacobian ``J W``, solved once more if a joint moving toward a limit
@@ -48,6 +36,14 @@ def solve_joints(J, w, rec, xrec, pG, pR, wG, six, q, limits, rows, pts, recalle
     r, n = J.shape
     m = rows.distance.shape[0]
     normal = rows.normal
+    task_space = rows.task_space
+    active = pts.active
+    JO = pts.JO
+    vrep = pts.vrep
+    ff = pts.ff
+    upper = limits.upper
+    lower = limits.lower
+    zone = limits.zone
     xd = np.empty(r)
     xs = np.empty(r)
     qd1 = np.empty(n)
@@ -67,17 +63,17 @@ def solve_joints(J, w, rec, xrec, pG, pR, wG, six, q, limits, rows, pts, recalle
         if avoid:
             zsum = np.zeros(n)
             for i in range(m):
-                if not pts.active[i] or rows.task_space[i] or recalled[i]:
+                if not active[i] or task_space[i] or recalled[i]:
                     continue
                 PhiO = np.empty((3, n))
                 for j in range(3):
                     for k in range(n):
-                        PhiO[j, k] = pts.JO[i, j, k] * w[k]
+                        PhiO[j, k] = JO[i, j, k] * w[k]
                 MO = damped_pinv(PhiO, gains.epsilon, gains.lambda_max, False).inverse
                 for k in range(n):
                     acc = 0.0
                     for j in range(3):
-                        acc += MO[k, j] * (pts.vrep[i] * normal[i, j] + pts.ff[i, j])
+                        acc += MO[k, j] * (vrep[i] * normal[i, j] + ff[i, j])
                     zsum[k] += acc
             for k in range(n):
                 acc = 0.0
@@ -102,13 +98,13 @@ def solve_joints(J, w, rec, xrec, pG, pR, wG, six, q, limits, rows, pts, recalle
             if w[k] == 0.0:
                 continue
             if qd1[k] > 0.0:
-                room = limits.upper[k] - q[k]
+                room = upper[k] - q[k]
             elif qd1[k] < 0.0:
-                room = q[k] - limits.lower[k]
+                room = q[k] - lower[k]
             else:
                 continue
-            if room < limits.zone[k]:
-                w[k] = max(room / limits.zone[k], 0.0)
+            if room < zone[k]:
+                w[k] = max(room / zone[k], 0.0)
                 changed = True
         if not changed:
             break
