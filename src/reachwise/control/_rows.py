@@ -19,7 +19,7 @@ _F2 = types.float64[:, ::1]
 _F1 = types.float64[::1]
 _I1 = types.int64[::1]
 _B1 = types.boolean[::1]
-_OUT = types.Tuple((_I1, _F2, _I1, _F2, _F2, _F1, _F1, _B1, _I1))
+_OUT = types.Tuple((_I1, _F2, _I1, _F2, _F2, _F2, _F1, _F1, _B1, _I1))
 
 
 @njit(_OUT(types.Array(types.float64, 2, "C", readonly=True), _I1, _I1, _F1, _B1, _B1), cache=True)
@@ -28,8 +28,9 @@ def select_rows(rows, link_a, link_b, rho0, tool_a, tool_b):  # type: ignore[no-
 
     Per row ``k``: ``link_a[k]``/``link_b[k]`` the robot frame its objects are fixed to
     (-1: not on this robot), ``tool_a``/``tool_b`` whether that frame is a tool part.
-    Returns ``(a_link, a_point, b_link, b_point, normal, distance, margin, task_space,
-    row)`` for the kept rows in order (``row`` their indices). A "no risk" row, a row
+    Returns ``(a_link, a_point, b_link, b_point, normal, obstacle_velocity (zeros: the
+    objects are taken as still), distance, margin, task_space, row)`` for the kept rows
+    in order (``row`` their indices). A "no risk" row, a row
     with neither object on the robot and a row farther than ``rho0`` are dropped; a
     row whose numbers are NaN while it claims to be within its margin is kept (the
     controller's check then stops on it)."""
@@ -49,6 +50,7 @@ def select_rows(rows, link_a, link_b, rho0, tool_a, tool_b):  # type: ignore[no-
     distance = np.empty(m)
     margin = np.empty(m)
     task = np.empty(m, np.bool_)
+    velocity = np.zeros((m, 3))
     for i in range(m):
         k = keep[i]
         la = link_a[k]
@@ -71,4 +73,7 @@ def select_rows(rows, link_a, link_b, rho0, tool_a, tool_b):  # type: ignore[no-
                 b_point[i, c] = np.nan
                 normal[i, c] = -rows[k, 7 + c]
             task[i] = tool_b[k]
-    return a_link, a_point, b_link, b_point, normal, distance, margin, task, keep[:m].copy()
+    return (
+        a_link, a_point, b_link, b_point, normal, velocity, distance, margin, task,
+        keep[:m].copy(),
+    )  # fmt: skip

@@ -106,6 +106,36 @@ class AvoidancePoints:
             np.zeros(0), np.zeros(0), np.zeros(0, np.bool_),
         )  # fmt: skip
 
+    @classmethod
+    def of_checked(
+        cls,
+        sequence: int,
+        stamp: float,
+        computed: float,
+        rows: AvoidanceRows,
+        pairs: tuple[str, ...],
+        cloud_stamp: float,
+        cloud: str,
+    ) -> AvoidancePoints:
+        """Valid points from arrays that are already what the constructor makes of its
+        inputs — C-ordered int64, float64 and bool arrays of shapes (m,) and (m, 3), as
+        :mod:`reachwise.control._rows` returns them — without a second look (the
+        converter's per-tick path)."""
+        self = object.__new__(cls)
+        put = object.__setattr__
+        put(self, "sequence", sequence)
+        put(self, "stamp", stamp)
+        put(self, "computed", computed)
+        for name, value in zip(AvoidanceRows._fields, rows, strict=True):
+            put(self, name, value)
+        put(self, "pairs", pairs)
+        put(self, "valid", True)
+        put(self, "reason", "")
+        put(self, "cloud_stamp", cloud_stamp)
+        put(self, "cloud", cloud)
+        put(self, "kernel_rows", tuple(rows))
+        return self
+
     def __post_init__(self) -> None:
         m = int(np.asarray(self.distance).shape[0])
         if self.obstacle_velocity is None:
@@ -305,15 +335,25 @@ class SceneConverter:
         if table is None or table.layout is not answers.layout:
             table = self._table = self._row_table(answers.layout)
         cloud_stamp, cloud = self._oldest_cloud(result, table.watched)
-        a_link, a_pt, b_link, b_pt, normal, dist, margin, task, keep = select_rows(
+        a_link, a_pt, b_link, b_pt, normal, velocity, dist, margin, task, keep = select_rows(
             answers.rows, table.link_a, table.link_b, table.rho0, table.tool_a, table.tool_b
         )
+        rows = AvoidanceRows(
+            a_link=a_link,
+            a_point=a_pt,
+            b_link=b_link,
+            b_point=b_pt,
+            normal=normal,
+            obstacle_velocity=velocity,
+            distance=dist,
+            margin=margin,
+            task_space=task,
+        )
         names = table.names
-        return AvoidancePoints(
-            result.sequence, stamp, computed, a_link, a_pt, b_link, b_pt, normal, dist,
-            margin, task, tuple(names[k] for k in keep.tolist()),
-            cloud_stamp=cloud_stamp, cloud=cloud,
-        )  # fmt: skip
+        pairs = tuple(names[k] for k in keep.tolist())
+        return AvoidancePoints.of_checked(
+            result.sequence, stamp, computed, rows, pairs, cloud_stamp, cloud
+        )
 
     def _row_table(self, layout: tuple[WatchedPair, ...]) -> _RowTable:
         """Per pair of ``layout``: this robot's frame of each object, ``ρ_O``, tool flags."""
