@@ -36,10 +36,12 @@ One run measures:
 3. **The server** (``reachwise.benchmarks.server.stream_section``, when present):
    streaming to ``reachwise serve`` while another client queries.
 
-The loop runs with the cyclic garbage collector's existing objects frozen
-(``gc.freeze()`` after setup) and the interpreter's thread switch interval at 0.1 ms
-(``sys.setswitchinterval(1e-4)``; 5 ms by default), both restored afterwards: see the
-README's realtime section.
+The whole run keeps freed memory for reuse (glibc's trim and mmap thresholds raised:
+:func:`reachwise.control.realtime.keep_freed_memory`; builds otherwise spend a third of
+their time on page faults), and the loop runs inside
+:func:`reachwise.control.realtime.realtime_settings` (the garbage collector's existing
+objects frozen after setup, the GIL switch interval at 0.1 ms instead of 5 ms): see
+the README's realtime section.
 
 Targets (issue 17): tick median ≤ 300 µs, p99.9 ≤ 1 ms, max ≤ 3 ms; 0 ticks waited
 for a build; ≥ 29 swaps/s; hand-off p99 ≤ 2 ms; builds: 300 k ≤ 20 ms, 1 M ≤ 80 ms.
@@ -50,7 +52,6 @@ from __future__ import annotations
 import gc
 import importlib
 import math
-import sys
 import threading
 import time
 from dataclasses import dataclass, replace
@@ -63,6 +64,7 @@ from reachwise.benchmarks._baseline_build import ingest_baseline
 from reachwise.benchmarks._harness import BenchReport, Target
 from reachwise.control.avoidance import SceneConverter
 from reachwise.control.controller import Controller, ControllerConfig, Goal
+from reachwise.control.realtime import keep_freed_memory, realtime_settings
 from reachwise.control.safety import SafetyConfig
 from reachwise.distance.ingest import ready_cloud
 from reachwise.distance.scene import OnLink, Scene
@@ -285,51 +287,46 @@ def _loop(rep: BenchReport, quick: bool) -> None:
             handoff.append((time.perf_counter() - t0) * 1e6)
             k += 1
 
-    # warm up (compile, fill caches), then freeze the garbage collector's old objects
+    # warm up (compile, fill caches) before the settings freeze what exists
     scene.set_joints(robot.name, q, stamp=0.0)
     ctrl.step(q, arm.goals[0], converter(scene.query_all(), stamp=0.0), 0.0)
     ctrl.reset()
-    gc.collect()
-    gc.freeze()
-    switch = sys.getswitchinterval()
-    sys.setswitchinterval(1e-4)
     thread = threading.Thread(target=camera, name="bench-camera", daemon=True)
     swaps0, deferred0, during0 = scene.swaps, scene.swaps_deferred, scene.queries_during_build
     clock = time.perf_counter_ns
     cpu = time.thread_time_ns
-    try:
+    with realtime_settings():
         thread.start()
-        start = time.perf_counter()
-        for k in range(ticks):
-            due = start + k * DT
-            pause = due - time.perf_counter()
-            if pause > 0:
-                time.sleep(pause)
-            now = time.perf_counter() - start
-            goal = arm.goals[goal_index]
-            building = scene.ingest.building is not None
-            c0 = cpu()
-            t0 = clock()
-            scene.set_joints(robot.name, q, stamp=now)
-            res = scene.query_all()
-            pts = converter(res, stamp=now)
-            cmd, status = ctrl.step(q, goal, pts, now)
-            tick_us[k] = (clock() - t0) * 1e-3
-            cpu_us[k] = (cpu() - c0) * 1e-3
-            during[k] = building or scene.ingest.building is not None
-            if status.state == "reached":
-                goal_index = (goal_index + 1) % len(arm.goals)
-                reached += 1
-            elif status.state == "protective_stop":
-                stopped += 1
-            q = np.clip(q + cmd * DT, robot.lower, robot.upper)
-        elapsed = time.perf_counter() - start
-    finally:
-        stop.set()
-        thread.join()
-        sys.setswitchinterval(switch)
-        gc.unfreeze()
-        scene.close()
+        try:
+            start = time.perf_counter()
+            for k in range(ticks):
+                due = start + k * DT
+                pause = due - time.perf_counter()
+                if pause > 0:
+                    time.sleep(pause)
+                now = time.perf_counter() - start
+                goal = arm.goals[goal_index]
+                building = scene.ingest.building is not None
+                c0 = cpu()
+                t0 = clock()
+                scene.set_joints(robot.name, q, stamp=now)
+                res = scene.query_all()
+                pts = converter(res, stamp=now)
+                cmd, status = ctrl.step(q, goal, pts, now)
+                tick_us[k] = (clock() - t0) * 1e-3
+                cpu_us[k] = (cpu() - c0) * 1e-3
+                during[k] = building or scene.ingest.building is not None
+                if status.state == "reached":
+                    goal_index = (goal_index + 1) % len(arm.goals)
+                    reached += 1
+                elif status.state == "protective_stop":
+                    stopped += 1
+                q = np.clip(q + cmd * DT, robot.lower, robot.upper)
+            elapsed = time.perf_counter() - start
+        finally:
+            stop.set()
+            thread.join()
+    scene.close()
     swaps = scene.swaps - swaps0
     rep.add_samples("loop.tick", tick_us)
     rep.metrics["loop.tick.max"] = float(tick_us.max())
@@ -384,6 +381,8 @@ def run(quick: bool = False) -> BenchReport:
     """Builds, the 1 kHz loop with a live camera cloud, and the server section (see
     the module docstring)."""
     rep = BenchReport("realtime")
+    kept = keep_freed_memory()
+    rep.notes.append(f"freed memory kept for reuse (glibc mallopt): {kept}")
     _builds(rep, quick)
     _loop(rep, quick)
     _server(rep, quick)
