@@ -4,6 +4,8 @@ between two queries, and every answer exact on the cloud version it reports."""
 from __future__ import annotations
 
 import math
+import os
+import sys
 import threading
 
 import numpy as np
@@ -336,4 +338,16 @@ def test_swap_in_puts_a_built_cloud_in_use_before_the_next_query(
     scene.swap_in()
     assert scene.versions["camera"] == v and scene.swaps == 1
     assert scene.query_all().cloud_stamps["camera"] == 4.0
+    scene.close()
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="per-thread priorities are Linux's")
+def test_the_worker_builds_at_a_lower_priority_than_the_loop(rng: np.random.Generator) -> None:
+    scene, _ = _camera_scene(rng)
+    v = scene.replace_cloud("camera", rng.normal(size=(200, 3)))
+    assert scene.ingest.wait("camera", v, timeout=WAIT)
+    worker = next(t for t in threading.enumerate() if t.name == "reachwise-cloud-ingest")
+    assert worker.native_id is not None
+    here = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
+    assert os.getpriority(os.PRIO_PROCESS, worker.native_id) == min(19, here + 10)
     scene.close()

