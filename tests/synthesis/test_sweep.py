@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from reachwise import load_task
+from reachwise import load_robot, load_task
 from reachwise.errors import InputError
 from reachwise.io.sweep_store import SweepStore
 from reachwise.kinematics.robot import DesignSpace
@@ -69,7 +69,7 @@ def two_round_reference(gen: Task) -> SweepResult:
 # ---- must show: P-II on tunnel-87 -----------------------------------------------------------
 def test_p2_on_tunnel_87_ranked_with_gci_kci_mean_and_reproducible() -> None:
     task = load_task("tunnel-87")
-    p2 = builtin_set("p2")
+    p2 = builtin_set("p2", load_robot)
     cfg = SweepConfig(runs=1)  # one round on the complete task, like P-II §5
     res = run_sweep(task, p2, cfg, workers=2)
     table = res.table()

@@ -317,9 +317,9 @@ def _task(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
 
 
 def _synthesis(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
+    from reachwise.api import synthesize
     from reachwise.io.synthesis_out import summary, write_synthesis
     from reachwise.io.task_file import save_task
-    from reachwise.synthesis.synthesize import synthesize
     from reachwise.viz.report_synthesis import write_synthesis_report
 
     task = ctx.task()
@@ -363,6 +363,7 @@ def _synthesis(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
 
 
 def _topology(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
+    from reachwise.io.robot_file import load_robot
     from reachwise.io.sweep_report import write_report
     from reachwise.io.sweep_store import SweepStore
     from reachwise.synthesis.sweep import SweepConfig, run_sweep
@@ -370,7 +371,7 @@ def _topology(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
     from reachwise.viz.report_topology import write_topology_report
 
     task = ctx.task()
-    topos = builtin_set("p2")
+    topos = builtin_set("p2", load_robot)
     if ctx.quick:
         topos = [t for t in topos if t.name in ("p2-man1", "p2-man3")]
     cfg = SweepConfig(subset=p["subset"], top=p["top"], runs=p["runs"], seed=ctx.seed)

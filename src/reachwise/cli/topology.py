@@ -73,6 +73,7 @@ def topology(
     what is done. Ctrl-C stops submitting, waits for the running runs, stores them and
     exits (130); a killed sweep loses nothing it stored.
     """
+    from reachwise.io.robot_file import load_robot
     from reachwise.io.sweep_report import write_report
     from reachwise.io.sweep_store import SweepStore
     from reachwise.io.task_file import load_task
@@ -103,7 +104,7 @@ def topology(
     )
     topos: list[Topology]
     if set_name is not None:
-        topos = builtin_set(set_name)
+        topos = builtin_set(set_name, load_robot)
     elif rules is not None:
         r = parse_rules(rules)
         if "rotations=" not in rules:  # rule 4 from the task: 6-D needs 3 axes, 5-D 2

@@ -1,4 +1,4 @@
-"""The SQLite results store of topology sweeps (``synthesis.sweep``; mission item 7).
+"""The SQLite results store of topology sweeps (``synthesis.sweep.store.ResultStore``; item 7).
 
 One database holds any number of sweeps, each identified by its fingerprint
 (``sweep.sweep_fingerprint``). Tables:
@@ -34,7 +34,7 @@ import numpy as np
 
 from reachwise.errors import InputError
 from reachwise.synthesis.rank import Measures
-from reachwise.synthesis.sweep import ItemResult
+from reachwise.synthesis.sweep.items import ItemResult
 
 SCHEMA_VERSION = 1
 _SCHEMA = """

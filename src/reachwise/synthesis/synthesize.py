@@ -19,6 +19,7 @@ from reachwise.kinematics.indices import lci
 from reachwise.kinematics.robot import Robot
 from reachwise.synthesis.init import initial_guess
 from reachwise.synthesis.problem import SynthesisProblem, locked_from_spec
+from reachwise.synthesis.rank import best_run_index
 from reachwise.synthesis.solvers import SolverOptions, Workspace, solve_dls, solve_trf
 from reachwise.tasks.task import Task
 
@@ -150,7 +151,7 @@ def run_once(
 
 def synthesize(
     task: Task,
-    template: Robot | str,
+    template: Robot,
     *,
     runs: int = 10,
     solver: str = "dls",
@@ -163,17 +164,14 @@ def synthesize(
 ) -> SynthesisResult:
     """Find design parameters, base frame and joint values that reach every task pose.
 
-    ``template`` is a Robot (or built-in name / file) whose ``design`` section lists
-    the free parameters and bounds. Run ``i`` uses seed ``seed + i``; ``on_run`` is
-    called after each run (progress, or keeping finished runs when interrupted).
+    ``template`` is a Robot whose ``design`` section lists the free parameters and
+    bounds (``reachwise.synthesize`` also takes built-in names and files). Run ``i``
+    uses seed ``seed + i``; ``on_run`` is called after each run (progress, or keeping
+    finished runs when interrupted).
     ``workspace="task"`` keeps the links inside the task's envelope (the tunnel of a
     drilling task) when it has one; pass ``None`` to ignore it, or any object with
     ``signed_distance`` and ``gradient``.
     """
-    if isinstance(template, str):
-        from reachwise.io.robot_file import load_robot
-
-        template = load_robot(template)
     if solver not in SOLVERS:
         raise InputError("synthesize", "solver", f"{solver!r}: choose one of {SOLVERS}")
     if runs < 1:
@@ -198,5 +196,5 @@ def result_of(
     """Assemble a result from finished runs (also used for interrupted syntheses)."""
     if not runs:
         raise InputError("synthesize", "runs", "no finished run")
-    best = min(range(len(runs)), key=lambda i: (-runs[i].n_reached, runs[i].e_obj, i))
+    best = best_run_index([r.n_reached for r in runs], [r.e_obj for r in runs])
     return SynthesisResult(problem, tuple(runs), best, solver)
