@@ -26,8 +26,9 @@ from reachwise.tasks.task import Task
 TRUE_DESIGN = np.array([0.6, 1.2, 1.0, 0.4, 0.3, 0.5, 0.3, 0.5, 0.0, 1.2])
 
 
-def hard_instance(seed: int = 7) -> SynthesisProblem:
-    """The benchmark's problem: template with ±2 m bounds and the 87 true poses."""
+def hard_instance(seed: int = 7, points: int = 87) -> SynthesisProblem:
+    """The benchmark's problem: template with ±2 m bounds and ``points`` true poses (87;
+    870 for the scaling figure)."""
     robot = load_robot("sb60")
     joints: dict[int, dict[str, tuple[float, float]]] = {}
     for kind, j, p in robot.design.free:
@@ -42,9 +43,11 @@ def hard_instance(seed: int = 7) -> SynthesisProblem:
         raise RuntimeError(f"sb60 design variables changed: {probe.design_names}")
     rng = np.random.default_rng(seed)
     span = robot.upper - robot.lower
-    Q = rng.uniform(robot.lower + 0.05 * span, robot.upper - 0.05 * span, (87, robot.n))
+    Q = rng.uniform(robot.lower + 0.05 * span, robot.upper - 0.05 * span, (points, robot.n))
     T = probe.robot_at(TRUE_DESIGN).fk(Q)
-    task = Task.from_arrays("sb60-hard-87", T[:, :3, 3], rotations=T[:, :3, :3], dims=6)
+    task = Task.from_arrays(
+        f"sb60-hard-{points}", T[:, :3, 3], rotations=T[:, :3, :3], dims=6
+    )
     return SynthesisProblem(template, task)
 
 
