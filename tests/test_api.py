@@ -32,6 +32,7 @@ def test_names_files_and_objects_give_the_same_design(tmp_path: Path) -> None:
     assert np.allclose(by_file.best.design, ref.best.design, atol=1e-6)
     assert np.allclose(by_file.q, ref.q, atol=1e-6)
 
+
 def test_unknown_names_are_input_errors() -> None:
     task = reachwise.load_task("tunnel-87")
     with pytest.raises(InputError, match="no-such-robot"):

@@ -45,9 +45,7 @@ def hard_instance(seed: int = 7, points: int = 87) -> SynthesisProblem:
     span = robot.upper - robot.lower
     Q = rng.uniform(robot.lower + 0.05 * span, robot.upper - 0.05 * span, (points, robot.n))
     T = probe.robot_at(TRUE_DESIGN).fk(Q)
-    task = Task.from_arrays(
-        f"sb60-hard-{points}", T[:, :3, 3], rotations=T[:, :3, :3], dims=6
-    )
+    task = Task.from_arrays(f"sb60-hard-{points}", T[:, :3, 3], rotations=T[:, :3, :3], dims=6)
     return SynthesisProblem(template, task)
 
 

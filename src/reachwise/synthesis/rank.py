@@ -14,7 +14,11 @@ Further keys, as P-II §6 suggests ("different performance measures can be used"
   length-scaled Jacobian (higher is better; compare designs on the same task only);
 * ``length`` — total link length ``Σ (|a_i| + |d_i|)`` over the DH rows (prismatic
   offsets included, strokes not), m (lower is better: a smaller, cheaper machine);
-* ``prismatic`` — number of prismatic joints (lower is better).
+* ``prismatic`` — number of prismatic joints (lower is better);
+* ``size``, ``limits``, ``bounds`` — the design objectives of ``objectives`` (lower is
+  better): ``Σ |a| + Σ |d|`` of the free length parameters, the mean squared normalized
+  distance of the joints from mid-range, and the bound-margin penalty. They need the
+  synthesis problem, so ``measures`` leaves them NaN and the sweep fills them in.
 
 Only feasible candidates (the best run reaches every task point) are ranked; the others
 are reported with ``rank = None`` (P-II Table 2's "−": "no solution for the problem").
@@ -50,6 +54,9 @@ RANK_KEYS: dict[str, int] = {
     "manipulability": 1,
     "length": -1,
     "prismatic": -1,
+    "size": -1,
+    "limits": -1,
+    "bounds": -1,
 }
 
 
@@ -63,6 +70,9 @@ class Measures:
     manipulability: float
     length: float
     prismatic: int
+    size: float = math.nan
+    limits: float = math.nan
+    bounds: float = math.nan
 
     def value(self, key: str) -> float:
         check_key(key)
@@ -132,8 +142,9 @@ def _sort_key(c: Candidate, key: str) -> tuple[float | str, ...]:
     m = c.measures
     if m is None:  # pragma: no cover - infeasible ones are sorted separately
         raise InputError("rank", c.name, "no measures")
+    v = m.value(key)
     return (
-        -RANK_KEYS[key] * m.value(key),
+        -RANK_KEYS[key] * (v if math.isfinite(v) else -RANK_KEYS[key] * math.inf),
         -m.mean,
         -m.gci,
         -m.kci,
@@ -157,9 +168,13 @@ def rank(candidates: Sequence[Candidate], key: str = "mean") -> tuple[RankedRow,
     )
 
 
-def best_run_index(n_reached: Sequence[int], e_obj: Sequence[float]) -> int:
-    """The best of a topology's runs: most points reached, then the smallest objective
-    ``e_obj``, then the first (the rule of ``synthesize``)."""
+def best_run_index(
+    n_reached: Sequence[int], e_obj: Sequence[float], objective: Sequence[float] | None = None
+) -> int:
+    """The best of a set of runs (the rule of ``synthesize`` and of the sweep): most
+    points reached, then the smallest weighted design ``objective`` (when given), then
+    the smallest pose error ``e_obj``, then the first."""
     if not n_reached:
         raise InputError("rank", "runs", "no run")
-    return min(range(len(n_reached)), key=lambda i: (-n_reached[i], e_obj[i], i))
+    obj = [0.0] * len(n_reached) if objective is None else list(objective)
+    return min(range(len(n_reached)), key=lambda i: (-n_reached[i], obj[i], e_obj[i], i))
