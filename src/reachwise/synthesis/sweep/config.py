@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from reachwise.errors import InputError
+from reachwise.synthesis.objectives import check_objective
 from reachwise.synthesis.rank import check_key
 from reachwise.synthesis.solvers import SolverOptions
 from reachwise.synthesis.synthesize import SOLVERS
@@ -23,7 +24,8 @@ class SweepConfig:
     the complete task; ``runs``: multi-start runs per topology and round (seeds
     ``seed … seed + runs − 1``); ``rank_key``: one of ``rank.RANK_KEYS``; ``workspace``:
     keep the links inside the task's envelope (the tunnel); ``batch_size``: runs per
-    submitted batch.
+    submitted batch; ``objective``: weights of the design objectives every run then
+    improves (``synthesis.objectives``), ``None`` for reach only.
     """
 
     subset: int | None = None
@@ -36,6 +38,7 @@ class SweepConfig:
     workspace: bool = True
     options: SolverOptions | None = None
     batch_size: int = 1
+    objective: dict[str, float] | None = None
 
     def __post_init__(self) -> None:
         if self.subset is not None and self.subset < 1:
@@ -51,3 +54,5 @@ class SweepConfig:
         if self.batch_size < 1:
             raise InputError("sweep", "batch_size", "must be >= 1")
         check_key(self.rank_key)
+        if self.objective is not None:
+            object.__setattr__(self, "objective", check_objective(self.objective, "sweep") or None)

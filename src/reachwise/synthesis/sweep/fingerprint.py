@@ -41,10 +41,12 @@ def template_fingerprint(robot: Robot) -> str:
     """Hash of a template's kinematics, limits and design space."""
     joints = [(j.type, j.a, j.alpha, j.d, j.theta, j.limits, j.passive) for j in robot.joints]
     d = robot.design
-    design = (
+    design: tuple[object, ...] = (
         [(j, sorted(d.joints[j].items())) for j in sorted(d.joints)],
         sorted(d.base.items()),
     )
+    if d.min_length or d.margin != 0.05 or d.objective:  # else: the id of earlier stores
+        design += (d.min_length, d.margin, sorted(d.objective.items()))
     return _h(
         repr((robot.convention, joints, design)).encode(),
         np.ascontiguousarray(robot.base, dtype="<f8").tobytes(),
@@ -64,4 +66,6 @@ def sweep_fingerprint(task: Task, subset: NDArray[np.intp] | None, config: Sweep
         "workspace": config.workspace,
         "options": opts,
     }
+    if config.objective:  # only then: sweeps stored before objectives keep their id
+        spec["objective"] = dict(sorted(config.objective.items()))
     return _h(json.dumps(spec, sort_keys=True).encode())[:16]

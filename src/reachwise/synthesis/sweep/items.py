@@ -12,7 +12,7 @@ import os
 import platform
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import astuple, dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from reachwise._version import __version__
 from reachwise.errors import ReachwiseError
 from reachwise.kinematics.robot import Robot
+from reachwise.synthesis.objectives import evaluate_terms
 from reachwise.synthesis.problem import SynthesisProblem
 from reachwise.synthesis.rank import Measures
 from reachwise.synthesis.rank import measures as design_measures
@@ -44,6 +45,7 @@ class WorkItem:
     init_sets: int = 8
     options: SolverOptions | None = None
     workspace: bool = True
+    objective: dict[str, float] | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,7 +91,7 @@ class ItemResult:
             and _same_float(self.e_obj, other.e_obj)
             and self.iterations == other.iterations
             and self.converged == other.converged
-            and self.measures == other.measures
+            and _same_measures(self.measures, other.measures)
             and self.design_names == other.design_names
             and self.design == other.design
             and self.status == other.status
@@ -100,6 +102,13 @@ class ItemResult:
 
 def _same_float(a: float, b: float) -> bool:
     return a == b or (math.isnan(a) and math.isnan(b))
+
+
+def _same_measures(a: Measures | None, b: Measures | None) -> bool:
+    """Equal measures, a NaN (a measure not taken) equal to a NaN."""
+    if a is None or b is None:
+        return a is b
+    return all(_same_float(float(x), float(y)) for x, y in zip(astuple(a), astuple(b), strict=True))
 
 
 def versions() -> dict[str, str]:
@@ -122,8 +131,19 @@ def run_item(item: WorkItem) -> ItemResult:
     try:
         problem = SynthesisProblem(item.template, item.task)
         ws = item.task.envelope if item.workspace else None
-        r = run_once(problem, item.seed, item.solver, item.init_sets, item.options, ws)
-        m = design_measures(r.robot, r.q)
+        r = run_once(
+            problem, item.seed, item.solver, item.init_sets, item.options, ws, item.objective
+        )
+        terms = evaluate_terms(
+            problem, problem.pack(r.design, r.q), ("size", "limits", "bounds"),
+            margin=problem.template.design.margin,
+        ).values  # fmt: skip
+        m = replace(
+            design_measures(r.robot, r.q),
+            size=terms["size"],
+            limits=terms["limits"],
+            bounds=terms["bounds"],
+        )
         res = ItemResult(
             topology=item.topology,
             round=item.round,

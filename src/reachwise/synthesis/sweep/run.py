@@ -163,6 +163,7 @@ def _run_round(
                     init_sets=cfg.init_sets,
                     options=cfg.options,
                     workspace=cfg.workspace,
+                    objective=cfg.objective,
                 )
             )
             left[t.name] = left.get(t.name, 0) + 1

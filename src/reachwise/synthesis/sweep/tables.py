@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -11,6 +12,7 @@ from numpy.typing import NDArray
 
 from reachwise.errors import InputError
 from reachwise.kinematics.robot import Robot
+from reachwise.synthesis.objectives import OBJECTIVES
 from reachwise.synthesis.problem import SynthesisProblem
 from reachwise.synthesis.rank import Candidate, RankedRow, best_run_index
 from reachwise.synthesis.rank import rank as rank_candidates
@@ -69,6 +71,17 @@ class RoundTable:
         return out
 
 
+def _key_costs(runs: Sequence[ItemResult], key: str) -> list[float] | None:
+    """With an objective as the rank key, a topology's best run is the best by it."""
+    if key not in OBJECTIVES:
+        return None
+    out = []
+    for r in runs:
+        v = r.measures.value(key) if r.measures is not None else math.nan
+        out.append(-OBJECTIVES[key] * v if math.isfinite(v) else math.inf)
+    return out
+
+
 def round_table(results: Sequence[ItemResult], round: int, key: str) -> RoundTable:
     """Rank the topologies of one round from their runs (best run per topology)."""
     by: dict[str, list[ItemResult]] = {}
@@ -76,9 +89,8 @@ def round_table(results: Sequence[ItemResult], round: int, key: str) -> RoundTab
         if r.round == round:
             by.setdefault(r.topology, []).append(r)
     runs = {k: tuple(sorted(v, key=lambda r: r.run)) for k, v in sorted(by.items())}
-    best = {
-        k: best_run_index([r.n_reached for r in v], [r.e_obj for r in v]) for k, v in runs.items()
-    }
+    best = {k: best_run_index([r.n_reached for r in v], [r.e_obj for r in v],
+                              _key_costs(v, key)) for k, v in runs.items()}  # fmt: skip
     cands = []
     points = 0
     for k, v in runs.items():
