@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -88,7 +88,10 @@ def design_rows(result: SynthesisResult) -> list[list[object]]:
 
 
 def _table3(result: SynthesisResult, with_thesis: bool) -> Raw:
-    head = ["parameter", "initial", "optimized", "changed %"]
+    from reachwise.viz.report_design import bound_flag
+
+    hits = [h.as_dict() for h in result.bound_hits()]
+    head = ["parameter", "initial", "optimized", "changed %", "bound flag"]
     if with_thesis:
         head += ["thesis initial", "thesis optimized", "thesis changed %"]
     rows = []
@@ -98,6 +101,7 @@ def _table3(result: SynthesisResult, with_thesis: bool) -> Raw:
             num(r["initial"]),
             num(r["optimized"]),
             num(r["changed_percent"], 2),
+            bound_flag(hits, str(r["parameter"])) or "–",
         ]
         if with_thesis:
             a, b, c = thesis.P1_TABLE3[str(r["parameter"])]
@@ -105,7 +109,8 @@ def _table3(result: SynthesisResult, with_thesis: bool) -> Raw:
         rows.append(row)
     cap = (
         "Normalized design parameters of the best run: 0 and 1 are each parameter's "
-        "bounds (P-I Table 3)."
+        "bounds (P-I Table 3). Bound flag: the parameter ended at, or within 1 % of its "
+        "range from, a bound (or its minimum length)."
     )
     if with_thesis:
         cap += (
@@ -246,11 +251,15 @@ def _comparison(result: SynthesisResult, data: Mapping[str, Any]) -> Raw:
 
 
 def synthesis_html(
-    result: SynthesisResult, figures: Mapping[str, FigureSource] | None = None
+    result: SynthesisResult,
+    figures: Mapping[str, FigureSource] | None = None,
+    extra: Sequence[Raw] = (),
 ) -> str:
     """The report of ``result`` as an HTML string; ``figures`` (name → Figure, PNG
-    bytes or PNG file) are embedded, ``None`` embeds none."""
+    bytes or PNG file) are embedded, ``None`` embeds none; ``extra`` sections (e.g. a
+    Pareto front, ``report_design``) follow the design tables."""
     from reachwise.io.synthesis_out import summary
+    from reachwise.viz.report_design import bounds_section, objective_section
 
     data = summary(result)
     prob = result.problem
@@ -288,6 +297,8 @@ def synthesis_html(
             id="summary",
         ),
     ]
+    objectives = objective_section(result, data)
+    body += [s for s in (objectives, bounds_section(data)) if s is not None]
     if with_thesis:
         body.append(
             section(
@@ -317,6 +328,7 @@ def synthesis_html(
                 id="design",
             ),
         ),
+        *extra,
         section("Runs (convergence)", _runs(result), id="per-run"),
         section(
             "Task points",
@@ -348,8 +360,10 @@ def write_synthesis_report(
     result: SynthesisResult,
     folder: str | Path,
     figures: Mapping[str, FigureSource] | bool = True,
+    extra: Sequence[Raw] = (),
 ) -> Path:
     """Write ``folder/report.html`` for ``result``. ``figures``: ``True`` draws them,
-    ``False`` leaves them out, a mapping embeds those (e.g. the PNGs just written)."""
+    ``False`` leaves them out, a mapping embeds those (e.g. the PNGs just written);
+    ``extra``: further sections (``synthesis_html``)."""
     figs = synthesis_figures(result) if figures is True else (figures or None)
-    return write_page(Path(folder) / "report.html", synthesis_html(result, figs))
+    return write_page(Path(folder) / "report.html", synthesis_html(result, figs, extra))
