@@ -39,3 +39,19 @@ def test_unknown_names_are_input_errors() -> None:
         reachwise.synthesize(task, "no-such-robot", runs=1)
     with pytest.raises(InputError, match="no-such-task"):
         reachwise.synthesize("no-such-task", "sb60", runs=1)
+
+
+def test_objective_by_argument_or_from_the_design_section() -> None:
+    from dataclasses import replace
+
+    task = reachwise.load_task("tunnel-87").subset(np.arange(0, 87, 29), name="tunnel-87")
+    robot = reachwise.load_robot("sb60")
+    asked = reachwise.synthesize(task, robot, runs=1, seed=2, objective={"size": 1.0})
+    assert asked.objective == {"size": 1.0} and asked.best.improved
+    assert asked.best.objective_final["size"] <= asked.best.objective_start["size"]
+    filed = replace(robot, design=replace(robot.design, objective={"size": 1.0}))
+    by_file = reachwise.synthesize(task, filed, runs=1, seed=2)
+    assert by_file.objective == {"size": 1.0}
+    assert np.array_equal(by_file.best.design, asked.best.design)
+    none = reachwise.synthesize(task, filed, runs=1, seed=2, objective={})
+    assert none.objective == {} and not none.best.improved
