@@ -198,7 +198,7 @@ def _stages(ctx: Ctx) -> list[Stage]:
             "synthesis",
             "synthesis of the sb60 boom for tunnel-87 (P-I)",
             SYNTHESIS_FOLDER,
-            {**base, "runs": 2 if q else ctx.runs},
+            {**base, "runs": 2 if q else ctx.runs, "objective": {"gci": 1.0}},
             _synthesis,
         ),
         Stage(
@@ -330,7 +330,11 @@ def _synthesis(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
         def on_run(r: Any) -> None:
             bar.update(job, advance=1, description=f"seed {r.seed}: {r.n_reached}/{len(task)}")
 
-        result = synthesize(task, "sb60", runs=runs, seed=ctx.seed, on_run=on_run)
+        # reach first, then the conditioning objective (GCI, P-II Eq. 38) in the null
+        # space of the task, every pose kept reached
+        result = synthesize(
+            task, "sb60", runs=runs, seed=ctx.seed, on_run=on_run, objective=p["objective"]
+        )
     write_synthesis(result, folder)
     save_task(task, folder / "task.yaml")
     pngs = {n: folder / f"{n}.png" for n in ("configurations", "lci")}
@@ -350,6 +354,10 @@ def _synthesis(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
         "kci_initial": b["kci_initial"],
         "table3": d["table3"],
         "table4": d["table4"],
+        "objective": d["objective"],
+        "gci_reach_only": b.get("reach_only", {}).get("gci"),
+        "kci_reach_only": b.get("reach_only", {}).get("kci"),
+        "bound_hits": d["bound_hits"],
         "_files": [_rel(ctx, report), _rel(ctx, folder / "design.yaml")],
         "_report": _rel(ctx, report),
         "_lines": [
@@ -357,9 +365,26 @@ def _synthesis(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
             f"{d['runs']} runs reach every point inside the tunnel; best (seed "
             f"{d['best_seed']}): {b['reached']}/{d['task_points']}, GCI {b['gci_initial']:.3f} "
             f"→ {b['gci']:.3f}, KCI {b['kci_initial']:.3f} → {b['kci']:.3f}",
+            *_objective_lines(d),
             f"report: {report}",
         ],
     }
+
+
+def _objective_lines(d: dict[str, Any]) -> list[str]:
+    """The conditioning objective's effect and the bound flags, for the console."""
+    b = d["best"]
+    out = []
+    if "reach_only" in b:
+        r, v = b["reach_only"], b["objective_values"]
+        out.append(
+            f"objective gci: reach-only → improved GCI {r['gci']:.4f} → {v['gci']:.4f}, "
+            f"KCI {r['kci']:.4f} → {v['kci']:.4f}, every point still reached"
+        )
+    hits = d["bound_hits"]
+    if hits:
+        out.append("bounds hit: " + ", ".join(f"{h['parameter']} ({h['side']})" for h in hits))
+    return out
 
 
 def _topology(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:

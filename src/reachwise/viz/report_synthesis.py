@@ -91,9 +91,10 @@ def _table3(result: SynthesisResult, with_thesis: bool) -> Raw:
     from reachwise.viz.report_design import bound_flag
 
     hits = [h.as_dict() for h in result.bound_hits()]
-    head = ["parameter", "initial", "optimized", "changed %", "bound flag"]
+    head = ["parameter", "initial", "optimized", "changed %"]
     if with_thesis:
         head += ["thesis initial", "thesis optimized", "thesis changed %"]
+    head += ["bound flag"]
     rows = []
     for r in result.table3():
         row: list[object] = [
@@ -101,12 +102,11 @@ def _table3(result: SynthesisResult, with_thesis: bool) -> Raw:
             num(r["initial"]),
             num(r["optimized"]),
             num(r["changed_percent"], 2),
-            bound_flag(hits, str(r["parameter"])) or "–",
         ]
         if with_thesis:
             a, b, c = thesis.P1_TABLE3[str(r["parameter"])]
             row += [num(a), num(b), num(c, 2)]
-        rows.append(row)
+        rows.append([*row, bound_flag(hits, str(r["parameter"])) or "–"])
     cap = (
         "Normalized design parameters of the best run: 0 and 1 are each parameter's "
         "bounds (P-I Table 3). Bound flag: the parameter ended at, or within 1 % of its "
