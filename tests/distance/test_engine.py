@@ -18,6 +18,7 @@ from scipy.spatial.transform import Rotation
 from reachwise import PointCloud
 from reachwise.distance import NO_RISK, STRATEGIES, DistanceResult, PairQuery, closest_points
 from reachwise.distance.brute import CHUNK_PAIRS, brute_min_pair
+from reachwise.distance.index import INDICES
 from reachwise.errors import CloudError, InputError
 
 FAST = ("default", "thesis")
@@ -268,12 +269,13 @@ def test_point_cloud_keeps_its_index() -> None:
     a = PointCloud(rng.normal(size=(100, 3)))
     b = PointCloud(rng.normal(size=(100, 3)) + 5)
     closest_points(a, b)
-    cached = dict(a.cache)
-    assert cached
+    index = INDICES.peek(a)
+    assert index is not None
+    builds = INDICES.builds
     closest_points(a, b, strategy="thesis")
     closest_points(a, b)
-    for key, value in cached.items():
-        assert a.cache[key] is value
+    assert INDICES.builds == builds  # nothing rebuilt
+    assert INDICES.peek(a) is index
 
 
 def test_read_only_and_non_contiguous_poses_are_accepted() -> None:
@@ -341,10 +343,12 @@ def test_unknown_strategy() -> None:
 
 
 def test_kernels_never_compile_during_a_query() -> None:
+    from reachwise.distance import _build as B
     from reachwise.distance import _kernels as K
 
-    before = {name: len(getattr(K, name).signatures) for name in ("dual_tree_query", "build_tree")}
+    kernels = {"dual_tree_query": K.dual_tree_query, "build_tree": B.build_tree}
+    before = {name: len(k.signatures) for name, k in kernels.items()}
     rng = np.random.default_rng(6)
     closest_points(rng.normal(size=(30, 3)), rng.normal(size=(40, 3)), random_pose(rng))
-    after = {name: len(getattr(K, name).signatures) for name in before}
+    after = {name: len(k.signatures) for name, k in kernels.items()}
     assert before == after == {"dual_tree_query": 1, "build_tree": 1}

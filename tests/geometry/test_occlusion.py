@@ -16,13 +16,10 @@ from typer.testing import CliRunner
 from reachwise.cli import app
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import voxel_keys
-from reachwise.geometry.scanner import (
-    OcclusionFill,
-    cast_rays,
-    get_scene,
-    scan_scene,
-    shadow_points,
-)
+from reachwise.geometry.occlusion import OcclusionFill, shadow_points
+from reachwise.geometry.raycast import cast_rays
+from reachwise.geometry.scan_scene import scan_scene
+from reachwise.sim.p5_scenes import get_scene
 
 finite = st.floats(-10.0, 10.0, allow_nan=False)
 

@@ -52,16 +52,16 @@ def synth(
     """
     from dataclasses import replace
 
+    from reachwise.errors import check_choice
     from reachwise.io.robot_file import load_robot
     from reachwise.io.synthesis_out import summary, write_synthesis
     from reachwise.io.task_file import load_task
+    from reachwise.report.synthesis import save_synthesis_figures, write_synthesis_report
     from reachwise.synthesis.objectives import check_objective, parse_objective
     from reachwise.synthesis.problem import SynthesisProblem, locked_from_spec
     from reachwise.synthesis.synthesize import SOLVERS, RunResult, result_of, run_once
-    from reachwise.viz.report_synthesis import write_synthesis_report
 
-    if solver not in SOLVERS:
-        raise typer.BadParameter(f"choose one of {SOLVERS}", param_hint="--solver")
+    solver_name = check_choice(solver, SOLVERS, source="--solver", kind="solver")
     if pareto is not None and objective is not None:
         raise typer.BadParameter("give --objective or --pareto, not both")
     t = load_task(task)
@@ -88,7 +88,7 @@ def synth(
         job = bar.add_task("", total=runs)
         try:
             for i in range(runs):
-                r = run_once(problem, seed + i, solver, workspace=workspace, objective=weights)
+                r = run_once(problem, seed + i, solver_name, workspace=workspace, objective=weights)
                 done.append(r)
                 bar.update(job, advance=1, description=f"run {i}: {r.n_reached}/{problem.K}")
         except KeyboardInterrupt:
@@ -96,9 +96,9 @@ def synth(
     if not done:
         console.print("interrupted before the first run finished: nothing written")
         raise typer.Exit(130)
-    result = result_of(problem, done, solver, weights)
-    folder = write_synthesis(result, out, figures=figures)
-    pngs = {n: folder / f"{n}.png" for n in ("configurations", "lci")} if figures else False
+    result = result_of(problem, done, solver_name, weights)
+    folder = write_synthesis(result, out)
+    pngs = save_synthesis_figures(result, folder) if figures else False
     extra = []
     front = None
     if names is not None and not interrupted:
@@ -141,8 +141,8 @@ def _pareto(
     """The Pareto sweep from the best run (if it reaches every pose): files in
     ``folder/pareto/``, the report section, and the data for the summary."""
     from reachwise.io.pareto_out import write_pareto
+    from reachwise.report.design import pareto_figure, pareto_section
     from reachwise.synthesis.pareto import pareto_sweep
-    from reachwise.viz.report_design import pareto_figure, pareto_section
 
     best = result.best
     if not best.reached.all():
@@ -161,7 +161,7 @@ def _pareto(
 
 def _print(result: object, data: dict) -> None:  # type: ignore[type-arg]
     from reachwise.io.synthesis_out import design_rows
-    from reachwise.viz.report_design import SIDE, bound_flag
+    from reachwise.report.design import SIDE, bound_flag
 
     console = Console()
     b = data["best"]

@@ -29,10 +29,10 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Protocol, runtime_checkable
+from typing import Literal, Protocol, get_args, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -42,10 +42,10 @@ from reachwise.distance._common import (
     as_cloud,
     check_margin,
     check_pose,
-    cloud_tree,
 )
-from reachwise.distance.engine import STRATEGIES, PairQuery
-from reachwise.errors import InputError
+from reachwise.distance.engine import STRATEGIES, PairQuery, StrategyName
+from reachwise.distance.index import cloud_index
+from reachwise.errors import InputError, UnknownName, check_choice
 from reachwise.geometry.cloud import PointCloud
 
 
@@ -105,15 +105,20 @@ class SceneObject:
     source: PoseSource
 
 
+#: Why a pair is watched: links of one robot (``self``), a robot and its environment,
+#: two robots, or a rule given by hand (``custom``).
+PairKind = Literal["self", "robot-environment", "robot-robot", "custom"]
+PAIR_KINDS: tuple[PairKind, ...] = get_args(PairKind)
+
+
 @dataclass(frozen=True)
 class WatchedPair:
-    """A pair of objects to watch: ``kind`` is ``"self"``, ``"robot-environment"``,
-    ``"robot-robot"`` or ``"custom"``; ``margin`` in metres."""
+    """A pair of objects to watch: ``kind`` (:data:`PairKind`), ``margin`` in metres."""
 
     a: str
     b: str
     margin: float
-    kind: str
+    kind: PairKind
 
 
 @dataclass(frozen=True)
@@ -124,7 +129,7 @@ class PairResult:
     a: str
     b: str
     margin: float
-    kind: str
+    kind: PairKind
     result: DistanceResult
 
 
@@ -161,13 +166,22 @@ class SceneResult:
                 return p
             if (p.a, p.b) == (b, a):
                 return PairResult(a, b, p.margin, p.kind, p.result.swapped())
-        raise KeyError(f"pair ({a!r}, {b!r}) is not watched")
+        raise UnknownName(
+            "scene", "watched pair", f"({a}, {b})", (f"({p.a}, {p.b})" for p in self.pairs)
+        )
 
 
 @runtime_checkable
 class SceneLike(Protocol):
     """The scene interface a controller and a simulation use: :class:`Scene` in
-    process, :class:`reachwise.server.client.SceneClient` over the network."""
+    process, :class:`reachwise.server.client.SceneClient` over the network. Code
+    written against it never knows which of the two it talks to."""
+
+    @property
+    def strategy(self) -> str: ...
+
+    @property
+    def robots(self) -> Mapping[str, RobotLike]: ...
 
     @property
     def objects(self) -> dict[str, SceneObject]: ...
@@ -196,7 +210,7 @@ class SceneLike(Protocol):
 
     def replace_cloud(self, name: str, cloud: PointCloud | ArrayLike) -> None: ...
 
-    def watch(self, a: str, b: str, margin: float, kind: str = "custom") -> WatchedPair: ...
+    def watch(self, a: str, b: str, margin: float, *, kind: PairKind = "custom") -> WatchedPair: ...
 
     def unwatch(self, a: str, b: str) -> None: ...
 
@@ -218,6 +232,8 @@ class SceneLike(Protocol):
 
     def query_all(self) -> SceneResult: ...
 
+    def close(self) -> None: ...
+
 
 class Scene:
     """Objects, robots and watched pairs; :meth:`query_all` answers every pair.
@@ -228,13 +244,9 @@ class Scene:
     """
 
     def __init__(
-        self, strategy: str = "default", *, clock: Callable[[], float] | None = None
+        self, *, strategy: StrategyName = "default", clock: Callable[[], float] | None = None
     ) -> None:
-        if strategy not in STRATEGIES:
-            raise InputError(
-                "strategy", "", f"unknown strategy {strategy!r}; choose one of {list(STRATEGIES)}"
-            )
-        self.strategy = strategy
+        self.strategy = check_choice(strategy, STRATEGIES, source="scene", kind="strategy")
         self.clock = clock
         self._objects: dict[str, SceneObject] = {}
         self._robots: dict[str, RobotLike] = {}
@@ -316,11 +328,7 @@ class Scene:
                 raise InputError("scene", f"object {name!r}", "give both robot and link")
             r = self._robot(robot)
             if link not in r.link_names:
-                raise InputError(
-                    "scene",
-                    f"object {name!r}",
-                    f"robot {robot!r} has no link {link!r}; links are {list(r.link_names)}",
-                )
+                raise UnknownName(f"robot {robot!r}", "link", link, r.link_names)
             if dynamic:
                 raise InputError("scene", f"object {name!r}", "a link object cannot be dynamic")
             source = OnLink(robot, link, P)
@@ -330,7 +338,7 @@ class Scene:
             self._pose_stamp[name] = self._stamp(None, f"object {name!r}")
         else:
             source = Fixed(P)
-        cloud_tree(c)
+        cloud_index(c)
         obj = SceneObject(name, c, source)
         self._objects[name] = obj
         return obj
@@ -351,7 +359,7 @@ class Scene:
         the warm starts of its pairs are dropped."""
         obj = self._object(name)
         c = as_cloud(cloud, name)
-        cloud_tree(c)
+        cloud_index(c)
         self._objects[name] = SceneObject(name, c, obj.source)
         for key in list(self._queries):
             if name in key:
@@ -359,9 +367,10 @@ class Scene:
                 self._queries[key] = self._make_query(pair)
 
     # ------------------------------------------------------------------ rules
-    def watch(self, a: str, b: str, margin: float, kind: str = "custom") -> WatchedPair:
+    def watch(self, a: str, b: str, margin: float, *, kind: PairKind = "custom") -> WatchedPair:
         """Watch objects ``a`` and ``b`` with ``margin`` metres (replaces an earlier rule
-        for the same pair)."""
+        for the same pair); ``kind`` (:data:`PairKind`) says why."""
+        kind = check_choice(kind, PAIR_KINDS, source=f"pair ({a!r}, {b!r})", kind="pair kind")
         self._object(a)
         self._object(b)
         if a == b:
@@ -414,7 +423,7 @@ class Scene:
                     continue
                 if frozenset((la, lb)) in excl or frozenset((oa.name, ob.name)) in excl:
                     continue
-                out.append(self.watch(oa.name, ob.name, margin, "self"))
+                out.append(self.watch(oa.name, ob.name, margin, kind="self"))
         return tuple(out)
 
     def watch_environment(
@@ -428,7 +437,7 @@ class Scene:
         else:
             others = [self._object(n).name for n in objects]
         return tuple(
-            self.watch(o.name, e, margin, "robot-environment") for o in mine for e in others
+            self.watch(o.name, e, margin, kind="robot-environment") for o in mine for e in others
         )
 
     def watch_robots(self, robot_a: str, robot_b: str, margin: float) -> tuple[WatchedPair, ...]:
@@ -437,7 +446,7 @@ class Scene:
             raise InputError("scene", "watch_robots", "use watch_self for one robot")
         oa = self.robot_objects(robot_a)
         ob = self.robot_objects(robot_b)
-        return tuple(self.watch(x.name, y.name, margin, "robot-robot") for x in oa for y in ob)
+        return tuple(self.watch(x.name, y.name, margin, kind="robot-robot") for x in oa for y in ob)
 
     # ------------------------------------------------------------------ queries
     def poses(self) -> dict[str, NDArray[np.float64]]:
@@ -472,6 +481,9 @@ class Scene:
             computed_at=computed,
         )
 
+    def close(self) -> None:
+        """Nothing to release in process (a remote scene disconnects here)."""
+
     # ------------------------------------------------------------------ helpers
     def _stamp(self, stamp: float | None, source: str) -> float:
         """A checked measurement time stamp (s), the clock's reading, or NaN."""
@@ -505,17 +517,13 @@ class Scene:
     def _robot(self, name: str) -> RobotLike:
         r = self._robots.get(name)
         if r is None:
-            raise InputError(
-                "scene", f"robot {name!r}", f"not registered; robots: {list(self._robots)}"
-            )
+            raise UnknownName("scene", "robot", name, self._robots)
         return r
 
     def _object(self, name: str) -> SceneObject:
         o = self._objects.get(name)
         if o is None:
-            raise InputError(
-                "scene", f"object {name!r}", f"not in the scene; objects: {list(self._objects)}"
-            )
+            raise UnknownName("scene", "object", name, self._objects)
         return o
 
     def _pose(self, obj: SceneObject, fk: dict[str, NDArray[np.float64]]) -> NDArray[np.float64]:

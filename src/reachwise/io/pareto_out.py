@@ -13,6 +13,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from reachwise.io.atomic import atomic_open, atomic_write
 from reachwise.io.robot_file import save_robot
 from reachwise.io.urdf import export_urdf
 from reachwise.synthesis.objectives import OBJECTIVES
@@ -57,8 +58,8 @@ def write_pareto(
         "front_size": len(result.front),
         "points": records,
     }
-    (folder / "front.json").write_text(json.dumps(data, indent=2))
-    with open(folder / "front.csv", "w", newline="") as fh:
+    atomic_write(folder / "front.json", json.dumps(data, indent=2))
+    with atomic_open(folder / "front.csv", "w", newline="") as fh:
         w = csv.writer(fh)
         names = list(OBJECTIVES)
         w.writerow(["index", f"w_{a}", f"w_{b}", *names, "reached", "front", "bound_hits",

@@ -16,11 +16,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Literal, get_args
 
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise.errors import InputError
+from reachwise.errors import InputError, check_choice
 from reachwise.kinematics.indices import lci
 from reachwise.kinematics.robot import Robot
 from reachwise.synthesis.bound_hits import BoundHit, bound_hits
@@ -38,7 +39,10 @@ from reachwise.synthesis.solvers import SolverOptions, Workspace, solve_dls, sol
 from reachwise.tasks.task import Task
 
 Array = NDArray[np.float64]
-SOLVERS = ("dls", "trf")
+#: A synthesis solver: ``dls`` (the thesis's damped least squares, P-I Eq. 13–14) or
+#: ``trf`` (scipy's trust-region reflective least squares, the baseline).
+SolverName = Literal["dls", "trf"]
+SOLVERS: tuple[SolverName, ...] = get_args(SolverName)
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,7 +87,7 @@ class SynthesisResult:
     problem: SynthesisProblem
     runs: tuple[RunResult, ...]
     best_index: int
-    solver: str = "dls"
+    solver: SolverName = "dls"
     notes: tuple[str, ...] = field(default_factory=tuple)
     objective: dict[str, float] = field(default_factory=dict)
 
@@ -151,7 +155,7 @@ def design_values(problem: SynthesisProblem, z: Array, lcis: Array) -> dict[str,
 def run_once(
     problem: SynthesisProblem,
     seed: int,
-    solver: str = "dls",
+    solver: SolverName = "dls",
     init_sets: int = 8,
     options: SolverOptions | None = None,
     workspace: Workspace | None = None,
@@ -215,7 +219,7 @@ def synthesize(
     template: Robot,
     *,
     runs: int = 10,
-    solver: str = "dls",
+    solver: SolverName = "dls",
     seed: int = 0,
     init_sets: int = 8,
     locked: Sequence[int] | dict[int, float] | None = None,
@@ -237,8 +241,7 @@ def synthesize(
     (``objectives.OBJECTIVES``: ``gci``, ``kci``, ``size``, ``limits``, ``bounds``) to
     weights; ``None`` takes the template's ``design.objective``, ``{}`` none.
     """
-    if solver not in SOLVERS:
-        raise InputError("synthesize", "solver", f"{solver!r}: choose one of {SOLVERS}")
+    solver = check_choice(solver, SOLVERS, source="synthesize", kind="solver")
     if runs < 1:
         raise InputError("synthesize", "runs", "at least one run")
     problem = SynthesisProblem(template, task, locked_from_spec(template, locked))
@@ -285,7 +288,7 @@ def objective_costs(runs: Sequence[RunResult], weights: Mapping[str, float]) -> 
 def result_of(
     problem: SynthesisProblem,
     runs: Sequence[RunResult],
-    solver: str = "dls",
+    solver: SolverName = "dls",
     objective: Mapping[str, float] | None = None,
 ) -> SynthesisResult:
     """Assemble a result from finished runs (also used for interrupted syntheses)."""

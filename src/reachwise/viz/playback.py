@@ -26,10 +26,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from reachwise.errors import InputError
-from reachwise.viz.modes import legend, node_name
 from reachwise.viz.scene_data import (
     distance_colours,
     height_colours,
+    legend,
+    node_name,
     pair_segments,
     polyline_segments,
     wxyz_position,

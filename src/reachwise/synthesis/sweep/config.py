@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from reachwise.errors import InputError
+from reachwise.errors import InputError, check_choice
 from reachwise.synthesis.objectives import check_objective
-from reachwise.synthesis.rank import check_key
+from reachwise.synthesis.rank import RankKey, check_key
 from reachwise.synthesis.solvers import SolverOptions
-from reachwise.synthesis.synthesize import SOLVERS
+from reachwise.synthesis.synthesize import SOLVERS, SolverName
 
 ROUND_SUBSET = 1
 ROUND_FULL = 2
@@ -32,9 +32,9 @@ class SweepConfig:
     top: int = 3
     runs: int = 3
     seed: int = 0
-    solver: str = "dls"
+    solver: SolverName = "dls"
     init_sets: int = 8
-    rank_key: str = "mean"
+    rank_key: RankKey = "mean"
     workspace: bool = True
     options: SolverOptions | None = None
     batch_size: int = 1
@@ -47,8 +47,7 @@ class SweepConfig:
             raise InputError("sweep", "top", "must be >= 1")
         if self.runs < 1:
             raise InputError("sweep", "runs", "must be >= 1")
-        if self.solver not in SOLVERS:
-            raise InputError("sweep", "solver", f"{self.solver!r}: one of {SOLVERS}")
+        check_choice(self.solver, SOLVERS, source="sweep", kind="solver")
         if self.init_sets < 1:
             raise InputError("sweep", "init_sets", "must be >= 1")
         if self.batch_size < 1:

@@ -25,7 +25,7 @@ from reachwise.synthesis.problem import SynthesisProblem
 from reachwise.synthesis.rank import Measures
 from reachwise.synthesis.rank import measures as design_measures
 from reachwise.synthesis.solvers import SolverOptions
-from reachwise.synthesis.synthesize import run_once
+from reachwise.synthesis.synthesize import SolverName, run_once
 from reachwise.tasks.task import Task
 
 Array = NDArray[np.float64]
@@ -41,7 +41,7 @@ class WorkItem:
     seed: int
     template: Robot
     task: Task
-    solver: str = "dls"
+    solver: SolverName = "dls"
     init_sets: int = 8
     options: SolverOptions | None = None
     workspace: bool = True

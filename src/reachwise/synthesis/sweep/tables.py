@@ -14,7 +14,7 @@ from reachwise.errors import InputError
 from reachwise.kinematics.robot import Robot
 from reachwise.synthesis.objectives import OBJECTIVES
 from reachwise.synthesis.problem import SynthesisProblem
-from reachwise.synthesis.rank import Candidate, RankedRow, best_run_index
+from reachwise.synthesis.rank import Candidate, RankedRow, RankKey, best_run_index
 from reachwise.synthesis.rank import rank as rank_candidates
 from reachwise.synthesis.sweep.config import ROUND_FULL, SweepConfig
 from reachwise.synthesis.sweep.items import ItemResult
@@ -29,7 +29,7 @@ class RoundTable:
 
     round: int
     task_points: int
-    rank_key: str
+    rank_key: RankKey
     rows: tuple[RankedRow, ...]
     runs: dict[str, tuple[ItemResult, ...]]
     best: dict[str, int]
@@ -71,7 +71,7 @@ class RoundTable:
         return out
 
 
-def _key_costs(runs: Sequence[ItemResult], key: str) -> list[float] | None:
+def _key_costs(runs: Sequence[ItemResult], key: RankKey) -> list[float] | None:
     """With an objective as the rank key, a topology's best run is the best by it."""
     if key not in OBJECTIVES:
         return None
@@ -82,7 +82,7 @@ def _key_costs(runs: Sequence[ItemResult], key: str) -> list[float] | None:
     return out
 
 
-def round_table(results: Sequence[ItemResult], round: int, key: str) -> RoundTable:
+def round_table(results: Sequence[ItemResult], round: int, key: RankKey) -> RoundTable:
     """Rank the topologies of one round from their runs (best run per topology)."""
     by: dict[str, list[ItemResult]] = {}
     for r in results:

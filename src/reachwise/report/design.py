@@ -12,8 +12,8 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
+from reachwise.report.html import Raw, figure, link, num, para, section, table, yes_no
 from reachwise.synthesis.objectives import OBJECTIVES
-from reachwise.viz.report_html import Raw, figure, link, num, para, section, table, yes_no
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
