@@ -259,7 +259,7 @@ def _make_agent(
     robot: Robot,
     control: dict[tuple[str, str], float],
     avoidance: bool,
-    plant: str,
+    plant: PlantName,
     job_robots: set[str],
 ) -> Agent:
     """One robot's controller, scene converter, plant and own goals."""

@@ -4,8 +4,8 @@ time, or rejected the request's content."""
 from __future__ import annotations
 
 import reachwise.errors as errors
-from reachwise.errors import InputError
 import reachwise.server.protocol as P
+from reachwise.errors import InputError
 
 __all__ = ["ServerError", "ServerInputError", "ServerUnavailable"]
 

@@ -57,7 +57,9 @@ from typing import TYPE_CHECKING, TypeVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+import reachwise.server.protocol as P
 from reachwise.distance._common import as_cloud, check_margin, check_pose
+from reachwise.distance.engine import STRATEGIES, StrategyName
 from reachwise.distance.scene import (
     Fixed,
     OnLink,
@@ -69,11 +71,10 @@ from reachwise.distance.scene import (
     SceneObject,
     WatchedPair,
 )
-from reachwise.errors import InputError
+from reachwise.errors import InputError, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_file import robot_from_dict, robot_to_dict
 from reachwise.kinematics.robot import Robot
-import reachwise.server.protocol as P
 from reachwise.server.client.channel import Channel
 from reachwise.server.client.errors import ServerError, ServerInputError, ServerUnavailable
 from reachwise.server.client.results import (
@@ -216,9 +217,11 @@ class SceneClient:
 
     # ------------------------------------------------------------------ scene interface
     @property
-    def strategy(self) -> str:
+    def strategy(self) -> StrategyName:
         """The server scene's distance strategy."""
-        return self.describe().strategy
+        return check_choice(
+            self.describe().strategy, STRATEGIES, source=self.address, kind="strategy"
+        )
 
     @property
     def sequence(self) -> int:

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+import reachwise.server.protocol as P
 from reachwise.distance._common import NO_RISK, DistanceResult
 from reachwise.distance.scene import (
     Fixed,
@@ -21,7 +22,6 @@ from reachwise.distance.scene import (
     WatchedPair,
 )
 from reachwise.geometry.cloud import PointCloud
-import reachwise.server.protocol as P
 from reachwise.server.client.errors import ServerError
 
 __all__ = [
