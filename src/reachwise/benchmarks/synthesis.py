@@ -83,12 +83,12 @@ def _runs(
 
 
 def _objectives(rep: BenchReport, tag: str, task: Task, template: Robot, runs: int,
-                pareto_points: int) -> None:  # fmt: skip
+                pareto_points: int, min_length: float) -> None:  # fmt: skip
     """GCI gain, KCI, size reduction and Pareto front size of one task (module docstring)."""
     from reachwise.synthesis.pareto import pareto_sweep
     from reachwise.synthesis.synthesize import synthesize
 
-    tmpl = replace(template, design=replace(template.design, min_length=0.1))
+    tmpl = replace(template, design=replace(template.design, min_length=min_length))
     g = synthesize(task, tmpl, runs=runs, seed=0, objective={"gci": 1.0}).best
     if g.improved and g.lci_reach is not None:
         rep.metrics[f"{tag}.gci_over_reach_only"] = float(g.lci_final.mean() / g.lci_reach.mean())
@@ -182,7 +182,7 @@ def run(quick: bool = False) -> BenchReport:
     # -- design objectives: the hard instance, and tunnel-87 for comparison
     runs_obj = 1 if quick else 2
     points = 4 if quick else 8
-    _objectives(rep, "hard", prob.task, prob.template, runs_obj, points)
+    _objectives(rep, "hard", prob.task, prob.template, runs_obj, points, 0.1)
     if "hard.gci_over_reach_only" in rep.metrics:
         rep.targets["hard_gci_gain"] = Target(rep.metrics["hard.gci_over_reach_only"], 1.25, True)
         rep.targets["hard_kci_not_lower"] = Target(
@@ -195,5 +195,7 @@ def run(quick: bool = False) -> BenchReport:
             rep.metrics["hard.pareto_non_dominated"], 5.0, True
         )
     if not quick:
-        _objectives(rep, "tunnel", task, sb60, runs_obj, points)
+        # no minimum length here: the stand-in boom reaches all of tunnel-87 only with
+        # a2 = d7 = 0 (with 0.1 m every run stops at 84 of 87 poses; the flags say so)
+        _objectives(rep, "tunnel", task, sb60, runs_obj, points, 0.0)
     return rep
