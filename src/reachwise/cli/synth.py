@@ -142,6 +142,7 @@ def _pareto(
     ``folder/pareto/``, the report section, and the data for the summary."""
     from reachwise.io.pareto_out import write_pareto
     from reachwise.report.design import pareto_figure, pareto_section
+    from reachwise.report.png import save_png
     from reachwise.synthesis.pareto import pareto_sweep
 
     best = result.best
@@ -155,7 +156,7 @@ def _pareto(
     data = write_pareto(front, folder / "pareto")
     fig = pareto_figure(front) if figures else None
     if fig is not None:
-        fig.savefig(folder / "pareto" / "front.png", dpi=110)
+        save_png(fig, folder / "pareto" / "front.png", dpi=110)
     return data, pareto_section(front, data, fig)
 
 
