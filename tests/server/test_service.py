@@ -105,7 +105,8 @@ def test_same_answers_as_the_in_process_scene(
                 assert r.sequence > last
                 last = r.sequence
                 assert before <= r.measured_at <= r.computed_at
-                assert 0.0 < r.compute_time < 5.0
+                # the server's computation lies within this client's round trip
+                assert 0.0 < r.compute_time <= r.computed_at - before
                 within += len(r.at_risk())
             assert within > 0, "the path must bring pairs within their margins"
     # the scene interface: contents as the in-process scene has them
