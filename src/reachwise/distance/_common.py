@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from reachwise.distance import _kernels as K
+from reachwise.distance._build import build_tree
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
 
@@ -105,7 +106,7 @@ class CloudTree:
         if not 1 <= leaf_size <= K.LEAF_MAX:
             raise InputError("leaf_size", "", f"must be in 1..{K.LEAF_MAX}, got {leaf_size}")
         pts = np.array(points, dtype=np.float64, order="C", copy=True)
-        tp, perm, boxes, info = K.build_tree(pts, leaf_size)
+        tp, perm, boxes, info = build_tree(pts, leaf_size)
         inverse = np.empty_like(perm)
         inverse[perm] = np.arange(perm.shape[0])
         centroid = np.ascontiguousarray(pts.mean(axis=0))

@@ -5,11 +5,11 @@ importing this module compiles them once (or loads them from numba's on-disk cac
 a query never compiles: a call with other argument types raises ``TypeError`` instead.
 None uses ``parallel=True``, BLAS or threads; one query runs on one core.
 
-The tree (:func:`build_tree`) is a compact, array-based k-d tree of axis-aligned boxes
-built in the cloud's own frame: nodes in depth-first order (node ``k``'s left child is
+The tree the queries walk is built by :func:`reachwise.distance._build.build_tree` (a
+linear BVH in Morton order): nodes in depth-first order (node ``k``'s left child is
 ``k + 1``, its right child ``info[k, 2]``, ``-1`` for a leaf), each covering the
-contiguous range ``info[k, 0]:info[k, 1]`` of the tree-ordered points, split at the
-median of the box's widest axis until at most ``leaf_size`` points remain.
+contiguous range ``info[k, 0]:info[k, 1]`` of the tree-ordered points with their tight
+box, leaves of at most ``leaf_size`` (≤ :data:`LEAF_MAX`) points.
 """
 
 from __future__ import annotations
@@ -17,134 +17,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-# --------------------------------------------------------------------------- tree build
-
-
-@njit(cache=True, nogil=True)
-def _swap(pts, idx, i, j):  # type: ignore[no-untyped-def]
-    for c in range(3):
-        t = pts[i, c]
-        pts[i, c] = pts[j, c]
-        pts[j, c] = t
-    k = idx[i]
-    idx[i] = idx[j]
-    idx[j] = k
-
-
-@njit(cache=True, nogil=True)
-def _select(pts, idx, axis, s, e, k):  # type: ignore[no-untyped-def]
-    """Reorder rows s:e so that row k holds the k-th smallest coordinate ``axis``, rows
-    before it are <= and rows after it >= (Hoare selection; robust to duplicates)."""
-    lo = s
-    hi = e - 1
-    while hi > lo:
-        a = pts[lo, axis]
-        b = pts[(lo + hi) // 2, axis]
-        c = pts[hi, axis]
-        if a > b:
-            a, b = b, a
-        if b > c:
-            b = c
-        pivot = max(a, b)
-        i = lo
-        j = hi
-        while i <= j:
-            while pts[i, axis] < pivot:
-                i += 1
-            while pts[j, axis] > pivot:
-                j -= 1
-            if i <= j:
-                _swap(pts, idx, i, j)
-                i += 1
-                j -= 1
-        if k <= j:
-            hi = j
-        elif k >= i:
-            lo = i
-        else:
-            break
-
-
 #: Largest leaf size the query kernel accepts (its per-leaf scratch arrays).
 LEAF_MAX = 64
-
-_SIG_BUILD = (
-    "Tuple((float64[:, ::1], int64[::1], float64[:, ::1], int64[:, ::1]))(float64[:, ::1], int64)"
-)
-
-
-@njit(_SIG_BUILD, cache=True, nogil=True)
-def build_tree(points, leaf_size):  # type: ignore[no-untyped-def]
-    """k-d tree of (N, 3) ``points``: returns (points in tree order, tree->input index,
-    node boxes (M, 6) as lo xyz, hi xyz, node info (M, 3) as start, end, right child)."""
-    n = points.shape[0]
-    pts = points.copy()
-    idx = np.arange(n)
-    half = max(1, leaf_size // 2)
-    max_nodes = 2 * (n // half) + 3
-    boxes = np.empty((max_nodes, 6))
-    info = np.empty((max_nodes, 3), np.int64)
-    st_s = np.empty(256, np.int64)
-    st_e = np.empty(256, np.int64)
-    st_p = np.empty(256, np.int64)
-    sp = 0
-    st_s[0] = 0
-    st_e[0] = n
-    st_p[0] = -1
-    sp = 1
-    count = 0
-    while sp > 0:
-        sp -= 1
-        s = st_s[sp]
-        e = st_e[sp]
-        parent = st_p[sp]
-        node = count
-        count += 1
-        if parent >= 0:
-            info[parent, 2] = node
-        lx = ly = lz = np.inf
-        hx = hy = hz = -np.inf
-        for i in range(s, e):
-            x = pts[i, 0]
-            y = pts[i, 1]
-            z = pts[i, 2]
-            lx = min(lx, x)
-            ly = min(ly, y)
-            lz = min(lz, z)
-            hx = max(hx, x)
-            hy = max(hy, y)
-            hz = max(hz, z)
-        boxes[node, 0] = lx
-        boxes[node, 1] = ly
-        boxes[node, 2] = lz
-        boxes[node, 3] = hx
-        boxes[node, 4] = hy
-        boxes[node, 5] = hz
-        info[node, 0] = s
-        info[node, 1] = e
-        info[node, 2] = -1
-        if e - s <= leaf_size:
-            continue
-        ex = hx - lx
-        ey = hy - ly
-        ez = hz - lz
-        axis = 0
-        if ey > ex and ey >= ez:
-            axis = 1
-        elif ez > ex and ez > ey:
-            axis = 2
-        m = (s + e) // 2
-        _select(pts, idx, axis, s, e, m)
-        st_s[sp] = m  # right child: pushed first, built after the whole left subtree
-        st_e[sp] = e
-        st_p[sp] = node
-        sp += 1
-        st_s[sp] = s  # left child: built next, so it gets id node + 1
-        st_e[sp] = m
-        st_p[sp] = -1
-        sp += 1
-    return pts, idx, boxes[:count].copy(), info[:count].copy()
-
 
 # --------------------------------------------------------------------------- poses
 

@@ -1,0 +1,74 @@
+"""The tree build (linear BVH in Morton order): the layout every query kernel relies on,
+checked node by node, and exact queries on clouds that stress the build."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from reachwise.distance._build import build_tree, morton_order
+
+
+def check_layout(points: np.ndarray, leaf_size: int) -> None:
+    """Every property of the tree layout, against the input points."""
+    tp, perm, boxes, info = build_tree(np.ascontiguousarray(points, dtype=np.float64), leaf_size)
+    n = points.shape[0]
+    assert sorted(perm.tolist()) == list(range(n))
+    np.testing.assert_array_equal(tp, points[perm])
+    assert info[0, 0] == 0 and info[0, 1] == n
+    seen = np.zeros(n, int)
+    for k in range(info.shape[0]):
+        s, e, r = info[k]
+        assert 0 <= s < e <= n
+        np.testing.assert_array_equal(boxes[k, :3], tp[s:e].min(axis=0))
+        np.testing.assert_array_equal(boxes[k, 3:], tp[s:e].max(axis=0))
+        if r < 0:
+            assert e - s <= leaf_size
+            seen[s:e] += 1
+        else:
+            left = k + 1
+            assert left < r < info.shape[0]
+            # the children split the parent's range in two, left first
+            assert info[left, 0] == s and info[left, 1] == info[r, 0] and info[r, 1] == e
+    assert (seen == 1).all()  # the leaves partition the points
+
+
+coords = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    arrays(np.float64, st.tuples(st.integers(1, 300), st.just(3)), elements=coords),
+    st.integers(1, 16),
+)
+def test_layout_on_random_clouds(points: np.ndarray, leaf_size: int) -> None:
+    check_layout(points, leaf_size)
+
+
+def test_layout_on_clouds_that_share_cells() -> None:
+    rng = np.random.default_rng(3)
+    dense = rng.normal(scale=1e-3, size=(2000, 3))
+    outliers = np.array([[1e4, 0, 0], [-1e4, 5e3, 0]])  # coarse cells: one holds all
+    duplicates = np.repeat(rng.normal(size=(5, 3)), 200, axis=0)
+    line = np.c_[np.linspace(0, 1, 1000), np.zeros(1000), np.zeros(1000)]
+    for cloud in (np.vstack([dense, outliers]), duplicates, line, np.zeros((50, 3))):
+        check_layout(cloud, 8)
+
+
+def test_morton_order_sorts_by_interleaved_cell_bits() -> None:
+    rng = np.random.default_rng(4)
+    pts = rng.uniform(0, 1, size=(500, 3))
+    order, codes = morton_order(pts)
+    assert (np.diff(codes) >= 0).all()
+    # independent Morton codes: interleave the 10-bit cell coordinates bit by bit
+    lo = pts.min(axis=0)
+    span = (pts.max(axis=0) - lo).max()
+    cell = ((pts - lo) * ((1 << 10) - 1e-3) / span).astype(np.int64)
+    ref = np.zeros(len(pts), np.int64)
+    for bit in range(10):
+        for axis, shift in ((0, 2), (1, 1), (2, 0)):
+            ref |= ((cell[:, axis] >> bit) & 1) << (3 * bit + shift)
+    np.testing.assert_array_equal(codes, ref[order])
+    assert sorted(order.tolist()) == list(range(500))
