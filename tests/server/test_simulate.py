@@ -19,12 +19,10 @@ from reachwise.server.client import SceneClient, ServerOptions, owned_scene
 from reachwise.sim.log import SimulationLog
 from reachwise.sim.simulate import simulate
 
+from .conftest import HANG_GUARD
+
 SCENARIO = "p5-crane-obstacle"
 DURATION = 2.5  # s: the grabber comes within its margin of the scan before this
-#: Per-tick reply deadline (s): only a hang guard. The runs are in simulated time, so a
-#: reply's real delay changes nothing unless it misses this; a loaded machine must not
-#: turn a slow reply into "missing data" and a different log.
-HANG_GUARD = 60.0
 
 
 def _assert_identical(remote: SimulationLog, local: SimulationLog) -> None:
