@@ -10,6 +10,9 @@ import pytest
 from reachwise.kinematics.robot import Joint, Robot
 from reachwise.kinematics.transforms import pose_from_xyz_rpy
 
+#: The headless-browser fixtures of the viewer and report tests.
+pytest_plugins = ["tests.browser"]
+
 
 def random_chain(rng: np.random.Generator, n_joints: int = 7, classic: bool = False) -> Robot:
     """A random chain mixing revolute, prismatic and fixed joints, random base and tool."""

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from reachwise._version import __version__
 from reachwise.geometry.cloud import PointCloud
-from reachwise.io.robot_file import load_robot
+from reachwise.io.robot_file import load_robot, save_robot
 from reachwise.io.task_file import load_task
 from reachwise.kinematics.ik import IKResult
 from reachwise.kinematics.robot import Joint, Robot
@@ -29,6 +29,7 @@ __all__ = [
     "__version__",
     "load_robot",
     "load_task",
+    "save_robot",
     "simulate",
     "synthesize",
 ]

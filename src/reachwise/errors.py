@@ -22,7 +22,7 @@ input 2, missing dependency 3, unavailable service 4, anything else 1.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from typing import ClassVar
+from typing import ClassVar, TypeVar
 
 __all__ = [
     "CloudError",
@@ -33,6 +33,7 @@ __all__ = [
     "ServerUnavailable",
     "TaskError",
     "UnknownName",
+    "check_choice",
 ]
 
 
@@ -97,12 +98,28 @@ class UnknownName(InputError, KeyError):
         super().__init__(source, kind, reason)
 
 
+_S = TypeVar("_S", bound=str)
+
+
+def check_choice(value: object, valid: tuple[_S, ...], *, source: str, kind: str) -> _S:
+    """``value`` as one of the ``valid`` names (the values of a ``Literal`` mode, e.g.
+    ``typing.get_args(Strategy)``), or :class:`UnknownName` listing them."""
+    for v in valid:
+        if value == v:
+            return v
+    raise UnknownName(source, kind, str(value), valid)
+
+
 class MissingDependency(ReachwiseError, ImportError):
     """An optional package is missing: ``purpose`` needs ``package``, from the ``extra``.
 
     The message always has the same form::
 
         the local-minimum escape needs the optional package 'ompl': pip install "reachwise[plan]"
+
+    ``extra=""`` names a package that no extra brings (one reachwise installs only on
+    some platforms, or one a broken environment lost): the hint installs the package
+    itself, ``pip install "embreex"``.
     """
 
     exit_code: ClassVar[int] = 3
@@ -111,7 +128,7 @@ class MissingDependency(ReachwiseError, ImportError):
         self.package = package
         self.extra = extra
         self.purpose = purpose
-        self.hint = f'pip install "reachwise[{extra}]"'
+        self.hint = f'pip install "reachwise[{extra}]"' if extra else f'pip install "{package}"'
         super().__init__(
             f"{purpose} needs the optional package {package!r}: {self.hint}", name=package
         )

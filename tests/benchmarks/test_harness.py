@@ -15,6 +15,7 @@ from typer.testing import CliRunner
 from reachwise.benchmarks import REGISTRY
 from reachwise.benchmarks._harness import BenchReport, Target, time_calls, time_interleaved
 from reachwise.cli import app
+from reachwise.errors import UnknownName
 
 TOP_KEYS = {"benchmark", "machine", "metrics", "ratios", "targets"}
 
@@ -134,4 +135,5 @@ def test_bench_json_of_a_real_benchmark_has_the_design_shape() -> None:
 
 def test_unknown_benchmark_is_refused() -> None:
     res = CliRunner().invoke(app, ["bench", "no-such-bench", "--json"])
-    assert res.exit_code == 2 and "no-such-bench" in res.output
+    assert isinstance(res.exception, UnknownName) and res.exception.exit_code == 2
+    assert "no-such-bench" in str(res.exception) and "kinematics" in str(res.exception)

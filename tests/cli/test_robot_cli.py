@@ -7,7 +7,7 @@ from pathlib import Path
 
 from typer.testing import CliRunner
 
-from reachwise import __version__, load_robot
+from reachwise import __version__, load_robot, save_robot
 from reachwise.cli import app
 
 runner = CliRunner()
@@ -30,7 +30,7 @@ def test_robot_show_json_reports_reach_and_conditioning() -> None:
 
 def test_robot_check_good_and_bad(tmp_path: Path) -> None:
     good = tmp_path / "panda.yaml"
-    load_robot("panda").save(str(good))
+    save_robot(load_robot("panda"), good)
     res = runner.invoke(app, ["robot", "check", str(good)])
     assert res.exit_code == 0 and "ok" in res.output
     bad = tmp_path / "bad.yaml"

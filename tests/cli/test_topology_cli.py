@@ -22,6 +22,7 @@ from typer.testing import CliRunner
 
 from reachwise import load_robot
 from reachwise.cli.topology import topology
+from reachwise.errors import UnknownName
 from reachwise.io.sweep_store import SweepStore
 from reachwise.io.task_file import load_task, save_task
 from reachwise.synthesis.sweep import SweepConfig, run_sweep
@@ -98,7 +99,6 @@ def test_human_output_and_enumerate_list(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("extra", "match"),
     [([], "exactly one"), (["--set", "p2", "--spec", "RRR"], "exactly one"),
-     (["--set", "p2", "--rank", "speed"], "mean, gci"),
      (["--set", "p2", "--lengths", "2:-2"], "LO > HI"),
      (["--set", "p2", "--stroke", "x"], "LO:HI")],
 )  # fmt: skip
@@ -109,6 +109,18 @@ def test_bad_arguments(tmp_path: Path, extra: list[str], match: str) -> None:
     )  # fmt: skip
     assert res.exit_code == 2
     assert match in res.output
+
+
+def test_an_unknown_rank_key_lists_the_valid_ones(tmp_path: Path) -> None:
+    res = runner.invoke(
+        app, ["--task", "tunnel-87", "--db", str(tmp_path / "e.db"), "--out", str(tmp_path),
+              "--set", "p2", "--rank", "speed"],
+    )  # fmt: skip
+    assert isinstance(res.exception, UnknownName)  # `reachwise` exits 2 with this line
+    assert "unknown rank key 'speed'; valid: gci, kci, length, manipulability, mean" in str(
+        res.exception
+    )
+    assert not (tmp_path / "e.db").exists()
 
 
 def test_ctrl_c_exits_130_keeping_finished_runs(tmp_path: Path) -> None:

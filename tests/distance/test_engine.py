@@ -18,6 +18,7 @@ from scipy.spatial.transform import Rotation
 from reachwise import PointCloud
 from reachwise.distance import NO_RISK, STRATEGIES, DistanceResult, PairQuery, closest_points
 from reachwise.distance.brute import CHUNK_PAIRS, brute_min_pair
+from reachwise.distance.index import INDICES
 from reachwise.errors import CloudError, InputError
 
 FAST = ("default", "thesis")
@@ -268,12 +269,13 @@ def test_point_cloud_keeps_its_index() -> None:
     a = PointCloud(rng.normal(size=(100, 3)))
     b = PointCloud(rng.normal(size=(100, 3)) + 5)
     closest_points(a, b)
-    cached = dict(a.cache)
-    assert cached
+    index = INDICES.peek(a)
+    assert index is not None
+    builds = INDICES.builds
     closest_points(a, b, strategy="thesis")
     closest_points(a, b)
-    for key, value in cached.items():
-        assert a.cache[key] is value
+    assert INDICES.builds == builds  # nothing rebuilt
+    assert INDICES.peek(a) is index
 
 
 def test_read_only_and_non_contiguous_poses_are_accepted() -> None:

@@ -11,8 +11,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from reachwise import PointCloud
 from reachwise.distance import PairQuery, Scene, closest_points
+from reachwise.distance.index import INDICES
 from reachwise.distance.scene import RobotLike
-from reachwise.errors import InputError
+from reachwise.errors import InputError, UnknownName
 
 
 def _rz(q: float) -> NDArray[np.float64]:
@@ -136,7 +137,9 @@ def test_query_all_matches_closest_points_at_the_link_poses() -> None:
                 return frames[index[src.link]] @ src.offset
             return src.pose if hasattr(src, "pose") else _tx(0.6)
 
-        ref = closest_points(oa.cloud, ob.cloud, pose_of(oa), pose_of(ob), p.margin, "brute")
+        ref = closest_points(
+            oa.cloud, ob.cloud, pose_of(oa), pose_of(ob), p.margin, strategy="brute"
+        )
         assert p.result.no_risk == ref.no_risk
         if not ref.no_risk:
             assert p.result.distance == pytest.approx(ref.distance, abs=1e-12)
@@ -152,6 +155,8 @@ def test_query_all_matches_closest_points_at_the_link_poses() -> None:
     if not before.no_risk:
         swapped = res.get("crate", "arm/link_1").result
         np.testing.assert_allclose(swapped.direction, -before.direction)
+    with pytest.raises(UnknownName, match=r"unknown watched pair '\(crate, floor\)'"):
+        res.get("crate", "floor")
 
 
 def test_joint_state_moves_the_link_objects() -> None:
@@ -190,8 +195,8 @@ def test_replace_cloud_rebuilds_and_answers_with_the_new_cloud() -> None:
     scene.watch("part", "env", 2.0)
     assert scene.query_all().pairs[0].result.distance == pytest.approx(1.0)
     new = PointCloud(np.array([[0.0, 0.0, 0.25], [3.0, 0.0, 0.0]]), name="rescan")
-    scene.replace_cloud("env", new)
-    assert new.cache  # indexed at once
+    scene.replace_cloud("env", new, block=True)
+    assert INDICES.peek(new) is not None  # indexed at once
     r = scene.query_all().pairs[0].result
     assert r.distance == pytest.approx(0.25) and r.index_b == 0
 
@@ -214,15 +219,15 @@ def test_scene_with_other_strategies_agrees() -> None:
 
 def test_scene_errors() -> None:
     scene = Scene()
-    with pytest.raises(InputError, match="unknown strategy"):
-        Scene(strategy="nope")
-    with pytest.raises(InputError, match="not registered"):
+    with pytest.raises(UnknownName, match="unknown strategy 'nope'; valid: brute, default, thesis"):
+        Scene(strategy="nope")  # type: ignore[arg-type]
+    with pytest.raises(UnknownName, match="unknown robot 'ghost'; there are none"):
         scene.add_object("x", np.zeros((1, 3)), robot="ghost", link="link_0")
     robot = FakeChain("arm", (0.5,))
     scene.add_robot(robot)
     with pytest.raises(InputError, match="already registered"):
         scene.add_robot(robot)
-    with pytest.raises(InputError, match="no link 'link_9'"):
+    with pytest.raises(UnknownName, match="'arm': link: unknown link 'link_9'; valid: link_0, "):
         scene.add_object("x", np.zeros((1, 3)), robot="arm", link="link_9")
     scene.add_object("x", np.zeros((1, 3)), robot="arm", link="link_1")
     scene.add_object("y", np.ones((1, 3)))
@@ -230,8 +235,10 @@ def test_scene_errors() -> None:
         scene.add_object("y", np.ones((1, 3)))
     with pytest.raises(InputError, match="not set at run time"):
         scene.set_pose("y", np.eye(4))
-    with pytest.raises(InputError, match="not in the scene"):
+    with pytest.raises(UnknownName, match="unknown object 'z'; valid: x, y"):
         scene.watch("x", "z", 0.1)
+    with pytest.raises(UnknownName, match="unknown pair kind 'near'; valid: custom, robot-"):
+        scene.watch("x", "y", 0.1, kind="near")  # type: ignore[arg-type]
     with pytest.raises(InputError, match="itself"):
         scene.watch("x", "x", 0.1)
     with pytest.raises(InputError, match="margin"):

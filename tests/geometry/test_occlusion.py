@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 from typer.testing import CliRunner
@@ -16,13 +16,10 @@ from typer.testing import CliRunner
 from reachwise.cli import app
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud, voxel_keys
-from reachwise.geometry.scanner import (
-    OcclusionFill,
-    cast_rays,
-    get_scene,
-    scan_scene,
-    shadow_points,
-)
+from reachwise.geometry.occlusion import OcclusionFill, shadow_points
+from reachwise.geometry.raycast import cast_rays
+from reachwise.geometry.scan_scene import scan_scene
+from reachwise.sim.p5_scenes import get_scene
 
 finite = st.floats(-10.0, 10.0, allow_nan=False)
 
@@ -39,8 +36,11 @@ def test_every_virtual_point_lies_on_its_ray_behind_its_hit(  # type: ignore[typ
 ) -> None:
     o = np.array(origin)
     h = np.array(hits)
-    pts, ray = shadow_points(o, h, depth, spacing)
     r = np.linalg.norm(h - o, axis=1)
+    # a hit at the origin, or a real range: not 1e-160 m, whose square underflows and
+    # makes this test's own unit vector inexact
+    assume(np.all((r == 0.0) | (r > 1e-6)))
+    pts, ray = shadow_points(o, h, depth, spacing)
     # count per ray: floor(depth / spacing) samples, none for a hit at the origin
     want = np.where(r > 0, np.floor(depth / spacing + 1e-9), 0).astype(int)
     np.testing.assert_array_equal(np.bincount(ray, minlength=len(h)), want)

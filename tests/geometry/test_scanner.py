@@ -9,13 +9,10 @@ import pytest
 import trimesh
 
 from reachwise.errors import CloudError, InputError
-from reachwise.geometry.scanner import (
-    LaserScanner,
-    cast_rays,
-    get_scene,
-    p5_floor_obstacle,
-    scan_scene,
-)
+from reachwise.geometry.raycast import cast_rays
+from reachwise.geometry.scan_scene import scan_scene
+from reachwise.geometry.scanner import LaserScanner
+from reachwise.sim.p5_scenes import get_scene, p5_floor_obstacle
 
 ENGINES = ["triangle"] + (["embree"] if trimesh.ray.has_embree else [])
 
@@ -266,9 +263,9 @@ def test_p5_scene_gives_about_5500_points() -> None:
 
 
 def test_scan_scene_options() -> None:
-    raw, cloud = scan_scene("p5-floor-obstacle", 1, noise=0.005, coarsen=3)
+    raw, cloud = scan_scene(get_scene("p5-floor-obstacle"), 1, noise=0.005, coarsen=3)
     assert raw.n_rays < 10_000 and len(cloud) < len(raw.cloud)
-    raw2, _ = scan_scene("p5-floor-obstacle", 1, noise=0.005, coarsen=3)
+    raw2, _ = scan_scene(get_scene("p5-floor-obstacle"), 1, noise=0.005, coarsen=3)
     np.testing.assert_array_equal(raw.points, raw2.points)
     with pytest.raises(InputError, match="unknown scene 'rock'"):
         get_scene("rock")

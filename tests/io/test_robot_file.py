@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import yaml
 
-from reachwise import load_robot
-from reachwise.errors import RobotFileError
+from reachwise import load_robot, save_robot
+from reachwise.errors import RobotFileError, UnknownName
 from reachwise.io.robot_file import builtin_robots, load_robot_file, robot_to_dict
 
 GOOD = {
@@ -41,7 +41,7 @@ def test_load_and_round_trip(tmp_path: Path, rng: np.random.Generator) -> None:
     assert robot.joints[2].alpha == pytest.approx(-np.pi / 2)
     assert robot.design.size == 3
     out = tmp_path / "again.yaml"
-    robot.save(str(out))
+    save_robot(robot, out)
     again = load_robot(str(out))
     Q = rng.uniform(robot.lower, robot.upper, (20, robot.n))
     np.testing.assert_allclose(again.fk_all(Q), robot.fk_all(Q), atol=1e-12)
@@ -59,7 +59,7 @@ def test_load_and_round_trip(tmp_path: Path, rng: np.random.Generator) -> None:
 @pytest.mark.parametrize("name", builtin_robots())
 def test_every_builtin_round_trips(name: str, tmp_path: Path, rng: np.random.Generator) -> None:
     robot = load_robot(name)
-    robot.save(str(tmp_path / "r.yaml"))
+    save_robot(robot, tmp_path / "r.yaml")
     again = load_robot(str(tmp_path / "r.yaml"))
     Q = rng.uniform(robot.lower, robot.upper, (10, robot.n))
     np.testing.assert_allclose(again.fk(Q), robot.fk(Q), atol=1e-12)
@@ -105,7 +105,7 @@ def test_unbounded_joint_round_trips(tmp_path: Path) -> None:
 
     robot = Robot("free", (Joint("revolute", limits=(-np.inf, np.inf)), Joint("prismatic", a=1)))
     assert robot.joints[1].limits == (-np.inf, np.inf)  # prismatic default: unbounded
-    robot.save(str(tmp_path / "free.yaml"))
+    save_robot(robot, tmp_path / "free.yaml")
     again = load_robot(str(tmp_path / "free.yaml"))
     assert again.joints[0].limits == (-np.inf, np.inf)
     assert again.joints[1].limits == (-np.inf, np.inf)
@@ -118,5 +118,5 @@ def test_not_yaml_and_missing_file(tmp_path: Path) -> None:
         load_robot(str(p))
     with pytest.raises(RobotFileError, match="no such file"):
         load_robot(str(tmp_path / "missing.yaml"))
-    with pytest.raises(RobotFileError, match="built-in"):
+    with pytest.raises(UnknownName, match=r"unknown built-in robot 'no-such-robot'; valid: .*sb60"):
         load_robot("no-such-robot")

@@ -21,7 +21,7 @@ def result():  # type: ignore[no-untyped-def]
 
 
 def test_round_trip(tmp_path: Path, result) -> None:  # type: ignore[no-untyped-def]
-    out = load_synthesis(write_synthesis(result, tmp_path / "s", figures=False))
+    out = load_synthesis(write_synthesis(result, tmp_path / "s"))
     best = result.best
     np.testing.assert_array_equal(out.q, best.q)
     assert out.status == best.status
@@ -45,7 +45,7 @@ def test_task_yaml_wins_and_unknown_tasks_fall_back_to_the_design_axes(
     tmp_path: Path,
     result,  # type: ignore[no-untyped-def]
 ) -> None:
-    folder = write_synthesis(result, tmp_path / "s", figures=False)
+    folder = write_synthesis(result, tmp_path / "s")
     (folder / "summary.json").write_text(
         (folder / "summary.json").read_text().replace('"tunnel-87"', '"my-task"')
     )
@@ -60,7 +60,7 @@ def test_task_yaml_wins_and_unknown_tasks_fall_back_to_the_design_axes(
 def test_missing_parts_name_file_and_field(tmp_path: Path, result) -> None:  # type: ignore[no-untyped-def]
     with pytest.raises(InputError, match=r"design\.yaml"):
         load_synthesis(tmp_path)
-    folder = write_synthesis(result, tmp_path / "s", figures=False)
+    folder = write_synthesis(result, tmp_path / "s")
     lines = (folder / "points.csv").read_text().splitlines()
     (folder / "points.csv").write_text("\n".join([lines[0], lines[1].replace("full", "maybe")]))
     with pytest.raises(InputError, match=r"points\[0\]\.status"):

@@ -13,7 +13,7 @@ import pytest
 import yaml
 from scipy.spatial.transform import Rotation
 
-from reachwise.errors import TaskError
+from reachwise.errors import TaskError, UnknownName
 from reachwise.io.task_file import (
     builtin_task_text,
     builtin_tasks,
@@ -187,7 +187,7 @@ def test_not_a_mapping_bad_syntax_missing_file_and_unknown_type(tmp_path: Path) 
         load_task(tmp_path / "missing.yaml")
     with pytest.raises(TaskError, match="unknown task file type"):
         load_task(write(tmp_path, "x", "t.txt"))
-    with pytest.raises(TaskError, match="built-in"):
+    with pytest.raises(UnknownName, match="unknown built-in task 'tunnel-88'; valid: tunnel-87"):
         load_task("tunnel-88")
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reachwise.io.robot_file import builtin_robots, load_robot
+from reachwise.io.robot_file import builtin_robots, load_robot, save_robot
 from reachwise.kinematics.robot import Robot
 
 H = math.pi / 2
@@ -47,7 +47,7 @@ def test_every_builtin_loads() -> None:
 def test_save_load_round_trip(name: str, tmp_path: Path, rng: np.random.Generator) -> None:
     robot = load_robot(name)
     path = tmp_path / f"{name}.yaml"
-    robot.save(str(path))
+    save_robot(robot, path)
     back = load_robot(str(path))
     Q = rng.uniform(robot.lower, robot.upper, (50, robot.n))
     np.testing.assert_allclose(back.fk_all(Q), robot.fk_all(Q), atol=1e-12)

@@ -226,6 +226,11 @@ def _code(raw: bytes, limits: P.Limits = LIMITS) -> tuple[P.ErrorCode, str]:
             "body.margin",
         ),
         (
+            _raw("watch", {"a": "x", "b": "y", "margin": 0.1, "kind": "robot-obstacle"}),
+            E.INVALID,
+            "body.kind",
+        ),
+        (
             _raw("watch_self", {"robot": "r", "margin": 0.1, "exclude": [["a"]]}),
             E.WRONG_SHAPE,
             "body.exclude[0]",

@@ -37,7 +37,7 @@ def _populate(svc: SceneService, crane: Robot, clouds: dict[str, NDArray[np.floa
     svc.handle(P.WatchEnvironment(crane.name, 1.5))
     svc.handle(P.WatchSelf(crane.name, 0.5))
     svc.handle(P.Watch("probe", "environment", math.inf, "custom"))
-    svc.handle(P.Watch("probe", "link_3", 0.8, "robot-obstacle"))
+    svc.handle(P.Watch("probe", "link_3", 0.8, "robot-environment"))
 
 
 def _query(svc: SceneService) -> P.QueryReply:
@@ -114,8 +114,8 @@ def test_in_process_scene_matches_restored_service(
     scene.add_object("probe", clouds["link_6"], probe, dynamic=True)
     scene.watch_environment(crane.name, 1.5)
     scene.watch_self(crane.name, 0.5)
-    scene.watch("probe", "environment", math.inf, "custom")
-    scene.watch("probe", "link_3", 0.8, "robot-obstacle")
+    scene.watch("probe", "environment", math.inf, kind="custom")
+    scene.watch("probe", "link_3", 0.8, kind="robot-environment")
     for k in range(0, 200, 20):
         q = crane_q(crane, k)
         scene.set_joints(crane.name, q)

@@ -414,7 +414,7 @@ def test_live_updates_alone_are_not_enough() -> None:
 
 
 def test_moving_obstacle_figure(moving: tuple, tmp_path: Path) -> None:  # type: ignore[type-arg]
-    from reachwise.viz.sim_plots import moving_obstacle_figure
+    from reachwise.report.sim_plots import moving_obstacle_figure
 
     fig = moving_obstacle_figure(*moving)
     top, dist = fig.axes

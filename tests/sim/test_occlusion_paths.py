@@ -11,9 +11,9 @@ import trimesh
 from scipy.optimize import linprog
 from scipy.spatial import ConvexHull
 
-from reachwise.geometry.scanner import get_scene
 from reachwise.io.robot_file import load_robot
 from reachwise.sim.log import SimulationLog
+from reachwise.sim.p5_scenes import get_scene
 from reachwise.sim.scenarios import load_scenario, scenario_from_dict
 from reachwise.sim.simulate import simulate
 from reachwise.sim.world import build_world
@@ -115,7 +115,7 @@ def test_without_the_fill_the_return_cuts_behind_the_box(runs) -> None:  # type:
 
 
 def test_figure_shows_both_legs_of_both_runs(runs, tmp_path) -> None:  # type: ignore[no-untyped-def]
-    from reachwise.viz.sim_plots import occlusion_paths_figure
+    from reachwise.report.sim_plots import occlusion_paths_figure
 
     panels = []
     for label in ("plain", "fill"):

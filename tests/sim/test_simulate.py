@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import reachwise
-from reachwise.errors import InputError
+from reachwise.errors import InputError, UnknownName
 from reachwise.sim.plant import Plant, PlantConfig, hanging_joints
 from reachwise.sim.scenarios import builtin_scenarios, load_scenario, scenario_from_dict
 from reachwise.sim.simulate import simulate
@@ -148,8 +148,10 @@ def test_scenario_errors_name_file_and_field(tmp_path: Path) -> None:
     bad.write_text("name: x\nduration: 1\nrobots:\n  - {name: a, robot: sb60, q0: [0], speed: 3}\n")
     with pytest.raises(InputError, match=r"bad.yaml: robots\[0\].speed"):
         load_scenario(bad)
-    with pytest.raises(InputError, match="no such file or built-in"):
+    with pytest.raises(InputError, match=r"missing\.yaml: no such file"):
         load_scenario(tmp_path / "missing.yaml")
+    with pytest.raises(UnknownName, match=r"unknown built-in scenario 'p9'; valid: .*p5-crane"):
+        load_scenario("p9")
     data = {"name": "x", "duration": 1, "robots": [{"name": "a", "robot": "sb60", "q0": [0]}],
             "watch": [{"self": "b", "margin": 0.3}]}  # fmt: skip
     with pytest.raises(InputError, match="unknown robot 'b'"):

@@ -123,7 +123,7 @@ def test_skeleton_joins_the_frame_origins(rng: np.random.Generator, classic: boo
 def test_status_colours_are_those_of_the_figures() -> None:
     from matplotlib.colors import to_rgb
 
-    from reachwise.viz.plots import STATUS_COLOURS
+    from reachwise.report.plots import STATUS_COLOURS
 
     for status, name in STATUS_COLOURS.items():
         expect = np.round(np.array(to_rgb(name)) * 255)
@@ -218,7 +218,7 @@ def test_synthesis_browser_shows_each_configuration(viewer: Viewer, tmp_path: Pa
 
     task = reachwise.load_task("tunnel-87").subset(np.arange(0, 87, 20), name="tunnel-87")
     res = synthesize(task, "sb60", runs=1, seed=0)
-    folder = write_synthesis(res, tmp_path / "synth", figures=False)
+    folder = write_synthesis(res, tmp_path / "synth")
     viewer.show(folder)
     assert viewer.mode == "synthesis"
     browser = viewer.active
@@ -322,14 +322,14 @@ def test_files_and_report_folders_are_recognised(viewer: Viewer, tmp_path: Path)
     from reachwise.viz.sources import find_results
 
     robot = reachwise.load_robot("puma560")
-    robot.save(str(tmp_path / "arm.yaml"))
+    reachwise.save_robot(robot, tmp_path / "arm.yaml")
     (tmp_path / "scene.yaml").write_text(
         "name: one-arm\nduration: 1\nrobots:\n"
         "  - {name: arm, robot: arm.yaml, q0: [0, -0.5, 0.5, 0, 0.3, 0]}\n"
     )
     topo = tmp_path / "topology"
     (topo / "designs").mkdir(parents=True)
-    robot.save(str(topo / "designs" / "01-RRR.yaml"))
+    reachwise.save_robot(robot, topo / "designs" / "01-RRR.yaml")
     (topo / "ranking.json").write_text(json.dumps({"task": "tunnel-87"}))
     for path, mode in ((tmp_path / "arm.yaml", "robot"), (tmp_path / "scene.yaml", "scenario")):
         entries = find_results(path)
@@ -362,7 +362,8 @@ def test_busy_port_moves_to_a_free_one() -> None:
 
 
 def test_bad_path_is_an_input_error() -> None:
-    with pytest.raises(InputError, match="no such file or folder"):
+    unknown = r"unknown file, folder, built-in robot or scenario 'no-such-thing'; valid: .*sb60"
+    with pytest.raises(InputError, match=unknown):
         serve_results("no-such-thing", port=0, block=False)
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import typer
 
-from reachwise import __version__
+from reachwise._version import __version__
 from reachwise.cli import bench, cloud, demo, robot, serve, synth, task, topology, view
 from reachwise.cli import simulate as sim_cli
 
@@ -14,6 +14,8 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    epilog="Exit codes: 0 success, 1 other error, 2 bad input, 3 missing optional package, "
+    "4 collision server unavailable, 130 interrupted.",
 )
 app.add_typer(robot.app, name="robot")
 app.add_typer(cloud.app, name="cloud")
@@ -44,11 +46,26 @@ def _root(
 
 
 def main() -> None:
-    """Entry point: run the app, turning reachwise input errors into one clear line."""
+    """Entry point: run the app; a :class:`~reachwise.errors.ReachwiseError` ends it with
+    one line on stderr (``error: <message>``) and the error's exit code:
+
+    ====  ===========================================================================
+    code  meaning
+    ====  ===========================================================================
+    0     success
+    1     any other reachwise error
+    2     bad input: a file, field or argument (``InputError``, e.g. an unknown name)
+    3     a missing optional package; the line says what to install
+          (``MissingDependency``)
+    4     an unavailable service: the collision server did not answer
+          (``ServerUnavailable``)
+    130   interrupted (Ctrl-C); finished work is kept
+    ====  ===========================================================================
+    """
     from reachwise.errors import ReachwiseError
 
     try:
         app()
     except ReachwiseError as exc:
         typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
-        raise SystemExit(2) from None
+        raise SystemExit(exc.exit_code) from None

@@ -10,6 +10,7 @@ from rich.table import Table
 
 from reachwise.benchmarks import REGISTRY
 from reachwise.benchmarks._harness import BenchReport
+from reachwise.errors import UnknownName
 
 
 def bench(
@@ -19,8 +20,7 @@ def bench(
 ) -> None:
     """Measure our code and its baseline in one run; print medians, p99 and ratios."""
     if name not in REGISTRY:
-        typer.secho(f"unknown benchmark {name!r}; choose one of {sorted(REGISTRY)}", err=True)
-        raise typer.Exit(2)
+        raise UnknownName("reachwise bench", "benchmark", name, REGISTRY)
     module = importlib.import_module(REGISTRY[name])
     report: BenchReport = module.run(quick=quick)
     if json_out:

@@ -177,8 +177,10 @@ def scan(
     import numpy as np
 
     from reachwise.geometry.cloud import PointCloud
-    from reachwise.geometry.scanner import OcclusionFill, get_scene, scan_scene
+    from reachwise.geometry.occlusion import OcclusionFill
+    from reachwise.geometry.scan_scene import scan_scene
     from reachwise.io.clouds import save_cloud
+    from reachwise.sim.p5_scenes import get_scene
 
     sc = get_scene(scene)
     fill = OcclusionFill(occlusion_depth) if occlusion_depth else None

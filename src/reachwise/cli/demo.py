@@ -37,6 +37,8 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
+from reachwise.io.atomic import atomic_write
+
 SCENARIOS = ("p3-self-collision", "p5-crane-obstacle")
 TOPOLOGY_FOLDER = "topology-p2-tunnel-87"
 SYNTHESIS_FOLDER = "synthesis-sb60-tunnel-87"
@@ -84,12 +86,27 @@ class Ctx:
 
 
 @dataclass(frozen=True)
+class StageOutput:
+    """What a stage returns: its key ``figures`` (JSON-able; ``demo.json`` and the
+    report show them), the ``files`` it wrote (relative to the demo folder; a rerun
+    reuses the stage while they exist), the ``lines`` it prints, and its HTML
+    ``report`` (relative path), if it has one."""
+
+    figures: dict[str, Any]
+    files: tuple[str, ...] = ()
+    lines: tuple[str, ...] = ()
+    report: str | None = None
+
+
+@dataclass(frozen=True)
 class Stage:
+    """One step of the demo: ``run(ctx, folder, params)`` writes into ``folder``."""
+
     key: str
     title: str
     folder: str | None
     params: dict[str, Any]
-    run: Callable[[Ctx, Path, dict[str, Any]], dict[str, Any]]
+    run: Callable[[Ctx, Path, dict[str, Any]], StageOutput]
 
     def marker(self, out: Path) -> Path:
         return out / self.folder / "stage.json" if self.folder else out / f"{self.key}.json"
@@ -123,7 +140,7 @@ def demo(
 
     A rerun reuses the stages already complete in --out; Ctrl-C keeps them.
     """
-    from reachwise.viz.report_demo import write_demo_report
+    from reachwise.report.demo import write_demo_report
 
     console = Console(quiet=json_out)
     ctx = Ctx(
@@ -163,7 +180,7 @@ def demo(
     }
     report = write_demo_report(out, [(s, ctx.done.get(s.key)) for s in stages], figures)
     figures["report"] = str(report.resolve())
-    (out / "demo.json").write_text(json.dumps(figures, indent=2, default=str))
+    atomic_write(out / "demo.json", json.dumps(figures, indent=2, default=str))
     if interrupted is not None:
         console.print(
             f"[bold red]interrupted[/] during {interrupted}: {len(ctx.done)} finished stages "
@@ -268,21 +285,20 @@ def _run_stage(ctx: Ctx, st: Stage) -> dict[str, Any]:
     folder = ctx.out / st.folder if st.folder else ctx.out
     st.marker(ctx.out).unlink(missing_ok=True)
     t = time.perf_counter()
-    result = st.run(ctx, folder, st.params)
+    output = st.run(ctx, folder, st.params)
     rec = {
         "stage": st.key,
         "params": st.params,
         "elapsed_s": time.perf_counter() - t,
-        "files": result.pop("_files", []),
-        "lines": result.pop("_lines", []),
-        "report": result.pop("_report", None),
-        "result": result,
+        "files": list(output.files),
+        "lines": list(output.lines),
+        "report": output.report,
+        "result": output.figures,
     }
     for line in rec["lines"]:
         ctx.console.print(line)
-    tmp = st.marker(ctx.out).with_suffix(".tmp")
-    tmp.write_text(json.dumps(rec, indent=2, default=str))
-    tmp.replace(st.marker(ctx.out))  # written last: the stage is complete
+    # written last: the stage is complete
+    atomic_write(st.marker(ctx.out), json.dumps(rec, indent=2, default=str))
     rec["status"] = "done"
     return rec
 
@@ -292,7 +308,7 @@ def _rel(ctx: Ctx, p: Path) -> str:
 
 
 # ---- stages ------------------------------------------------------------------------------
-def _task(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
+def _task(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
     from reachwise.cli.task import task_summary
     from reachwise.io.task_file import load_task, save_task
     from reachwise.tasks.drilling import tunnel_87
@@ -304,23 +320,23 @@ def _task(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
     diff = float(np.abs(load_task(path).positions - builtin.positions).max())
     data = task_summary(task)
     groups = ", ".join(f"{g} {v['points']}" for g, v in data["groups"].items())
-    return {
+    figures = {
         "points": data["points"],
         "groups": {g: v["points"] for g, v in data["groups"].items()},
         "matches_builtin_m": diff,
-        "_files": [_rel(ctx, path)],
-        "_lines": [
-            f"{data['points']} points ({groups}); equals the built-in tunnel-87 within "
-            f"{diff:.1e} m; wrote {path}"
-        ],
     }
+    line = (
+        f"{data['points']} points ({groups}); equals the built-in tunnel-87 within "
+        f"{diff:.1e} m; wrote {path}"
+    )
+    return StageOutput(figures, files=(_rel(ctx, path),), lines=(line,))
 
 
-def _synthesis(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
+def _synthesis(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
     from reachwise.io.synthesis_out import summary, write_synthesis
     from reachwise.io.task_file import save_task
+    from reachwise.report.synthesis import save_synthesis_figures, write_synthesis_report
     from reachwise.synthesis.synthesize import synthesize
-    from reachwise.viz.report_synthesis import write_synthesis_report
 
     task = ctx.task()
     runs = p["runs"]
@@ -332,12 +348,12 @@ def _synthesis(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
 
         result = synthesize(task, "sb60", runs=runs, seed=ctx.seed, on_run=on_run)
     write_synthesis(result, folder)
+    pngs = save_synthesis_figures(result, folder)
     save_task(task, folder / "task.yaml")
-    pngs = {n: folder / f"{n}.png" for n in ("configurations", "lci")}
     report = write_synthesis_report(result, folder, pngs)
     d = summary(result)
     b = d["best"]
-    return {
+    figures = {
         "task_points": d["task_points"],
         "unknowns": d["unknowns"],
         "runs": d["runs"],
@@ -350,24 +366,28 @@ def _synthesis(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
         "kci_initial": b["kci_initial"],
         "table3": d["table3"],
         "table4": d["table4"],
-        "_files": [_rel(ctx, report), _rel(ctx, folder / "design.yaml")],
-        "_report": _rel(ctx, report),
-        "_lines": [
-            f"{d['task_points']} points, {d['unknowns']} unknowns: {d['runs_reaching_all']}/"
-            f"{d['runs']} runs reach every point inside the tunnel; best (seed "
-            f"{d['best_seed']}): {b['reached']}/{d['task_points']}, GCI {b['gci_initial']:.3f} "
-            f"→ {b['gci']:.3f}, KCI {b['kci_initial']:.3f} → {b['kci']:.3f}",
-            f"report: {report}",
-        ],
     }
+    lines = (
+        f"{d['task_points']} points, {d['unknowns']} unknowns: {d['runs_reaching_all']}/"
+        f"{d['runs']} runs reach every point inside the tunnel; best (seed "
+        f"{d['best_seed']}): {b['reached']}/{d['task_points']}, GCI {b['gci_initial']:.3f} "
+        f"→ {b['gci']:.3f}, KCI {b['kci_initial']:.3f} → {b['kci']:.3f}",
+        f"report: {report}",
+    )
+    return StageOutput(
+        figures,
+        files=(_rel(ctx, report), _rel(ctx, folder / "design.yaml")),
+        lines=lines,
+        report=_rel(ctx, report),
+    )
 
 
-def _topology(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
-    from reachwise.io.sweep_report import write_report
+def _topology(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
     from reachwise.io.sweep_store import SweepStore
+    from reachwise.report.ranking import write_report
+    from reachwise.report.topology import write_topology_report
     from reachwise.synthesis.sweep import SweepConfig, run_sweep
     from reachwise.synthesis.topology import builtin_set
-    from reachwise.viz.report_topology import write_topology_report
 
     task = ctx.task()
     topos = builtin_set("p2")
@@ -426,24 +446,23 @@ def _topology(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
                 f"{r['kci']:.4f}, mean {r['mean']:.4f}"
             )
     lines.append(f"report: {report}")
-    return {
+    figures = {
         "topologies": [t.name for t in topos],
         "ranked": ranked,
         "table": table,
         "subset": cfg.subset,
         "top": cfg.top,
         "runs": cfg.runs,
-        "_files": [_rel(ctx, report)],
-        "_report": _rel(ctx, report),
-        "_lines": lines,
     }
+    rel = _rel(ctx, report)
+    return StageOutput(figures, files=(rel,), lines=tuple(lines), report=rel)
 
 
-def _simulate(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
+def _simulate(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
+    from reachwise.report.sim_plots import save_figures
+    from reachwise.report.simulate import leg_lengths, scene_cloud, write_simulation_report
     from reachwise.sim.scenarios import load_scenario
     from reachwise.sim.simulate import simulate
-    from reachwise.viz.report_simulate import leg_lengths, scene_cloud, write_simulation_report
-    from reachwise.viz.sim_plots import save_figures
 
     name = p["scenario"]
     sc = load_scenario(name)
@@ -463,7 +482,7 @@ def _simulate(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
     for label, log in logs.items():
         log.save(folder / label)
     summaries = {k: v.summary() for k, v in logs.items()}
-    (folder / "summary.json").write_text(json.dumps(summaries, indent=2))
+    atomic_write(folder / "summary.json", json.dumps(summaries, indent=2))
     cloud = scene_cloud(sc)
     paths = save_figures(folder, logs["avoidance"], logs["baseline"], cloud)
     report = write_simulation_report(folder, sc, logs, {p.stem: p for p in paths}, cloud)
@@ -495,11 +514,11 @@ def _simulate(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
             )
         )
     lines.append(f"report: {report}")
-    res.update({"_files": [_rel(ctx, report)], "_report": _rel(ctx, report), "_lines": lines})
-    return res
+    rel = _rel(ctx, report)
+    return StageOutput(res, files=(rel,), lines=tuple(lines), report=rel)
 
 
-def _kinematics(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
+def _kinematics(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
     from reachwise.io.robot_file import load_robot
     from reachwise.kinematics.indices import lci
 
@@ -544,18 +563,19 @@ def _kinematics(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
             cond,
         )
     ctx.console.print(table)
-    return rows
+    return StageOutput(rows)
 
 
-def _distance(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
+def _distance(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
     import trimesh
 
     from reachwise.distance import PairQuery, closest_points
     from reachwise.geometry.cloud import sample_mesh_surface
-    from reachwise.geometry.scanner import scan_scene
+    from reachwise.geometry.scan_scene import scan_scene
     from reachwise.kinematics.transforms import pose_from_xyz_rpy
+    from reachwise.sim.p5_scenes import p5_floor_obstacle
 
-    _, env = scan_scene("p5-floor-obstacle", np.random.default_rng(ctx.seed))
+    _, env = scan_scene(p5_floor_obstacle(), np.random.default_rng(ctx.seed))
     part = sample_mesh_surface(trimesh.creation.box((0.6, 0.4, 0.3)), n=1000, seed=ctx.seed)
     rng = np.random.default_rng(ctx.seed)
     query = PairQuery(part, env, margin=0.5)
@@ -574,24 +594,25 @@ def _distance(ctx: Ctx, folder: Path, p: dict[str, Any]) -> dict[str, Any]:
             fast.no_risk or abs(fast.distance - ref.distance) <= 1e-9
         )
     med = float(np.median(times) * 1e6)
-    return {
+    figures = {
         "scan_points": len(env),
         "queries": m,
         "within_margin": at_risk,
         "agree_with_brute": agree,
         "median_query_us": med,
-        "_lines": [
-            f"scan: {len(env)} points (floor + obstacle, with the occlusion gap); "
-            f"part: {len(part)} points; {m} random poses, margin 0.5 m: {at_risk} "
-            f"within it; default strategy equals brute force on {agree}/{m}; "
-            f"median query {med:.0f} µs"
-        ],
     }
+    line = (
+        f"scan: {len(env)} points (floor + obstacle, with the occlusion gap); "
+        f"part: {len(part)} points; {m} random poses, margin 0.5 m: {at_risk} "
+        f"within it; default strategy equals brute force on {agree}/{m}; "
+        f"median query {med:.0f} µs"
+    )
+    return StageOutput(figures, lines=(line,))
 
 
 # ---- summary -----------------------------------------------------------------------------
 def _print_summary(ctx: Ctx, stages: list[Stage], elapsed: float, report: Path) -> None:
-    from reachwise.viz.report_demo import key_figures
+    from reachwise.report.demo import key_figures
 
     c = ctx.console
     c.rule("summary")

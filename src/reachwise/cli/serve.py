@@ -52,7 +52,9 @@ def serve(
     insecure: bool = typer.Option(
         False, "--insecure", help="Allow a non-local bind without CURVE (not recommended)."
     ),
-    strategy: str = typer.Option("default", "--strategy", help="Distance strategy."),
+    strategy: str = typer.Option(
+        "default", "--strategy", help="Distance strategy: default, thesis or brute."
+    ),
     max_message_mb: float = typer.Option(
         64.0, "--max-message-mb", help="Size cap of one message, MiB."
     ),
@@ -72,8 +74,10 @@ def serve(
     """Run the collision server until SIGINT/SIGTERM (or --max-runtime)."""
     if ctx.invoked_subcommand is not None:
         return
+    from reachwise.distance.engine import STRATEGIES
+    from reachwise.errors import check_choice
+    from reachwise.io.atomic import atomic_write
     from reachwise.server.protocol import Limits
-    from reachwise.server.state import atomic_write
     from reachwise.server.transport import CollisionServer
 
     logging.basicConfig(
@@ -87,7 +91,12 @@ def serve(
         typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
         raise typer.Exit(2) from None
     server = CollisionServer(
-        bind, state, keys=keys, insecure=insecure, strategy=strategy, limits=limits
+        bind,
+        state,
+        keys=keys,
+        insecure=insecure,
+        strategy=check_choice(strategy, STRATEGIES, source="--strategy", kind="strategy"),
+        limits=limits,
     )
     if not server.plan.local and not server.plan.curve:
         typer.secho(

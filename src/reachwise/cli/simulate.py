@@ -10,6 +10,8 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeElapsedColumn
 
+from reachwise.io.atomic import atomic_write
+
 
 def simulate(
     scenario: str = typer.Argument(
@@ -42,6 +44,12 @@ def simulate(
     server_deadline: float = typer.Option(
         0.1, "--server-deadline", min=0.0001, help="Per-tick reply deadline on --server (s)."
     ),
+    server_timeout: float = typer.Option(
+        30.0,
+        "--server-timeout",
+        min=0.0,
+        help="How long to wait for --server to be ready (s); then exit code 4.",
+    ),
     server_keys: Path | None = typer.Option(
         None, "--server-keys", help="CURVE key folder (`reachwise serve keygen`) for --server."
     ),
@@ -60,14 +68,15 @@ def simulate(
     ),
 ) -> None:
     """Simulate a scenario with collision avoidance (thesis §3.3, P-III/P-IV/P-V)."""
+    from reachwise.errors import check_choice
     from reachwise.sim.log import SimulationLog
+    from reachwise.sim.plant import PLANT_NAMES, PlantName
     from reachwise.sim.scenarios import load_scenario
     from reachwise.sim.simulate import simulate as run
     from reachwise.sim.world import build_world
 
-    if plant not in ("scenario", "mujoco"):
-        raise typer.BadParameter(f"scenario or mujoco, got {plant!r}", param_hint="--plant")
-    if plant == "mujoco":
+    plant_name = check_choice(plant, PLANT_NAMES, source="--plant", kind="plant")
+    if plant_name == "mujoco":
         from reachwise.sim.mujoco_model import require_mujoco
 
         require_mujoco()  # a clear error naming the missing extra, before any work
@@ -76,7 +85,9 @@ def simulate(
     if server is not None:
         from reachwise.server.client import ServerOptions
 
-        link = ServerOptions(server, deadline=server_deadline, keys=server_keys)
+        link = ServerOptions(
+            server, deadline=server_deadline, keys=server_keys, ready_timeout=server_timeout
+        )
     console = Console(stderr=True)
     live = None
     if view:
@@ -85,7 +96,9 @@ def simulate(
         live = LiveSession(sc, echo=console.print)
     logs: dict[str, SimulationLog] = {}
     modes = [True, False] if baseline else [True]
-    runs = [(m, plant) for m in modes] + ([(True, "scenario")] if plant == "mujoco" else [])
+    runs: list[tuple[bool, PlantName]] = [(m, plant_name) for m in modes]
+    if plant_name == "mujoco":
+        runs.append((True, "scenario"))
     total = duration if duration is not None else sc.spec.duration
     with Progress(
         TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.fields[t]}"),
@@ -93,7 +106,7 @@ def simulate(
     ) as bar:  # fmt: skip
         for avoid, kind in runs:
             label = "avoidance" if avoid else "baseline"
-            if plant == "mujoco" and kind != plant:
+            if plant_name == "mujoco" and kind != plant_name:
                 label = "reference"  # the same scenario on its own plant, for comparison
             job = bar.add_task(f"{sc.name} {label}", total=total, t="")
 
@@ -126,7 +139,7 @@ def simulate(
             ref.save(out / "reference")
         cloud, pngs = None, None
         if figures:
-            from reachwise.viz.sim_plots import save_figures
+            from reachwise.report.sim_plots import save_figures
 
             world = build_world(sc)
             objs = [o for o in world.scene.objects.values() if "/" not in o.name]
@@ -138,9 +151,9 @@ def simulate(
                     [o.cloud.points @ poses[o.name][:3, :3].T + poses[o.name][:3, 3] for o in objs]
                 )
             pngs = {p.stem: p for p in save_figures(out, main, base, cloud)}
-        (out / "summary.json").write_text(json.dumps(data, indent=2))
+        atomic_write(out / "summary.json", json.dumps(data, indent=2))
         data["out"] = str(out)  # type: ignore[assignment]
-        from reachwise.viz.report_simulate import write_simulation_report
+        from reachwise.report.simulate import write_simulation_report
 
         report = write_simulation_report(out, sc, logs, pngs or False, cloud)
         data["report"] = str(report)  # type: ignore[assignment]

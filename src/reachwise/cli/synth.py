@@ -29,15 +29,15 @@ def synth(
 
     Ctrl-C stops after the current run and writes the runs finished so far.
     """
+    from reachwise.errors import check_choice
     from reachwise.io.robot_file import load_robot
     from reachwise.io.synthesis_out import summary, write_synthesis
     from reachwise.io.task_file import load_task
+    from reachwise.report.synthesis import save_synthesis_figures, write_synthesis_report
     from reachwise.synthesis.problem import SynthesisProblem, locked_from_spec
     from reachwise.synthesis.synthesize import SOLVERS, RunResult, result_of, run_once
-    from reachwise.viz.report_synthesis import write_synthesis_report
 
-    if solver not in SOLVERS:
-        raise typer.BadParameter(f"choose one of {SOLVERS}", param_hint="--solver")
+    solver_name = check_choice(solver, SOLVERS, source="--solver", kind="solver")
     t = load_task(task)
     template = load_robot(robot)
     workspace = t.envelope if tunnel else None
@@ -52,7 +52,7 @@ def synth(
         job = bar.add_task("", total=runs)
         try:
             for i in range(runs):
-                r = run_once(problem, seed + i, solver, workspace=workspace)
+                r = run_once(problem, seed + i, solver_name, workspace=workspace)
                 done.append(r)
                 bar.update(job, advance=1, description=f"run {i}: {r.n_reached}/{problem.K}")
         except KeyboardInterrupt:
@@ -60,9 +60,9 @@ def synth(
     if not done:
         console.print("interrupted before the first run finished: nothing written")
         raise typer.Exit(130)
-    result = result_of(problem, done, solver)
-    folder = write_synthesis(result, out, figures=figures)
-    pngs = {n: folder / f"{n}.png" for n in ("configurations", "lci")} if figures else False
+    result = result_of(problem, done, solver_name)
+    folder = write_synthesis(result, out)
+    pngs = save_synthesis_figures(result, folder) if figures else False
     report = write_synthesis_report(result, folder, pngs)
     data = summary(result)
     data["interrupted"] = interrupted

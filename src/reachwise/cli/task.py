@@ -199,10 +199,11 @@ def generate_tunnel_87(
     json_out: bool = typer.Option(False, "--json", help="Print a JSON summary."),
 ) -> None:
     """Write the built-in tunnel-87 task (10 plans → 87 points, P-I §4 stand-in)."""
+    from reachwise.io.atomic import atomic_write
     from reachwise.io.task_file import builtin_task_text, load_task, save_task
 
     if out.suffix.lower() in (".yaml", ".yml"):
-        out.write_text(builtin_task_text("tunnel-87"))
+        atomic_write(out, builtin_task_text("tunnel-87"))
         task = load_task(out)
     else:
         from reachwise.tasks.drilling import tunnel_87

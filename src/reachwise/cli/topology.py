@@ -73,10 +73,11 @@ def topology(
     what is done. Ctrl-C stops submitting, waits for the running runs, stores them and
     exits (130); a killed sweep loses nothing it stored.
     """
-    from reachwise.io.sweep_report import write_report
     from reachwise.io.sweep_store import SweepStore
     from reachwise.io.task_file import load_task
-    from reachwise.synthesis.rank import RANK_KEYS
+    from reachwise.report.ranking import write_report
+    from reachwise.report.topology import write_topology_report
+    from reachwise.synthesis.rank import check_key
     from reachwise.synthesis.sweep import SweepConfig, SweepInterrupted, dask_executor, run_sweep
     from reachwise.synthesis.topology import (
         TemplateOptions,
@@ -86,12 +87,10 @@ def topology(
         parse_rules,
         topologies_from_specs,
     )
-    from reachwise.viz.report_topology import write_topology_report
 
     if sum(x is not None and x != [] for x in (set_name, rules, specs or None)) != 1:
         raise typer.BadParameter("give exactly one of --set, --enumerate, --spec")
-    if rank_key not in RANK_KEYS:
-        raise typer.BadParameter(f"choose one of {', '.join(RANK_KEYS)}", param_hint="--rank")
+    key = check_key(rank_key)
     if dask is not None and workers == 0:
         raise typer.BadParameter("--workers 0 runs in process; drop it with --dask")
     t = load_task(task)
@@ -118,7 +117,7 @@ def topology(
         _list(topos, json_out)
         return
     cfg = SweepConfig(
-        subset=subset, top=top, runs=runs, seed=seed, rank_key=rank_key, workspace=tunnel,
+        subset=subset, top=top, runs=runs, seed=seed, rank_key=key, workspace=tunnel,
         batch_size=batch,
     )  # fmt: skip
     console = Console(stderr=True)

@@ -86,7 +86,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from reachwise.control import _kernel as K
+import reachwise.control._kernel as K
 from reachwise.control.avoidance import AvoidancePoints
 from reachwise.control.safety import DataCheck, SafetyConfig, check_data, stop_ramp
 from reachwise.errors import InputError

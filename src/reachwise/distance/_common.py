@@ -1,4 +1,5 @@
-"""What every distance strategy shares: the result type, input checks, the per-cloud index.
+"""What every distance strategy shares: the result type and the input checks (each
+cloud's index is :mod:`reachwise.distance.index`).
 
 The result convention (all strategies, thesis P-V Table 1 "no risk" exits included):
 
@@ -23,20 +24,15 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from reachwise.distance import _kernels as K
-from reachwise.distance._build import build_tree
+import reachwise.distance._kernels as K
+from reachwise.distance.index import cloud_centroid
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
 
-#: Leaf size of the per-cloud k-d tree (points per leaf at most).
-LEAF_SIZE = 8
 #: Largest accepted deviation max|RᵀR - I| of a pose's rotation part. Rotations that
 #: deviate by more than 1e-12 but at most this are replaced by the nearest rotation
 #: (polar decomposition) before use, by every strategy alike.
 ROTATION_TOLERANCE = 1e-6
-
-_TREE_KEY = "reachwise.distance.tree"
-_CENTROID_KEY = "reachwise.distance.centroid"
 
 
 @dataclass(frozen=True, eq=False)
@@ -82,63 +78,6 @@ def _nan3() -> NDArray[np.float64]:
 
 #: The one "no risk" result (immutable, shared).
 NO_RISK = DistanceResult(math.inf, _nan3(), _nan3(), _nan3(), -1, -1, True)
-
-
-@dataclass(frozen=True, eq=False)
-class CloudTree:
-    """A cloud's k-d tree in its own frame (see :mod:`reachwise.distance._kernels`).
-
-    ``points`` in tree order, ``perm[k]`` the input row of tree point ``k``,
-    ``inverse`` the reverse map, ``boxes`` (M, 6) node AABBs (lo, hi), ``info`` (M, 3)
-    start, end, right child, ``centroid`` the mean point, ``aabb`` (2, 3) the tight
-    bounds (min row, max row).
-    """
-
-    points: NDArray[np.float64]
-    perm: NDArray[np.int64]
-    inverse: NDArray[np.int64]
-    boxes: NDArray[np.float64]
-    info: NDArray[np.int64]
-    centroid: NDArray[np.float64]
-
-    @classmethod
-    def build(cls, points: NDArray[np.float64], leaf_size: int = LEAF_SIZE) -> CloudTree:
-        if not 1 <= leaf_size <= K.LEAF_MAX:
-            raise InputError("leaf_size", "", f"must be in 1..{K.LEAF_MAX}, got {leaf_size}")
-        pts = np.array(points, dtype=np.float64, order="C", copy=True)
-        tp, perm, boxes, info = build_tree(pts, leaf_size)
-        inverse = np.empty_like(perm)
-        inverse[perm] = np.arange(perm.shape[0])
-        centroid = np.ascontiguousarray(pts.mean(axis=0))
-        return cls(tp, perm, inverse, boxes, info, centroid)
-
-    @classmethod
-    def of(cls, cloud: PointCloud) -> CloudTree:
-        """Build the tree of ``cloud`` (use :func:`cloud_tree` for the cached one)."""
-        return cls.build(cloud.points)
-
-    @property
-    def aabb(self) -> NDArray[np.float64]:
-        return np.asarray(self.boxes[0].reshape(2, 3))
-
-
-def cloud_tree(cloud: PointCloud) -> CloudTree:
-    """The cloud's tree, built on first use and kept in ``cloud.cache``."""
-    tree = cloud.cache.get(_TREE_KEY)
-    if tree is None:
-        tree = CloudTree.of(cloud)
-        cloud.cache[_TREE_KEY] = tree
-    return tree  # type: ignore[no-any-return]
-
-
-def cloud_centroid(cloud: PointCloud) -> NDArray[np.float64]:
-    """Mean point of the cloud in its frame (kept in ``cloud.cache``)."""
-    c = cloud.cache.get(_CENTROID_KEY)
-    if c is None:
-        c = np.ascontiguousarray(cloud.points.mean(axis=0))
-        c.setflags(write=False)
-        cloud.cache[_CENTROID_KEY] = c
-    return c  # type: ignore[no-any-return]
 
 
 def as_cloud(data: PointCloud | ArrayLike, name: str) -> PointCloud:

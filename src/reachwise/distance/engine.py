@@ -3,7 +3,8 @@
 Three strategies answer the same question and must agree with each other exactly:
 
 - ``"default"`` (:func:`default_closest`): dual-tree branch and bound. Each cloud has a
-  k-d tree of AABBs built once in its own frame (kept in ``PointCloud.cache``). Per
+  tree of AABBs built once in its own frame (its
+  :class:`~reachwise.distance.index.CloudIndex`, kept by the distance layer). Per
   query the smaller cloud's boxes and points are mapped into the larger cloud's frame
   by the relative pose (lazily: only the nodes the search reaches), node pairs are
   expanded depth first, nearer child pair first, while their box distance is below the
@@ -27,27 +28,30 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Literal, get_args
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from reachwise.distance import _kernels as K
+import reachwise.distance._kernels as K
 from reachwise.distance._common import (
     NO_RISK,
-    CloudTree,
     DistanceResult,
     as_cloud,
     check_margin,
     check_pose,
-    cloud_tree,
     pose_array,
 )
 from reachwise.distance.brute import brute_closest
+from reachwise.distance.index import CloudIndex, cloud_index
 from reachwise.distance.thesis import thesis_closest
-from reachwise.errors import InputError
+from reachwise.errors import check_choice
 from reachwise.geometry.cloud import PointCloud
 
-STRATEGIES: tuple[str, ...] = ("default", "thesis", "brute")
+#: A distance strategy, all exact: ``default`` (dual-tree branch and bound with warm
+#: starts), ``thesis`` (the P-III/P-V Table 1 pipeline), ``brute`` (every pair).
+StrategyName = Literal["default", "thesis", "brute"]
+STRATEGIES: tuple[StrategyName, ...] = get_args(StrategyName)
 
 Strategy = Callable[
     [PointCloud, PointCloud, NDArray[np.float64], NDArray[np.float64], float], DistanceResult
@@ -63,8 +67,8 @@ def _fast_pose(pose: ArrayLike | None, name: str) -> NDArray[np.float64]:
 
 
 def _run_default(
-    ta: CloudTree,
-    tb: CloudTree,
+    ta: CloudIndex,
+    tb: CloudIndex,
     pose_a: NDArray[np.float64],
     pose_b: NDArray[np.float64],
     margin: float,
@@ -108,23 +112,18 @@ def default_closest(
     margin: float,
 ) -> DistanceResult:
     """Exact closest pair by dual-tree branch and bound (validated inputs)."""
-    return _run_default(cloud_tree(a), cloud_tree(b), pose_a, pose_b, margin, (-1, -1))[0]
+    return _run_default(cloud_index(a), cloud_index(b), pose_a, pose_b, margin, (-1, -1))[0]
 
 
-_STRATEGY_FUNCS: dict[str, Strategy] = {
+_STRATEGY_FUNCS: dict[StrategyName, Strategy] = {
     "default": default_closest,
     "thesis": thesis_closest,
     "brute": brute_closest,
 }
 
 
-def _check_strategy(strategy: str) -> Strategy:
-    fn = _STRATEGY_FUNCS.get(strategy) if isinstance(strategy, str) else None
-    if fn is None:
-        raise InputError(
-            "strategy", "", f"unknown strategy {strategy!r}; choose one of {list(STRATEGIES)}"
-        )
-    return fn
+def _check_strategy(strategy: object) -> Strategy:
+    return _STRATEGY_FUNCS[check_choice(strategy, STRATEGIES, source="strategy", kind="strategy")]
 
 
 def closest_points(
@@ -133,7 +132,8 @@ def closest_points(
     pose_a: ArrayLike | None = None,
     pose_b: ArrayLike | None = None,
     margin: float = math.inf,
-    strategy: str = "default",
+    *,
+    strategy: StrategyName = "default",
 ) -> DistanceResult:
     """Exact shortest distance between clouds ``a`` and ``b`` placed by their poses.
 
@@ -147,7 +147,8 @@ def closest_points(
     use :class:`PairQuery`, which warm-starts from the previous closest pair.
 
     Raises :class:`~reachwise.errors.CloudError` for bad clouds and
-    :class:`~reachwise.errors.InputError` for bad poses, margin or strategy.
+    :class:`~reachwise.errors.InputError` for bad poses or margin, and
+    :class:`~reachwise.errors.UnknownName` for an unknown strategy.
     """
     fn = _check_strategy(strategy)
     ca = as_cloud(a, "cloud a")
@@ -178,15 +179,15 @@ class PairQuery:
         b: PointCloud | ArrayLike,
         *,
         margin: float = math.inf,
-        strategy: str = "default",
+        strategy: StrategyName = "default",
     ) -> None:
         self._fn = _check_strategy(strategy)
         self.strategy = strategy
         self.a = as_cloud(a, "cloud a")
         self.b = as_cloud(b, "cloud b")
         self.margin = check_margin(margin)
-        self._ta = cloud_tree(self.a)
-        self._tb = cloud_tree(self.b)
+        self._ta = cloud_index(self.a)
+        self._tb = cloud_index(self.b)
         self._warm: tuple[int, int] = (-1, -1)
 
     def reset(self) -> None:

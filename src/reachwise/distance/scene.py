@@ -29,10 +29,11 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Protocol, runtime_checkable
+from types import MappingProxyType
+from typing import Literal, Protocol, get_args, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -42,10 +43,11 @@ from reachwise.distance._common import (
     as_cloud,
     check_margin,
     check_pose,
-    cloud_tree,
 )
-from reachwise.distance.engine import STRATEGIES, PairQuery
-from reachwise.errors import InputError
+from reachwise.distance.engine import STRATEGIES, PairQuery, StrategyName
+from reachwise.distance.index import INDICES, cloud_index
+from reachwise.distance.ingest import CloudIngest, Ready, ready_cloud
+from reachwise.errors import InputError, UnknownName, check_choice
 from reachwise.geometry.cloud import PointCloud
 
 
@@ -105,27 +107,35 @@ class SceneObject:
     source: PoseSource
 
 
+#: Why a pair is watched: links of one robot (``self``), a robot and its environment,
+#: two robots, or a rule given by hand (``custom``).
+PairKind = Literal["self", "robot-environment", "robot-robot", "custom"]
+PAIR_KINDS: tuple[PairKind, ...] = get_args(PairKind)
+
+
 @dataclass(frozen=True)
 class WatchedPair:
-    """A pair of objects to watch: ``kind`` is ``"self"``, ``"robot-environment"``,
-    ``"robot-robot"`` or ``"custom"``; ``margin`` in metres."""
+    """A pair of objects to watch: ``kind`` (:data:`PairKind`), ``margin`` in metres."""
 
     a: str
     b: str
     margin: float
-    kind: str
+    kind: PairKind
 
 
 @dataclass(frozen=True)
 class PairResult:
     """One watched pair's answer: object names, margin, kind and the distance result
-    (``point_a`` on ``a``; ``direction`` from ``b`` to ``a``)."""
+    (``point_a`` on ``a``; ``direction`` from ``b`` to ``a``), and ``versions``, the
+    versions of the two objects' clouds it was computed on (0: the cloud the object was
+    added with; see :meth:`Scene.replace_cloud`)."""
 
     a: str
     b: str
     margin: float
-    kind: str
+    kind: PairKind
     result: DistanceResult
+    versions: tuple[int, int] = (0, 0)
 
 
 @dataclass(frozen=True)
@@ -139,6 +149,12 @@ class SceneResult:
     ready (NaN without a clock). ``valid`` False with a ``reason`` marks missing data
     (a remote scene whose server did not answer: every distance is then NaN); the
     controller makes a protective stop on it.
+
+    ``versions`` maps each object to the version of its cloud the answer used, and
+    ``cloud_stamps`` to the time stamp (s) of that cloud's measurement: ``+inf`` for a
+    cloud that does not age (a CAD part, a map: added without a stamp), NaN when it is
+    unknown. A controller bounds the age of the clouds it relies on with them, as it
+    bounds the age of the joint states with ``measured_at``.
     """
 
     sequence: int
@@ -147,6 +163,8 @@ class SceneResult:
     computed_at: float = math.nan
     valid: bool = True
     reason: str = ""
+    versions: Mapping[str, int] = field(default_factory=dict)
+    cloud_stamps: Mapping[str, float] = field(default_factory=dict)
 
     def at_risk(self) -> tuple[PairResult, ...]:
         """Pairs within their margin, nearest first."""
@@ -160,14 +178,24 @@ class SceneResult:
             if (p.a, p.b) == (a, b):
                 return p
             if (p.a, p.b) == (b, a):
-                return PairResult(a, b, p.margin, p.kind, p.result.swapped())
-        raise KeyError(f"pair ({a!r}, {b!r}) is not watched")
+                va, vb = p.versions
+                return PairResult(a, b, p.margin, p.kind, p.result.swapped(), (vb, va))
+        raise UnknownName(
+            "scene", "watched pair", f"({a}, {b})", (f"({p.a}, {p.b})" for p in self.pairs)
+        )
 
 
 @runtime_checkable
 class SceneLike(Protocol):
     """The scene interface a controller and a simulation use: :class:`Scene` in
-    process, :class:`reachwise.server.client.SceneClient` over the network."""
+    process, :class:`reachwise.server.client.SceneClient` over the network. Code
+    written against it never knows which of the two it talks to."""
+
+    @property
+    def strategy(self) -> StrategyName: ...
+
+    @property
+    def robots(self) -> Mapping[str, RobotLike]: ...
 
     @property
     def objects(self) -> dict[str, SceneObject]: ...
@@ -194,9 +222,16 @@ class SceneLike(Protocol):
 
     def set_pose(self, name: str, pose: ArrayLike, *, stamp: float | None = None) -> None: ...
 
-    def replace_cloud(self, name: str, cloud: PointCloud | ArrayLike) -> None: ...
+    def replace_cloud(
+        self,
+        name: str,
+        cloud: PointCloud | ArrayLike,
+        *,
+        block: bool = False,
+        stamp: float | None = None,
+    ) -> int: ...
 
-    def watch(self, a: str, b: str, margin: float, kind: str = "custom") -> WatchedPair: ...
+    def watch(self, a: str, b: str, margin: float, *, kind: PairKind = "custom") -> WatchedPair: ...
 
     def unwatch(self, a: str, b: str) -> None: ...
 
@@ -218,6 +253,8 @@ class SceneLike(Protocol):
 
     def query_all(self) -> SceneResult: ...
 
+    def close(self) -> None: ...
+
 
 class Scene:
     """Objects, robots and watched pairs; :meth:`query_all` answers every pair.
@@ -228,13 +265,9 @@ class Scene:
     """
 
     def __init__(
-        self, strategy: str = "default", *, clock: Callable[[], float] | None = None
+        self, *, strategy: StrategyName = "default", clock: Callable[[], float] | None = None
     ) -> None:
-        if strategy not in STRATEGIES:
-            raise InputError(
-                "strategy", "", f"unknown strategy {strategy!r}; choose one of {list(STRATEGIES)}"
-            )
-        self.strategy = strategy
+        self.strategy = check_choice(strategy, STRATEGIES, source="scene", kind="strategy")
         self.clock = clock
         self._objects: dict[str, SceneObject] = {}
         self._robots: dict[str, RobotLike] = {}
@@ -246,6 +279,13 @@ class Scene:
         self._pairs: dict[tuple[str, str], WatchedPair] = {}
         self._queries: dict[tuple[str, str], PairQuery] = {}
         self._sequence = 0
+        # cloud versions: the one in use per object, the last one handed over, and the
+        # time stamp of the one in use (+inf: does not age); the read-only snapshots
+        # the answers carry are replaced, never changed, when a cloud is swapped in
+        self._versions: Mapping[str, int] = MappingProxyType({})
+        self._cloud_stamps: Mapping[str, float] = MappingProxyType({})
+        self._issued: dict[str, int] = {}
+        self._ingest = CloudIngest()
 
     # ------------------------------------------------------------------ contents
     @property
@@ -264,6 +304,16 @@ class Scene:
     def sequence(self) -> int:
         """How many times :meth:`query_all` has answered."""
         return self._sequence
+
+    @property
+    def versions(self) -> Mapping[str, int]:
+        """The version of each object's cloud in use now (see :meth:`replace_cloud`)."""
+        return self._versions
+
+    @property
+    def ingest(self) -> CloudIngest:
+        """The worker that indexes handed-over clouds (its counters, errors, ``wait``)."""
+        return self._ingest
 
     def add_robot(
         self, robot: RobotLike, q: ArrayLike | None = None, *, stamp: float | None = None
@@ -316,11 +366,7 @@ class Scene:
                 raise InputError("scene", f"object {name!r}", "give both robot and link")
             r = self._robot(robot)
             if link not in r.link_names:
-                raise InputError(
-                    "scene",
-                    f"object {name!r}",
-                    f"robot {robot!r} has no link {link!r}; links are {list(r.link_names)}",
-                )
+                raise UnknownName(f"robot {robot!r}", "link", link, r.link_names)
             if dynamic:
                 raise InputError("scene", f"object {name!r}", "a link object cannot be dynamic")
             source = OnLink(robot, link, P)
@@ -330,9 +376,11 @@ class Scene:
             self._pose_stamp[name] = self._stamp(None, f"object {name!r}")
         else:
             source = Fixed(P)
-        cloud_tree(c)
+        cloud_index(c)
         obj = SceneObject(name, c, source)
         self._objects[name] = obj
+        self._issued[name] = 0
+        self._set_version(name, 0, math.inf)
         return obj
 
     def set_pose(self, name: str, pose: ArrayLike, *, stamp: float | None = None) -> None:
@@ -346,22 +394,47 @@ class Scene:
         self._runtime[name] = P
         self._pose_stamp[name] = t
 
-    def replace_cloud(self, name: str, cloud: PointCloud | ArrayLike) -> None:
-        """Swap object ``name``'s cloud (e.g. a new scan); its index is rebuilt now and
-        the warm starts of its pairs are dropped."""
-        obj = self._object(name)
-        c = as_cloud(cloud, name)
-        cloud_tree(c)
-        self._objects[name] = SceneObject(name, c, obj.source)
-        for key in list(self._queries):
-            if name in key:
-                pair = self._pairs[key]
-                self._queries[key] = self._make_query(pair)
+    def replace_cloud(
+        self,
+        name: str,
+        cloud: PointCloud | ArrayLike,
+        *,
+        block: bool = False,
+        stamp: float | None = None,
+    ) -> int:
+        """Hand over a new cloud for object ``name`` (a new scan or camera frame),
+        measured at ``stamp`` (s; default: the scene's clock, or unknown); returns its
+        version (1, 2, … per object; the cloud it was added with is version 0).
+
+        ``block=False`` (the default) returns at once: the cloud is checked and indexed
+        on the scene's worker thread (:class:`~reachwise.distance.ingest.CloudIngest`)
+        and swapped in at the start of the first :meth:`query_all` after it is ready, so
+        a query never waits for a build. Until then the answers use the previous
+        cloud, and say so (:attr:`SceneResult.versions`). A newer hand-over for the
+        same object supersedes one still waiting; a cloud with bad points is never
+        swapped in (its error is in :meth:`CloudIngest.errors`). An array is read on
+        the worker thread: do not write into it afterwards.
+
+        ``block=True`` checks and indexes the cloud now, in the caller, and swaps it in
+        before returning (bad points raise :class:`~reachwise.errors.CloudError`).
+        Either way the warm starts of the object's pairs are dropped at the swap."""
+        self._object(name)
+        t = self._stamp(stamp, f"object {name!r}")
+        version = self._issued[name] + 1
+        points = cloud if isinstance(cloud, PointCloud) else np.asarray(cloud, dtype=np.float64)
+        if block:
+            self._install(ready_cloud(name, version, points, t))
+            self._issued[name] = version
+            return version
+        self._issued[name] = version
+        self._ingest.submit(name, version, points, t)
+        return version
 
     # ------------------------------------------------------------------ rules
-    def watch(self, a: str, b: str, margin: float, kind: str = "custom") -> WatchedPair:
+    def watch(self, a: str, b: str, margin: float, *, kind: PairKind = "custom") -> WatchedPair:
         """Watch objects ``a`` and ``b`` with ``margin`` metres (replaces an earlier rule
-        for the same pair)."""
+        for the same pair); ``kind`` (:data:`PairKind`) says why."""
+        kind = check_choice(kind, PAIR_KINDS, source=f"pair ({a!r}, {b!r})", kind="pair kind")
         self._object(a)
         self._object(b)
         if a == b:
@@ -414,7 +487,7 @@ class Scene:
                     continue
                 if frozenset((la, lb)) in excl or frozenset((oa.name, ob.name)) in excl:
                     continue
-                out.append(self.watch(oa.name, ob.name, margin, "self"))
+                out.append(self.watch(oa.name, ob.name, margin, kind="self"))
         return tuple(out)
 
     def watch_environment(
@@ -428,7 +501,7 @@ class Scene:
         else:
             others = [self._object(n).name for n in objects]
         return tuple(
-            self.watch(o.name, e, margin, "robot-environment") for o in mine for e in others
+            self.watch(o.name, e, margin, kind="robot-environment") for o in mine for e in others
         )
 
     def watch_robots(self, robot_a: str, robot_b: str, margin: float) -> tuple[WatchedPair, ...]:
@@ -437,7 +510,7 @@ class Scene:
             raise InputError("scene", "watch_robots", "use watch_self for one robot")
         oa = self.robot_objects(robot_a)
         ob = self.robot_objects(robot_b)
-        return tuple(self.watch(x.name, y.name, margin, "robot-robot") for x in oa for y in ob)
+        return tuple(self.watch(x.name, y.name, margin, kind="robot-robot") for x in oa for y in ob)
 
     # ------------------------------------------------------------------ queries
     def poses(self) -> dict[str, NDArray[np.float64]]:
@@ -447,12 +520,16 @@ class Scene:
 
     def query_all(self) -> SceneResult:
         """Answer every watched pair at the current joint states and poses; the result
-        carries its sequence number and time stamps (see :class:`SceneResult`)."""
+        carries its sequence number, time stamps and cloud versions (see
+        :class:`SceneResult`). Clouds indexed since the last call are swapped in first."""
+        for ready in self._ingest.take_ready():
+            self._install(ready)
         clock = self.clock
         measured = clock() if clock is not None else math.inf
         fk: dict[str, NDArray[np.float64]] = {}
         cache: dict[str, NDArray[np.float64]] = {}
         out = []
+        versions = self._versions
         for key, pair in self._pairs.items():
             for n in key:
                 if n not in cache:
@@ -462,7 +539,16 @@ class Scene:
                     if t != t or t < measured:  # unknown (NaN, then kept) or older
                         measured = t
             res = self._queries[key](cache[pair.a], cache[pair.b])
-            out.append(PairResult(pair.a, pair.b, pair.margin, pair.kind, res))
+            out.append(
+                PairResult(
+                    pair.a,
+                    pair.b,
+                    pair.margin,
+                    pair.kind,
+                    res,
+                    (versions[pair.a], versions[pair.b]),
+                )
+            )
         self._sequence += 1
         computed = clock() if clock is not None else math.nan
         return SceneResult(
@@ -470,7 +556,32 @@ class Scene:
             tuple(out),
             measured_at=measured if measured != math.inf else math.nan,
             computed_at=computed,
+            versions=versions,
+            cloud_stamps=self._cloud_stamps,
         )
+
+    def close(self) -> None:
+        """Stop the cloud-ingestion worker (a remote scene disconnects here)."""
+        self._ingest.close()
+
+    def _install(self, ready: Ready) -> None:
+        """Swap in a built cloud (unless a newer version is in use already): the object
+        takes the cloud, the index registry its index, its pairs fresh warm starts."""
+        if ready.version <= self._versions.get(ready.name, -1):
+            return
+        obj = self._objects[ready.name]
+        INDICES.put(ready.cloud, ready.index)
+        self._objects[ready.name] = SceneObject(ready.name, ready.cloud, obj.source)
+        self._set_version(ready.name, ready.version, ready.stamp)
+        for key in list(self._queries):
+            if ready.name in key:
+                self._queries[key] = self._make_query(self._pairs[key])
+
+    def _set_version(self, name: str, version: int, stamp: float) -> None:
+        """New read-only snapshots of the versions and cloud stamps (answers already
+        given keep theirs)."""
+        self._versions = MappingProxyType({**self._versions, name: version})
+        self._cloud_stamps = MappingProxyType({**self._cloud_stamps, name: stamp})
 
     # ------------------------------------------------------------------ helpers
     def _stamp(self, stamp: float | None, source: str) -> float:
@@ -505,17 +616,13 @@ class Scene:
     def _robot(self, name: str) -> RobotLike:
         r = self._robots.get(name)
         if r is None:
-            raise InputError(
-                "scene", f"robot {name!r}", f"not registered; robots: {list(self._robots)}"
-            )
+            raise UnknownName("scene", "robot", name, self._robots)
         return r
 
     def _object(self, name: str) -> SceneObject:
         o = self._objects.get(name)
         if o is None:
-            raise InputError(
-                "scene", f"object {name!r}", f"not in the scene; objects: {list(self._objects)}"
-            )
+            raise UnknownName("scene", "object", name, self._objects)
         return o
 
     def _pose(self, obj: SceneObject, fk: dict[str, NDArray[np.float64]]) -> NDArray[np.float64]:

@@ -1,6 +1,6 @@
 """The ``thesis`` strategy: P-V Table 1 (= P-III Table 1) as written, kept exact.
 
-Initialization phase (per cloud, once, kept in ``PointCloud.cache``):
+Initialization phase (per cloud, once: its :class:`~reachwise.distance.index.CloudIndex`):
 
 1. input: the point cloud (in its own frame);
 2. a spatial index of the cloud — the thesis uses an octree; we use the same compact
@@ -40,27 +40,11 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise.distance import _kernels as K
-from reachwise.distance._common import (
-    NO_RISK,
-    DistanceResult,
-    cloud_tree,
-    result_from_pair,
-    world,
-)
-from reachwise.geometry.boxes import AABB, eobb, obb_overlap, overlap_box
+import reachwise.distance._kernels as K
+from reachwise.distance._common import NO_RISK, DistanceResult, result_from_pair, world
+from reachwise.distance.index import cloud_index
+from reachwise.geometry.boxes import eobb, obb_overlap, overlap_box
 from reachwise.geometry.cloud import PointCloud
-
-_AABB_KEY = "reachwise.distance.thesis.aabb"
-
-
-def cloud_aabb(cloud: PointCloud) -> AABB:
-    """Table 1 step 3: the tight AABB of the cloud in its frame (cached)."""
-    box = cloud.cache.get(_AABB_KEY)
-    if box is None:
-        box = AABB.of_points(cloud.points)
-        cloud.cache[_AABB_KEY] = box
-    return box  # type: ignore[no-any-return]
 
 
 def thesis_candidates(
@@ -72,11 +56,11 @@ def thesis_candidates(
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]] | None:
     """Table 1 steps 5–9: the input rows of a and of b inside the overlap volume of the
     EOBBs (δx = margin), or None for "no risk"."""
-    ta, tb = cloud_tree(a), cloud_tree(b)
+    ta, tb = cloud_index(a), cloud_index(b)
     if math.isinf(margin):
         return ta.perm, tb.perm
-    ea = eobb(cloud_aabb(a), pose_a, margin)
-    eb = eobb(cloud_aabb(b), pose_b, margin)
+    ea = eobb(ta.aabb, pose_a, margin)  # step 3's tight AABBs are the trees' root boxes
+    eb = eobb(tb.aabb, pose_b, margin)
     if not obb_overlap(ea, eb):
         return None
     va = overlap_box(ea, eb)

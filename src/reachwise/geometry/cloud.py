@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import numbers
 from collections.abc import Sequence
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -55,15 +55,14 @@ DEFAULT_MESH_POINTS = 1000
 class PointCloud:
     """An immutable set of 3-D points in metres, expressed in frame ``frame``.
 
-    ``cache`` holds derived acceleration structures (spatial indices) keyed by the
-    distance strategy that built them; they depend only on the points, so repeated
-    queries against the same cloud do not rebuild them.
+    The cloud holds its (read-only) points, frame and name, nothing else: the spatial
+    index the distance queries need is kept by the distance layer, keyed by the cloud
+    (:mod:`reachwise.distance.index`), so repeated queries do not rebuild it.
     """
 
     points: NDArray[np.float64]
     frame: str = "world"
     name: str = ""
-    cache: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         source = self.name or "point cloud"

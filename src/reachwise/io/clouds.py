@@ -37,13 +37,14 @@ from __future__ import annotations
 import os
 import struct
 from pathlib import Path
-from typing import Any
+from typing import IO, Any, BinaryIO, cast
 
 import numpy as np
 from numpy.typing import NDArray
 
 from reachwise.errors import CloudError
 from reachwise.geometry.cloud import DEFAULT_MESH_POINTS, PointCloud, sample_mesh_surface
+from reachwise.io.atomic import atomic_open
 
 __all__ = [
     "CLOUD_FORMATS",
@@ -302,44 +303,39 @@ def save_cloud(
     source = str(path)
     if not target.parent.is_dir():
         raise CloudError(source, "file", f"directory {str(target.parent)!r} does not exist")
-    tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
     pts = cloud.points
     try:
-        if kind == "ply":
-            _write_ply(pts, tmp, ascii)
-        elif kind == "pcd":
-            _write_pcd(pts, tmp, ascii)
-        elif kind == "npy":
-            with open(tmp, "wb") as fh:
+        with atomic_open(target, "wb") as fh:
+            if kind == "ply":
+                _write_ply(pts, fh, ascii)
+            elif kind == "pcd":
+                _write_pcd(pts, fh, ascii)
+            elif kind == "npy":
                 np.save(fh, np.ascontiguousarray(pts), allow_pickle=False)
-        elif kind == "csv":
-            np.savetxt(tmp, pts, fmt="%.17g", delimiter=",", header="x,y,z", comments="")
-        else:
-            np.savetxt(tmp, pts, fmt="%.17g", delimiter=" ")
-        os.replace(tmp, target)
+            elif kind == "csv":
+                np.savetxt(fh, pts, fmt="%.17g", delimiter=",", header="x,y,z", comments="")
+            else:
+                np.savetxt(fh, pts, fmt="%.17g", delimiter=" ")
     except OSError as exc:
         raise CloudError(source, "file", f"cannot write: {exc.strerror or exc}") from None
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return target
 
 
-def _write_ply(pts: NDArray[np.float64], path: Path, ascii: bool) -> None:
+def _write_ply(pts: NDArray[np.float64], fh: IO[bytes], ascii: bool) -> None:
     import plyfile
 
     vertex = np.empty(len(pts), dtype=[("x", "<f8"), ("y", "<f8"), ("z", "<f8")])
     vertex["x"], vertex["y"], vertex["z"] = pts[:, 0], pts[:, 1], pts[:, 2]
     element = plyfile.PlyElement.describe(vertex, "vertex")
-    plyfile.PlyData([element], text=ascii, byte_order="<").write(str(path))
+    plyfile.PlyData([element], text=ascii, byte_order="<").write(fh)
 
 
-def _write_pcd(pts: NDArray[np.float64], path: Path, ascii: bool) -> None:
+def _write_pcd(pts: NDArray[np.float64], fh: IO[bytes], ascii: bool) -> None:
     import pypcd4
 
     pcd = pypcd4.PointCloud.from_points(pts, _XYZ, (np.float64, np.float64, np.float64))
     encoding = pypcd4.Encoding.ASCII if ascii else pypcd4.Encoding.BINARY
-    pcd.save(path, encoding=encoding)
+    pcd.save(cast(BinaryIO, fh), encoding=encoding)
 
 
 # ---------------------------------------------------------------------------- meshes

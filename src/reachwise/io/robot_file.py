@@ -16,7 +16,9 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from reachwise.errors import InputError, RobotFileError
-from reachwise.io._builtin import builtin_names, builtin_text
+from reachwise.io._builtin import builtin_names, load_named
+from reachwise.io.atomic import atomic_write
+from reachwise.io.validation import input_error
 from reachwise.kinematics.robot import (
     BASE_PARAMS,
     DH_PARAMS,
@@ -158,16 +160,6 @@ class RobotModel(BaseModel):
     design: DesignModel = DesignModel()
 
 
-def _field_path(loc: tuple[Any, ...]) -> str:
-    out = ""
-    for part in loc:
-        if isinstance(part, int):
-            out += f"[{part}]"
-        else:
-            out += ("." if out else "") + str(part)
-    return out
-
-
 def robot_from_dict(data: Any, source: str = "robot") -> Robot:
     """Build a Robot from parsed YAML, raising ``RobotFileError`` naming ``source``."""
     if not isinstance(data, dict):
@@ -175,12 +167,7 @@ def robot_from_dict(data: Any, source: str = "robot") -> Robot:
     try:
         m = RobotModel.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        # drop pydantic's model-name/union tags from the location
-        loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and p.startswith("function-")))
-        more = f" (and {len(exc.errors()) - 1} more)" if len(exc.errors()) > 1 else ""
-        msg = err["msg"].removeprefix("Value error, ")
-        raise RobotFileError(source, _field_path(loc), msg + more) from None
+        raise input_error(exc, source, RobotFileError) from None
     joints = []
     for i, jm in enumerate(m.joints):
         try:
@@ -263,7 +250,7 @@ def robot_to_dict(robot: Robot) -> dict[str, Any]:
 
 def save_robot(robot: Robot, path: str | Path) -> None:
     """Write ``robot`` as a YAML robot file."""
-    Path(path).write_text(yaml.safe_dump(robot_to_dict(robot), sort_keys=False))
+    atomic_write(path, yaml.safe_dump(robot_to_dict(robot), sort_keys=False))
 
 
 def load_robot_file(path: str | Path) -> Robot:
@@ -289,14 +276,13 @@ def builtin_robots() -> list[str]:
 
 def load_robot(name_or_path: str | Path) -> Robot:
     """A built-in robot by name (``panda``, ``sb60`` …) or a YAML/URDF robot file."""
-    s = str(name_or_path)
-    if s in builtin_robots():
-        data = yaml.safe_load(builtin_text("robots", s))
-        return robot_from_dict(data, f"built-in robot {s}")
-    p = Path(s)
-    if p.suffix.lower() in (".yaml", ".yml", ".urdf") or p.exists():
-        return load_robot_file(p)
-    raise RobotFileError(s, "", f"no such file or built-in robot; built-ins: {builtin_robots()}")
+    return load_named(
+        "robots",
+        name_or_path,
+        from_builtin=lambda b: robot_from_dict(yaml.safe_load(b.text()), b.label),
+        from_file=load_robot_file,
+        suffixes=(".yaml", ".yml", ".urdf"),
+    )
 
 
 __all__ = [

@@ -1,11 +1,11 @@
-"""Write a synthesis result to a folder: design.yaml, design.urdf, summary.json,
-points.csv, runs.csv and the figures of P-I Figs. 4–6."""
+"""A synthesis result as files in a folder: design.yaml, design.urdf, summary.json and
+points.csv, written and read back (the figures and the HTML report are
+:mod:`reachwise.report.synthesis`'s)."""
 
 from __future__ import annotations
 
 import csv
 import json
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -13,7 +13,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise import __version__
+from reachwise._version import __version__
+from reachwise.io.atomic import atomic_open, atomic_write
+from reachwise.io.robot_file import save_robot
 from reachwise.kinematics.indices import gci, kci
 from reachwise.synthesis.synthesize import SynthesisResult
 
@@ -71,25 +73,19 @@ def summary(result: SynthesisResult) -> dict[str, Any]:
     }
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
-
-
-def write_synthesis(result: SynthesisResult, out: str | Path, figures: bool = True) -> Path:
-    """Write every output file of ``result`` into folder ``out``; return the folder."""
+def write_synthesis(result: SynthesisResult, out: str | Path) -> Path:
+    """Write the files of ``result`` (module docstring) into folder ``out``; return it."""
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
     best = result.best
     prob = result.problem
-    best.robot.save(str(folder / "design.yaml"))
+    save_robot(best.robot, folder / "design.yaml")
     from reachwise.io.urdf import export_urdf
 
     export_urdf(best.robot, folder / "design.urdf")
-    _atomic_write(folder / "summary.json", json.dumps(summary(result), indent=2))
+    atomic_write(folder / "summary.json", json.dumps(summary(result), indent=2))
     task = prob.task
-    with open(folder / "points.csv", "w", newline="") as fh:
+    with atomic_open(folder / "points.csv", "w", newline="") as fh:
         w = csv.writer(fh)
         qcols = [f"q{i}" for i in range(best.q.shape[1])]
         header = ["index", "name", "group", "dims", "x", "y", "z", "position_error_m",
@@ -102,23 +98,7 @@ def write_synthesis(result: SynthesisResult, out: str | Path, figures: bool = Tr
                         repr(float(best.orientation_error[k])), best.status[k],
                         repr(float(best.lci_initial[k])), repr(float(best.lci_final[k])),
                         *map(repr, map(float, best.q[k]))])  # fmt: skip
-    if figures:
-        fig = _configurations(result)
-        fig.savefig(folder / "configurations.png", dpi=110)
-        from reachwise.viz.plots import lci_figure
-
-        lci_figure(best.lci_initial, best.lci_final, f"{prob.template.name} on {task.name}") \
-            .savefig(folder / "lci.png", dpi=110)  # fmt: skip
     return folder
-
-
-def _configurations(result: SynthesisResult) -> Any:
-    from reachwise.viz.plots import configurations_figure
-
-    best = result.best
-    return configurations_figure(
-        best.robot, best.q, result.problem.task.poses, best.status, every=2
-    )
 
 
 def design_rows(result: SynthesisResult) -> list[list[str]]:

@@ -53,7 +53,9 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from scipy.spatial.transform import Rotation
 
 from reachwise.errors import TaskError
-from reachwise.io._builtin import builtin_names, builtin_text
+from reachwise.io._builtin import builtin_names, load_named
+from reachwise.io.atomic import atomic_write
+from reachwise.io.validation import input_error
 from reachwise.tasks.task import (
     DEFAULT_TOL_ORIENTATION,
     DEFAULT_TOL_POSITION,
@@ -138,16 +140,6 @@ class TaskModel(BaseModel):
     points: list[PointModel]
 
 
-def _field_path(loc: tuple[Any, ...]) -> str:
-    out = ""
-    for part in loc:
-        if isinstance(part, int):
-            out += f"[{part}]"
-        else:
-            out += ("." if out else "") + str(part)
-    return out
-
-
 def _envelope(m: EnvelopeModel, source: str) -> TunnelEnvelope:
     t = m.tunnel
     try:
@@ -217,17 +209,7 @@ def task_from_dict(data: Any, source: str = "task", default_name: str = "task") 
     try:
         m = TaskModel.model_validate(data)
     except ValidationError as exc:
-        # an unknown key is usually the cause of a "missing" one: report it first
-        errors = sorted(exc.errors(), key=lambda e: e["type"] != "extra_forbidden")
-        err = errors[0]
-        loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and "[" in p))
-        more = f" (and {len(exc.errors()) - 1} more)" if len(exc.errors()) > 1 else ""
-        msg = err["msg"].removeprefix("Value error, ")
-        if err["type"] == "missing" and len(loc) > 1 and isinstance(loc[-1], int):
-            # a short tuple: name the tuple, not its missing item
-            n = _LENGTHS.get(str(loc[-2]))
-            loc, msg = loc[:-1], f"expected {n} values" if n else "too few values"
-        raise TaskError(source, _field_path(loc), msg + more) from None
+        raise input_error(exc, source, TaskError, _LENGTHS) from None
     points = tuple(_point(i, p, m.tolerance, source) for i, p in enumerate(m.points))
     envelope = None if m.envelope is None else _envelope(m.envelope, source)
     return Task(m.name if m.name is not None else default_name, points, envelope)
@@ -480,7 +462,7 @@ def save_task(
     ``comment`` heads a YAML file; ``decimals`` rounds coordinates, quaternions and
     axes. The envelope is kept in YAML and JSON only."""
     p = Path(path)
-    p.write_text(render_task(task, _format(p, fmt), comment=comment, decimals=decimals))
+    atomic_write(p, render_task(task, _format(p, fmt), comment=comment, decimals=decimals))
 
 
 def load_task_file(path: str | Path) -> Task:
@@ -535,13 +517,13 @@ def builtin_tasks() -> list[str]:
 
 def load_task(name_or_path: str | Path) -> Task:
     """A built-in task by name (``tunnel-87``) or a YAML/JSON/CSV task file."""
-    s = str(name_or_path)
-    if s in builtin_tasks():
-        return task_from_dict(yaml.safe_load(builtin_text("tasks", s)), f"built-in task {s}", s)
-    p = Path(s)
-    if p.is_file() or p.suffix.lower() in _SUFFIX:
-        return load_task_file(p)
-    raise TaskError(s, "", f"no such file or built-in task; built-ins: {builtin_tasks()}")
+    return load_named(
+        "tasks",
+        name_or_path,
+        from_builtin=lambda b: task_from_dict(yaml.safe_load(b.text()), b.label, b.name),
+        from_file=load_task_file,
+        suffixes=tuple(_SUFFIX),
+    )
 
 
 __all__ = [

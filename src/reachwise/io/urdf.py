@@ -64,6 +64,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from reachwise.errors import RobotFileError
+from reachwise.io.atomic import atomic_write
 from reachwise.kinematics.robot import Joint, JointType, LinkGeometry, Robot
 from reachwise.kinematics.transforms import matrix_from_rpy, rpy_from_matrix
 from reachwise.kinematics.transforms import rot_x as _rx
@@ -291,7 +292,7 @@ def export_urdf(robot: Robot, path: str | Path | None = None) -> str:
     ET.indent(root, space="  ")
     xml = '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
     if path is not None:
-        Path(path).write_text(xml)
+        atomic_write(path, xml)
     return xml
 
 

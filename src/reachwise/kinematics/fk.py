@@ -7,8 +7,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+import reachwise.kinematics._kernels as K
 from reachwise.errors import InputError
-from reachwise.kinematics import _kernels as K
 
 if TYPE_CHECKING:
     from reachwise.kinematics.robot import Robot

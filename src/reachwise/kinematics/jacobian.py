@@ -11,8 +11,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+import reachwise.kinematics._kernels as K
 from reachwise.errors import InputError
-from reachwise.kinematics import _kernels as K
 from reachwise.kinematics.fk import as_q
 
 if TYPE_CHECKING:

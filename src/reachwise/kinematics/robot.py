@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from reachwise.errors import InputError, RobotFileError
+from reachwise.errors import InputError, RobotFileError, UnknownName
 from reachwise.kinematics.transforms import Pose, check_pose
 
 if TYPE_CHECKING:
@@ -274,7 +274,7 @@ class Robot:
             try:
                 return self.link_names.index(link)
             except ValueError:
-                raise InputError(self.name, "link", f"unknown link {link!r}") from None
+                raise UnknownName(self.name, "link", link, self.link_names) from None
         k = int(link)
         if not 0 <= k < len(self.link_names):
             raise InputError(self.name, "link", f"link index {k} outside 0..{len(self.joints) + 1}")
@@ -357,12 +357,6 @@ class Robot:
             base=self.base if base is None else np.asarray(base, dtype=float),
             name=self.name if name is None else name,
         )
-
-    def save(self, path: str) -> None:
-        """Write the robot as a YAML robot file (schema in DESIGN.md); round-trips."""
-        from reachwise.io.robot_file import save_robot
-
-        save_robot(self, path)
 
 
 def _ro(a: NDArray[Any]) -> NDArray[Any]:

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from reachwise.distance.engine import PairQuery
+from reachwise.distance.engine import PairQuery, StrategyName
 from reachwise.distance.scene import OnLink, SceneLike
 from reachwise.errors import InputError
 from reachwise.kinematics.ik import finite_limits
@@ -115,7 +115,7 @@ class ClearanceChecker:
         name: str | None = None,
         margins: Mapping[tuple[str, str], float] | None = None,
         *,
-        strategy: str = "default",
+        strategy: StrategyName = "default",
     ) -> None:
         self.robot = robot
         self.name = robot.name if name is None else name

@@ -9,7 +9,7 @@ import math
 import threading
 from collections import Counter
 
-from reachwise.server import protocol as P
+import reachwise.server.protocol as P
 from reachwise.server.state import StateStore
 
 #: Sequence numbers reserved in the state directory at a time.

@@ -40,14 +40,16 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise import __version__
-from reachwise.distance._common import NO_RISK, check_pose, cloud_tree
+import reachwise.server.protocol as P
+from reachwise._version import __version__
+from reachwise.distance._common import NO_RISK, check_pose
+from reachwise.distance.engine import STRATEGIES, StrategyName
+from reachwise.distance.index import cloud_index
 from reachwise.distance.scene import Fixed, OnLink, Scene
-from reachwise.errors import InputError
+from reachwise.errors import InputError, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_file import robot_from_dict
 from reachwise.kinematics.robot import Robot
-from reachwise.server import protocol as P
 from reachwise.server.counters import Metrics, SequenceCounter
 from reachwise.server.state import (
     JointState,
@@ -98,12 +100,12 @@ class SceneService:
 
     def __init__(
         self,
-        strategy: str = "default",
+        strategy: StrategyName = "default",
         store: StateStore | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        self.scene = Scene(strategy)
-        self.strategy = strategy
+        self.strategy = check_choice(strategy, STRATEGIES, source="server", kind="strategy")
+        self.scene = Scene(strategy=self.strategy)
         self.store = store
         self.clock = clock
         self.lock = threading.RLock()
@@ -455,7 +457,7 @@ class SceneService:
         try:
             with self.lock:
                 self._object(req.name, "body.name")
-                self.scene.replace_cloud(req.name, cloud)
+                self.scene.replace_cloud(req.name, cloud, block=True)
                 old = self._meta[req.name]
                 self._meta[req.name] = _ObjectMeta(cloud_file, old.stamp_of)
                 manifest = self._manifest()
@@ -472,7 +474,7 @@ class SceneService:
             self._object(req.b, "body.b")
             if req.a == req.b:
                 raise _err(P.ErrorCode.INVALID, "body.b", "an object cannot be paired with itself")
-            pairs = (self.scene.watch(req.a, req.b, req.margin, req.kind),)
+            pairs = (self.scene.watch(req.a, req.b, req.margin, kind=req.kind),)
             self._pairs_changed()
             manifest = self._manifest()
         self._persist(manifest)
@@ -521,7 +523,7 @@ class SceneService:
     def _clear(self, req: P.Clear) -> P.Reply:
         with self.lock:
             dropped = [m.cloud_file for m in self._meta.values()]
-            self.scene = Scene(self.strategy)
+            self.scene = Scene(strategy=self.strategy)
             self._models, self._robots, self._meta = {}, {}, {}
             self._joints, self._runtime = {}, {}
             self._pairs_changed()
@@ -629,7 +631,7 @@ class SceneService:
             return
         m, live = snap.manifest, snap.live
         where = str(store.root / "scene.json")
-        scene = Scene(m.strategy)
+        scene = Scene(strategy=m.strategy)
         robots: dict[str, Robot] = {}
         joints: dict[str, tuple[NDArray[np.float64], float]] = {}
         runtime: dict[str, tuple[NDArray[np.float64], float]] = {}
@@ -661,7 +663,7 @@ class SceneService:
                 scene.add_object(o.name, cloud, pose)
                 meta[o.name] = _ObjectMeta(o.cloud, None)
         for p in m.pairs:
-            scene.watch(p.a, p.b, p.margin, p.kind)
+            scene.watch(p.a, p.b, p.margin, kind=p.kind)
         removed = store.remove_unreferenced(m)
         if removed:
             log.info("removed %d unreferenced state files", len(removed))
@@ -679,7 +681,7 @@ class SceneService:
 def _cloud(points: NDArray[np.float64], name: str, frame: str) -> PointCloud:
     """A validated cloud with its k-d tree built (P-V Table 1 initialization)."""
     cloud = PointCloud(points, frame=frame, name=name)
-    cloud_tree(cloud)
+    cloud_index(cloud)
     return cloud
 
 

@@ -43,7 +43,11 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
+from reachwise.distance.engine import StrategyName
+from reachwise.distance.scene import PairKind
 from reachwise.errors import InputError
+from reachwise.io.atomic import TEMP_SUFFIX, atomic_write
+from reachwise.io.validation import input_error
 
 #: Version of the state files; another version is refused (not guessed at).
 STATE_VERSION = 1
@@ -97,7 +101,7 @@ class PairState(BaseModel):
     a: str = Field(min_length=1)
     b: str = Field(min_length=1)
     margin: float = Field(ge=0.0)
-    kind: str
+    kind: PairKind
 
     @field_validator("margin")
     @classmethod
@@ -113,7 +117,7 @@ class Manifest(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
     version: Literal[1] = 1
-    strategy: str
+    strategy: StrategyName
     robots: tuple[RobotState, ...] = ()
     objects: tuple[ObjectState, ...] = ()
     pairs: tuple[PairState, ...] = ()
@@ -161,29 +165,6 @@ def matrix4(a: NDArray[np.float64]) -> Matrix4:
     return (r[0], r[1], r[2], r[3])  # type: ignore[return-value]
 
 
-def atomic_write(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically (temp file, fsync, os.replace, fsync dir)."""
-    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex}.tmp")
-    try:
-        with open(tmp, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    _fsync_dir(path.parent)
-
-
-def _fsync_dir(folder: Path) -> None:
-    fd = os.open(folder, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
 def _json_bytes(model: BaseModel) -> bytes:
     # json (not pydantic's serializer) so that an infinite margin stays ``Infinity``
     return json.dumps(model.model_dump(mode="python"), indent=1).encode()
@@ -227,7 +208,7 @@ class StateStore:
         for folder in (self.root, clouds):
             for p in folder.iterdir():
                 stale_cloud = folder == clouds and p.suffix == ".npy" and p.name not in keep
-                if p.is_file() and (stale_cloud or p.name.endswith(".tmp")):
+                if p.is_file() and (stale_cloud or p.name.endswith(TEMP_SUFFIX)):
                     p.unlink(missing_ok=True)
                     removed.append(p.name)
         return removed
@@ -279,9 +260,7 @@ def _read_model(path: Path, model: type[_M]) -> _M:
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        where = ".".join(str(p) for p in err["loc"])
-        raise StateError(str(path), where, err["msg"]) from None
+        raise input_error(exc, str(path), StateError) from None
 
 
 __all__ = [

@@ -32,7 +32,8 @@ from pathlib import Path
 import zmq
 import zmq.auth.thread
 
-from reachwise.server import protocol as P
+import reachwise.server.protocol as P
+from reachwise.distance.engine import StrategyName
 from reachwise.server.security import DEFAULT_BIND, BindPlan, plan_bind, secure_server_socket
 from reachwise.server.service import LIVE_INTERVAL, SceneService, answer
 from reachwise.server.state import StateStore
@@ -79,7 +80,7 @@ class CollisionServer:
         *,
         keys: str | Path | None = None,
         insecure: bool = False,
-        strategy: str = "default",
+        strategy: StrategyName = "default",
         limits: P.Limits = P.DEFAULT_LIMITS,
         live_interval: float = LIVE_INTERVAL,
     ) -> None:

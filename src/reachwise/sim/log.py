@@ -15,9 +15,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from reachwise.errors import InputError
+from reachwise.io.atomic import atomic_open, atomic_write
 from reachwise.kinematics.robot import Robot
+from reachwise.sim.robots import robot_of
 from reachwise.sim.scenarios import Scenario, load_scenario
-from reachwise.sim.world import robot_of
 
 __all__ = ["Event", "GoalRecord", "SimulationLog", "load_log"]
 
@@ -222,8 +223,9 @@ class SimulationLog:
             arrays[f"{r}.goal_index"] = self.goal_index[r]
         for name, poses in self.object_poses.items():
             arrays[f"object.{name}.pose"] = poses
-        np.savez_compressed(out / "log.npz", **arrays)
-        with (out / "log.csv").open("w", newline="") as fh:
+        with atomic_open(out / "log.npz", "wb") as npz:
+            np.savez_compressed(npz, **arrays)
+        with atomic_open(out / "log.csv", "w", newline="") as fh:
             w = csv.writer(fh)
             head = ["t"]
             for r in self.robots:
@@ -241,7 +243,7 @@ class SimulationLog:
                     row.append(self.state[r][i])
                 row.append(f"{md[i]:.6g}")
                 w.writerow(row)
-        (out / "summary.json").write_text(json.dumps(self.summary(), indent=2))
+        atomic_write(out / "summary.json", json.dumps(self.summary(), indent=2))
         return out
 
 

@@ -26,15 +26,32 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, get_args
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from reachwise.errors import InputError
+from reachwise.errors import InputError, check_choice
 from reachwise.kinematics.robot import Robot
 
-__all__ = ["Plant", "PlantConfig", "hanging_joints"]
+__all__ = [
+    "PLANT_KINDS",
+    "PLANT_NAMES",
+    "Plant",
+    "PlantConfig",
+    "PlantKind",
+    "PlantName",
+    "hanging_joints",
+]
+
+#: The dynamics of a scenario's own plant: ideal joint velocities, or a first-order
+#: lag with a rate limit (a hydraulic drive).
+PlantKind = Literal["kinematic", "hydraulic"]
+PLANT_KINDS: tuple[PlantKind, ...] = get_args(PlantKind)
+#: Which plants a simulation runs: each robot's own (``scenario``) or its MuJoCo
+#: model (``mujoco``, :mod:`reachwise.sim.mujoco_plant`).
+PlantName = Literal["scenario", "mujoco"]
+PLANT_NAMES: tuple[PlantName, ...] = get_args(PlantName)
 
 
 @dataclass(frozen=True)
@@ -44,15 +61,14 @@ class PlantConfig:
     lag; ``hang_axis`` in the last passive link's frame and ``hang_time_constant`` (s,
     0 = quasi-static) of the passive joints."""
 
-    kind: Literal["kinematic", "hydraulic"] = "kinematic"
+    kind: PlantKind = "kinematic"
     time_constant: float = 0.1
     rate_limit: float = math.inf
     hang_axis: tuple[float, float, float] = (1.0, 0.0, 0.0)
     hang_time_constant: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.kind not in ("kinematic", "hydraulic"):
-            raise InputError("plant", "kind", f"kinematic or hydraulic, got {self.kind!r}")
+        check_choice(self.kind, PLANT_KINDS, source="plant", kind="plant kind")
         if not self.time_constant > 0:
             raise InputError("plant", "time_constant", f"must be > 0, got {self.time_constant}")
         if not self.rate_limit > 0:

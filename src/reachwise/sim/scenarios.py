@@ -55,7 +55,6 @@ from __future__ import annotations
 
 import itertools
 import math
-from importlib import resources
 from pathlib import Path
 from typing import Any, Literal
 
@@ -72,9 +71,11 @@ from pydantic import (
 from scipy.spatial.transform import Rotation
 
 from reachwise.errors import InputError
-from reachwise.io._builtin import builtin_names
+from reachwise.io._builtin import builtin_names, load_named
 from reachwise.io.robot_file import FrameModel
+from reachwise.io.validation import input_error
 from reachwise.sim.motion import ConstantVelocity, Trajectory, WaypointTrajectory
+from reachwise.sim.plant import PlantKind
 
 __all__ = [
     "CloudAtSpec",
@@ -179,7 +180,7 @@ class ControllerSpec(BaseModel):
 
 class PlantSpec(BaseModel):
     model_config = _STRICT
-    kind: Literal["kinematic", "hydraulic"] = "kinematic"
+    kind: PlantKind = "kinematic"
     time_constant: float = Field(default=0.1, gt=0.0)
     rate_limit: float = Field(default=math.inf, gt=0.0, allow_inf_nan=True)
     hang_axis: V3 = (1.0, 0.0, 0.0)
@@ -292,7 +293,7 @@ class RescanSpec(BaseModel):
 
 
 class OcclusionSpec(BaseModel):
-    """Occlusion fill of a scanned object (:func:`reachwise.geometry.scanner.shadow_points`):
+    """Occlusion fill of a scanned object (:func:`reachwise.geometry.occlusion.shadow_points`):
     the unseen space up to ``depth`` (m) behind every return counts as occupied;
     ``spacing`` (m, default the scan's voxel) between virtual points; ``ground`` (world
     z, default the scene's floor) below which none is kept."""
@@ -471,16 +472,6 @@ class Scenario:
         return f"Scenario({self.name!r}, source={self.source!r})"
 
 
-def _field_path(loc: tuple[Any, ...]) -> str:
-    out = ""
-    for part in loc:
-        if isinstance(part, int):
-            out += f"[{part}]"
-        else:
-            out += ("." if out else "") + str(part)
-    return out or "(top level)"
-
-
 def scenario_from_dict(data: Any, source: str = "scenario", folder: Path | None = None) -> Scenario:
     """Validate a scenario given as a dict (the parsed YAML)."""
     if not isinstance(data, dict):
@@ -488,13 +479,8 @@ def scenario_from_dict(data: Any, source: str = "scenario", folder: Path | None 
     try:
         spec = ScenarioSpec.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        raise InputError(source, _field_path(tuple(err["loc"])), err["msg"]) from None
+        raise input_error(exc, source) from None
     return Scenario(spec, source, folder or Path.cwd())
-
-
-def _scenario_folder() -> Path:
-    return Path(str(resources.files("reachwise.data") / "scenarios"))
 
 
 def builtin_scenarios() -> list[str]:
@@ -507,19 +493,24 @@ def load_scenario(name_or_path: str | Path | Scenario) -> Scenario:
     ``p5-crane-obstacle``) or a scenario YAML file."""
     if isinstance(name_or_path, Scenario):
         return name_or_path
-    s = str(name_or_path)
-    if s in builtin_scenarios():
-        p = _scenario_folder() / f"{s}.yaml"
-        source = f"built-in scenario {s}"
-    else:
-        p = Path(s)
-        source = str(p)
-        if not p.is_file():
-            raise InputError(
-                s, "", f"no such file or built-in scenario; built-ins: {builtin_scenarios()}"
-            )
+    return load_named(
+        "scenarios",
+        name_or_path,
+        from_builtin=lambda b: _parse(b.text(), b.label, b.folder),
+        from_file=_load_scenario_file,
+        suffixes=(".yaml", ".yml"),
+    )
+
+
+def _load_scenario_file(path: Path) -> Scenario:
+    if not path.is_file():
+        raise InputError(str(path), "", "no such file")
+    return _parse(path.read_text(), str(path), path.parent)
+
+
+def _parse(text: str, source: str, folder: Path) -> Scenario:
     try:
-        data = yaml.safe_load(p.read_text())
+        data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         raise InputError(source, "", f"not valid YAML: {exc}") from None
-    return scenario_from_dict(data, source, p.parent)
+    return scenario_from_dict(data, source, folder)

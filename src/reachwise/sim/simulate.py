@@ -26,18 +26,20 @@ import math
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from reachwise.control.controller import ControlStatus
-from reachwise.distance.scene import Scene, SceneResult
+from reachwise.distance.scene import SceneLike, SceneResult
 from reachwise.sim.log import Event, GoalRecord, SimulationLog
+from reachwise.sim.plant import PlantName
 from reachwise.sim.scenarios import EscapeSpec, Scenario
 from reachwise.sim.world import (
     Agent,
     SimClock,
+    Twists,
     World,
     build_world,
     close_scene,
@@ -46,7 +48,7 @@ from reachwise.sim.world import (
 )
 
 if TYPE_CHECKING:
-    from reachwise.server.client import ServerOptions
+    from reachwise.server.client.owned import ServerOptions
     from reachwise.sim.escape import Escape
 
 __all__ = ["simulate"]
@@ -59,7 +61,7 @@ def simulate(
     duration: float | None = None,
     progress: Callable[[float, float], None] | None = None,
     on_tick: Callable[[float, dict[str, NDArray[np.float64]], SceneResult], None] | None = None,
-    plant: str = "scenario",
+    plant: PlantName = "scenario",
     static_world: bool = False,
     server: str | ServerOptions | None = None,
     escape: bool | EscapeSpec | None = None,
@@ -82,193 +84,276 @@ def simulate(
     ``escape`` (default: the scenario's ``escape:`` block; True: on, with its options
     or the defaults; False: off; or an :class:`EscapeSpec`): a robot whose controller
     stalls plans a path out with OMPL and follows it (:mod:`reachwise.sim.escape`);
-    the plans are in ``extras["escape"]``."""
+    the plans are in ``extras["escape"]``.
+
+    Each tick is three named steps: :func:`_sense` (joint states and moving objects
+    into the scene, the distance query, the controllers' view), :func:`_check_contact`
+    (distances and the first overlap into the :class:`_Recorder`) and :func:`_act`
+    (each robot's goal bookkeeping in :class:`_Goals`, controller and plant)."""
     clock = SimClock()
-    world = build_world(scenario, avoidance, plant, server=server, clock=clock)
+    world = build_world(scenario, avoidance, plant=plant, server=server, clock=clock)
     spec = world.scenario.spec
     dt = spec.dt
     T_end = spec.duration if duration is None else float(duration)
     ticks = math.floor(T_end / dt + 1e-9) + 1
     scene = world.scene
-    agents = world.agents
-    P = len(world.pairs)
-    t_log = np.empty(ticks)
-    dist = np.full((ticks, P), np.inf)
-    signed = np.full((ticks, P), np.inf)
-    q_log = {a.name: np.empty((ticks, a.robot.n)) for a in agents}
-    qd_log = {a.name: np.empty((ticks, a.robot.n)) for a in agents}
-    cmd_log = {a.name: np.empty((ticks, a.robot.n)) for a in agents}
-    tool_log = {a.name: np.empty((ticks, 4, 4)) for a in agents}
-    st_log = {a.name: np.empty(ticks, dtype="<U16") for a in agents}
-    gi_log = {a.name: np.full(ticks, -1, dtype=np.int64) for a in agents}
-    events: list[Event] = []
-    esc = _escape(world, escape, events)
-    records: list[GoalRecord] = []
-    job_taken = [False] * len(world.jobs)
-    first: float | None = None
-    first_pair: str | None = None
-    pair_objs = [(p.a, p.b) for p in scene.pairs]
-    check = spec.contact_check
-    obj_log = {m.spec.name: np.empty((ticks, 4, 4)) for m in world.movers if m.trajectory}
+    rec = _Recorder(world, ticks)
+    goals = _Goals(world)
+    esc = _escape(world, escape, goals.events)
     seen = frozen_scene(scene) if static_world and world.movers else scene
+    pair_objs = [(p.a, p.b) for p in scene.pairs]
+    for a in world.agents:
+        goals.next_goal(a, 0.0)
+    k = 0
+    for k in range(ticks):
+        t = k * dt
+        clock.now = t
+        rec.t[k] = t
+        res, seen_res, twists = _sense(world, seen, t)
+        rec.object_poses(k, t)
+        if on_tick is not None:
+            on_tick(t, {a.name: a.plant.q.copy() for a in world.agents}, res)
+        _check_contact(world, pair_objs, res, k, t, rec, goals.events)
+        all_done = True
+        for a in world.agents:
+            rec.robot_state(k, a)
+            cmd, state = _act(a, seen_res, twists, t, dt, avoidance, goals, esc)
+            if state != "done":
+                all_done = False
+            rec.command(k, a.name, cmd, state)
+            a.plant.step(cmd, dt)
+        if progress is not None:
+            progress(t, T_end)
+        if all_done:
+            break
+    close_scene(scene)
+    extras: dict[str, Any] = {"plant": plant, "static_world": static_world}
+    if plant == "mujoco":
+        extras["tracking"] = {a.name: a.plant.tracking() for a in world.agents}  # type: ignore[union-attr]
+    if esc is not None:
+        extras["escape"] = esc.summary()
+    return rec.log(k + 1, avoidance, goals, extras)
 
-    def next_goal(a: Agent, t: float) -> None:
+
+class _Recorder:
+    """The arrays of the log, one row per tick, and the first overlap."""
+
+    def __init__(self, world: World, ticks: int) -> None:
+        self.world = world
+        agents = world.agents
+        P = len(world.pairs)
+        self.t = np.empty(ticks)
+        self.distance = np.full((ticks, P), np.inf)
+        self.signed = np.full((ticks, P), np.inf)
+        self.q = {a.name: np.empty((ticks, a.robot.n)) for a in agents}
+        self.qdot = {a.name: np.empty((ticks, a.robot.n)) for a in agents}
+        self.cmd = {a.name: np.empty((ticks, a.robot.n)) for a in agents}
+        self.tool = {a.name: np.empty((ticks, 4, 4)) for a in agents}
+        self.state = {a.name: np.empty(ticks, dtype="<U16") for a in agents}
+        self.goal_index = {a.name: np.full(ticks, -1, dtype=np.int64) for a in agents}
+        self.objects = {m.spec.name: np.empty((ticks, 4, 4)) for m in world.movers if m.trajectory}
+        self.first: float | None = None
+        self.first_pair: str | None = None
+
+    def object_poses(self, k: int, t: float) -> None:
+        """The moving objects' poses at tick ``k`` (time ``t``)."""
+        for m in self.world.movers:
+            if m.trajectory is not None:
+                self.objects[m.spec.name][k] = m.trajectory.pose(t)
+
+    def robot_state(self, k: int, a: Agent) -> None:
+        """The robot's joint state, tool pose and goal at the start of tick ``k``."""
+        q = a.plant.q
+        self.q[a.name][k] = q
+        self.qdot[a.name][k] = a.plant.qdot
+        self.tool[a.name][k] = a.robot.fk(q)
+        self.goal_index[a.name][k] = a.record if a.goal is not None else -1
+
+    def command(self, k: int, name: str, cmd: NDArray[np.float64], state: str) -> None:
+        """The command and the controller state of tick ``k``."""
+        self.cmd[name][k] = cmd
+        self.state[name][k] = state
+
+    def log(self, n: int, avoidance: bool, goals: _Goals, extras: dict[str, Any]) -> SimulationLog:
+        """The log of the first ``n`` ticks."""
+        world = self.world
+        agents = world.agents
+        return SimulationLog(
+            scenario=world.scenario.spec.name,
+            avoidance=avoidance,
+            dt=world.scenario.spec.dt,
+            t=self.t[:n],
+            robots=tuple(a.name for a in agents),
+            q={k_: v[:n] for k_, v in self.q.items()},
+            qdot={k_: v[:n] for k_, v in self.qdot.items()},
+            command={k_: v[:n] for k_, v in self.cmd.items()},
+            tool={k_: v[:n] for k_, v in self.tool.items()},
+            state={k_: v[:n] for k_, v in self.state.items()},
+            goal_index={k_: v[:n] for k_, v in self.goal_index.items()},
+            pairs=world.pairs,
+            distance=self.distance[:n],
+            signed=self.signed[:n],
+            margins=world.margins,
+            lower={a.name: np.asarray(a.robot.lower) for a in agents},
+            upper={a.name: np.asarray(a.robot.upper) for a in agents},
+            vmax={a.name: np.asarray(a.robot.vmax) for a in agents},
+            events=tuple(goals.events),
+            goals=tuple(goals.records),
+            first_collision=self.first,
+            first_collision_pair=self.first_pair,
+            object_poses={k_: v[:n] for k_, v in self.objects.items()},
+            extras=extras,
+        )
+
+
+class _Goals:
+    """Which goal each robot pursues (its own list, then free jobs of the shared list),
+    the record of every goal and the run's events."""
+
+    def __init__(self, world: World) -> None:
+        self.world = world
+        self.records: list[GoalRecord] = []
+        self.events: list[Event] = []
+        self.job_taken = [False] * len(world.jobs)
+
+    def next_goal(self, a: Agent, t: float) -> None:
+        """Give ``a`` its next goal (or none left) at time ``t``."""
         a.goal = None
         a.spec = None
         a.job = -1
         if a.own:
             a.goal, a.spec = a.own.pop(0)
         elif a.jobs:
-            for j, taken in enumerate(job_taken):
+            for j, taken in enumerate(self.job_taken):
                 if not taken:
-                    job_taken[j] = True
-                    a.goal, a.spec = world.jobs[j]
+                    self.job_taken[j] = True
+                    a.goal, a.spec = self.world.jobs[j]
                     a.job = j
                     break
         if a.goal is not None and a.spec is not None:
-            a.record = len(records)
+            a.record = len(self.records)
             name = a.spec.name or (f"job {a.job + 1}" if a.job >= 0 else f"goal {a.record + 1}")
-            records.append(
+            self.records.append(
                 GoalRecord(a.name, a.record, name, a.spec.work, None, math.nan, math.nan)
             )
-            events.append(Event(t, a.name, "goal", f"moving to {name}"))
+            self.events.append(Event(t, a.name, "goal", f"moving to {name}"))
             a.controller.reset()
             a.stalled = False
 
-    for a in agents:
-        next_goal(a, 0.0)
-
-    k = 0
-    for k in range(ticks):
-        t = k * dt
-        clock.now = t
-        t_log[k] = t
-        for a in agents:
-            scene.set_joints(a.name, a.plant.q, stamp=t)
-        twists = move_objects(world, t)
-        for m in world.movers:
-            if m.trajectory is not None:
-                obj_log[m.spec.name][k] = m.trajectory.pose(t)
-        res = scene.query_all()
-        seen_res = res
-        if seen is not scene:  # static-world baseline: the controllers' frozen view
-            for a in agents:
-                seen.set_joints(a.name, a.plant.q)
-            seen_res = seen.query_all()
-            twists = {}
-        if on_tick is not None:
-            on_tick(t, {a.name: a.plant.q.copy() for a in agents}, res)
-        poses: dict[str, NDArray[np.float64]] | None = None
-        for i, pr in enumerate(res.pairs):
-            d = pr.result.distance
-            dist[k, i] = d
-            s = d
-            if d <= check:
-                if poses is None:
-                    poses = scene.poses()
-                depth = _overlap(world, scene, pair_objs[i], poses)
-                if depth >= 0.0:
-                    s = -depth
-            signed[k, i] = s
-            if s <= 0.0 and first is None:
-                first = t
-                first_pair = world.pairs[i]
-                events.append(
-                    Event(t, "", "collision", f"{first_pair} overlap ({-s * 1e3:.1f} mm)")
-                )
-        all_done = True
-        for a in agents:
-            name = a.name
-            q = a.plant.q
-            q_log[name][k] = q
-            qd_log[name][k] = a.plant.qdot
-            tool_log[name][k] = a.robot.fk(q)
-            gi_log[name][k] = a.record if a.goal is not None else -1
-            if t < a.locked_until:
-                a.controller.locked = True
-            elif a.controller.locked:
-                a.controller.locked = False
-                events.append(Event(t, name, "unlocked", "work done"))
-                next_goal(a, t)
-            if a.goal is None:
-                cmd = np.zeros(a.robot.n)
-                st = ControlStatus("reached", "no goal left")
-                state = "done"
-            else:
-                all_done = False
-                pts = a.converter(seen_res, stamp=t, twists=twists) if avoidance else None
-                goal = a.goal if esc is None else esc.goal(a, q, dt)
-                cmd, st = a.controller.step(q, goal, pts, t)  # type: ignore[arg-type]
-                state = st.state
-                _note(a, st, t, events)
-                if esc is not None:  # hybrid: plan out of a stall, follow, resume
-                    st = esc.status(a, q, st, t)
-                    state = st.state
-                if st.state == "reached" and not a.controller.locked:
-                    rec = records[a.record]
-                    records[a.record] = replace(
-                        rec,
-                        reached_at=t,
-                        position_error=st.position_error,
-                        orientation_error=st.orientation_error,
-                    )
-                    events.append(Event(t, name, "reached", f"{rec.name} reached"))
-                    work = a.spec.work if a.spec is not None else 0.0
-                    if work > 0.0:
-                        a.locked_until = t + work
-                        a.controller.locked = True
-                        events.append(Event(t, name, "locked", f"working {work:g} s at {rec.name}"))
-                        cmd = np.zeros(a.robot.n)
-                    else:
-                        next_goal(a, t)
-                elif a.goal is not None and a.record >= 0 and st.state != "locked":
-                    rec = records[a.record]
-                    records[a.record] = replace(
-                        rec,
-                        position_error=st.position_error,
-                        orientation_error=st.orientation_error,
-                    )
-            cmd_log[name][k] = cmd
-            st_log[name][k] = state
-            a.plant.step(cmd, dt)
-        if progress is not None:
-            progress(t, T_end)
-        if all_done:
-            break
-    n = k + 1
-    close_scene(scene)
-    return SimulationLog(
-        scenario=spec.name,
-        avoidance=avoidance,
-        dt=dt,
-        t=t_log[:n],
-        robots=tuple(a.name for a in agents),
-        q={k_: v[:n] for k_, v in q_log.items()},
-        qdot={k_: v[:n] for k_, v in qd_log.items()},
-        command={k_: v[:n] for k_, v in cmd_log.items()},
-        tool={k_: v[:n] for k_, v in tool_log.items()},
-        state={k_: v[:n] for k_, v in st_log.items()},
-        goal_index={k_: v[:n] for k_, v in gi_log.items()},
-        pairs=world.pairs,
-        distance=dist[:n],
-        signed=signed[:n],
-        margins=world.margins,
-        lower={a.name: np.asarray(a.robot.lower) for a in agents},
-        upper={a.name: np.asarray(a.robot.upper) for a in agents},
-        vmax={a.name: np.asarray(a.robot.vmax) for a in agents},
-        events=tuple(events),
-        goals=tuple(records),
-        first_collision=first,
-        first_collision_pair=first_pair,
-        object_poses={k_: v[:n] for k_, v in obj_log.items()},
-        extras={"plant": plant, "static_world": static_world}
-        | (
-            {"tracking": {a.name: a.plant.tracking() for a in agents}}  # type: ignore[union-attr]
-            if plant == "mujoco"
-            else {}
+    def reached(self, a: Agent, st: ControlStatus, t: float) -> bool:
+        """Record ``a``'s goal as reached; True when it now works there (locked)."""
+        rec = self.records[a.record]
+        self.records[a.record] = replace(
+            rec,
+            reached_at=t,
+            position_error=st.position_error,
+            orientation_error=st.orientation_error,
         )
-        | ({"escape": esc.summary()} if esc is not None else {}),
-    )
+        self.events.append(Event(t, a.name, "reached", f"{rec.name} reached"))
+        work = a.spec.work if a.spec is not None else 0.0
+        if work > 0.0:
+            a.locked_until = t + work
+            a.controller.locked = True
+            self.events.append(Event(t, a.name, "locked", f"working {work:g} s at {rec.name}"))
+            return True
+        self.next_goal(a, t)
+        return False
+
+    def errors(self, a: Agent, st: ControlStatus) -> None:
+        """The remaining errors of ``a``'s goal so far."""
+        rec = self.records[a.record]
+        self.records[a.record] = replace(
+            rec, position_error=st.position_error, orientation_error=st.orientation_error
+        )
+
+
+def _sense(world: World, seen: SceneLike, t: float) -> tuple[SceneResult, SceneResult, Twists]:
+    """Step 1: every robot's joint state and every moving object's pose and cloud into
+    the scene, which answers every watched pair. Returns that answer, the controllers'
+    view of it (``seen``: the frozen scene of the static-world baseline, which sees no
+    motion) and the moving objects' twists."""
+    scene = world.scene
+    for a in world.agents:
+        scene.set_joints(a.name, a.plant.q, stamp=t)
+    twists = move_objects(world, t)
+    res = scene.query_all()
+    if seen is scene:
+        return res, res, twists
+    for a in world.agents:  # static-world baseline: the controllers' frozen view
+        seen.set_joints(a.name, a.plant.q)
+    return res, seen.query_all(), {}
+
+
+def _check_contact(
+    world: World,
+    pair_objs: list[tuple[str, str]],
+    res: SceneResult,
+    k: int,
+    t: float,
+    rec: _Recorder,
+    events: list[Event],
+) -> None:
+    """Step 2: each pair's distance and signed distance (``−depth`` when a point of one
+    object of pair ``i`` (``pair_objs[i]``) lies inside the solid of the other) into
+    the log, and the first overlap."""
+    check = world.scenario.spec.contact_check
+    scene = world.scene
+    poses: dict[str, NDArray[np.float64]] | None = None
+    for i, pr in enumerate(res.pairs):
+        d = pr.result.distance
+        rec.distance[k, i] = d
+        s = d
+        if d <= check:
+            if poses is None:
+                poses = scene.poses()
+            depth = _overlap(world, scene, pair_objs[i], poses)
+            if depth >= 0.0:
+                s = -depth
+        rec.signed[k, i] = s
+        if s <= 0.0 and rec.first is None:
+            rec.first = t
+            rec.first_pair = world.pairs[i]
+            events.append(
+                Event(t, "", "collision", f"{rec.first_pair} overlap ({-s * 1e3:.1f} mm)")
+            )
+
+
+def _act(
+    a: Agent,
+    seen_res: SceneResult,
+    twists: Twists,
+    t: float,
+    dt: float,
+    avoidance: bool,
+    goals: _Goals,
+    esc: Escape | None,
+) -> tuple[NDArray[np.float64], str]:
+    """Step 3, per robot: end its work at a goal when the time is up, then compute its
+    command toward its goal (with avoidance of what it sees) and keep its goal record.
+    Returns the command and the state to log (``"done"``: no goal left)."""
+    q = a.plant.q
+    if t < a.locked_until:
+        a.controller.locked = True
+    elif a.controller.locked:
+        a.controller.locked = False
+        goals.events.append(Event(t, a.name, "unlocked", "work done"))
+        goals.next_goal(a, t)
+    if a.goal is None:
+        return np.zeros(a.robot.n), "done"
+    pts = a.converter(seen_res, stamp=t, twists=twists) if avoidance else None
+    goal = a.goal if esc is None else esc.goal(a, q, dt)
+    cmd, st = a.controller.step(q, goal, pts, t)  # type: ignore[arg-type]
+    state = st.state
+    _note(a, st, t, goals.events)
+    if esc is not None:  # hybrid: plan out of a stall, follow, resume
+        st = esc.status(a, q, st, t)
+        state = st.state
+    if st.state == "reached" and not a.controller.locked:
+        if goals.reached(a, st, t):
+            cmd = np.zeros(a.robot.n)
+    elif a.goal is not None and a.record >= 0 and st.state != "locked":
+        goals.errors(a, st)
+    return cmd, state
 
 
 def _escape(world: World, escape: bool | EscapeSpec | None, events: list[Event]) -> Escape | None:
@@ -303,7 +388,7 @@ def _note(a: Agent, st: ControlStatus, t: float, events: list[Event]) -> None:
 
 
 def _overlap(
-    world: World, scene: Scene, pair: tuple[str, str], poses: dict[str, NDArray[np.float64]]
+    world: World, scene: SceneLike, pair: tuple[str, str], poses: dict[str, NDArray[np.float64]]
 ) -> float:
     """Deepest point of either object inside the other's solid (m), ``-inf`` if none."""
     objs = scene.objects

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -16,27 +16,32 @@ from numpy.typing import NDArray
 from reachwise.control.avoidance import SceneConverter
 from reachwise.control.controller import Controller, ControllerConfig, Goal
 from reachwise.control.safety import SafetyConfig
-from reachwise.distance.scene import OnLink, Scene
-from reachwise.errors import InputError
+from reachwise.distance.scene import OnLink, Scene, SceneLike, WatchedPair
+from reachwise.errors import InputError, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.kinematics.robot import Robot
 from reachwise.sim.contact import Solid, solid_of_geometry, solid_of_mesh
 from reachwise.sim.motion import Trajectory
-from reachwise.sim.plant import Plant, PlantConfig
+from reachwise.sim.plant import PLANT_NAMES, Plant, PlantConfig, PlantName
+from reachwise.sim.robots import robot_of
 from reachwise.sim.scenarios import (
     GoalSpec,
     ObjectSpec,
     RobotSpec,
     Scenario,
+    WatchSpec,
     load_scenario,
 )
 
 if TYPE_CHECKING:
-    from reachwise.server.client import ServerOptions
+    from reachwise.server.client.owned import ServerOptions
     from reachwise.sim.mujoco_plant import MujocoPlant
 
 
-__all__ = ["Agent", "World", "build_world"]
+__all__ = ["Agent", "Twists", "World", "build_world"]
+
+#: The moving objects' twists at one tick, ``{name: (v, ω, origin)}`` (world frame).
+Twists = dict[str, tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]]
 
 
 @dataclass(eq=False)
@@ -64,7 +69,7 @@ class World:
     """A built scenario: robots, scene, solids and watched pairs, ready to run."""
 
     scenario: Scenario
-    scene: Scene
+    scene: SceneLike
     robots: dict[str, Robot]
     agents: list[Agent]
     pairs: tuple[str, ...]
@@ -72,18 +77,6 @@ class World:
     solids: dict[str, tuple[Solid, str, str]]  # object -> (solid, robot, link)
     jobs: list[tuple[Goal, GoalSpec]]
     movers: list[_Mover] = field(default_factory=list)
-
-
-def robot_of(spec: RobotSpec, scenario: Scenario) -> Robot:
-    from reachwise.io.robot_file import builtin_robots, load_robot
-
-    try:
-        r = load_robot(spec.robot if spec.robot in builtin_robots() else scenario.path(spec.robot))
-    except InputError as exc:
-        raise InputError(scenario.source, f"robots.{spec.name}.robot", str(exc)) from None
-    if spec.base is not None:
-        r = r.with_parameters(base=spec.base.matrix())
-    return replace(r, name=spec.name)
 
 
 def _controller_config(spec: RobotSpec, dt: float, avoidance: bool) -> ControllerConfig:
@@ -95,8 +88,8 @@ def _controller_config(spec: RobotSpec, dt: float, avoidance: bool) -> Controlle
 def build_world(
     scenario: Scenario | str | Path,
     avoidance: bool = True,
-    plant: str = "scenario",
     *,
+    plant: PlantName = "scenario",
     server: str | ServerOptions | None = None,
     clock: Callable[[], float] | None = None,
 ) -> World:
@@ -104,17 +97,42 @@ def build_world(
     (``plant``: ``"scenario"`` — each robot's own — or ``"mujoco"``, see
     :mod:`reachwise.sim.mujoco_plant`). The scene is in process, or with ``server``
     (an address or :class:`~reachwise.server.client.ServerOptions`) on a collision
-    server (:func:`_server_scene`); ``clock`` stamps its inputs and answers."""
-    if plant not in ("scenario", "mujoco"):
-        raise InputError("simulate", "plant", f"scenario or mujoco, got {plant!r}")
-    from reachwise.io.robot_clouds import link_cloud, link_mesh
+    server (:func:`_server_scene`); ``clock`` stamps its inputs and answers.
 
+    The steps: the scene (:func:`_make_scene`), the robots and their link clouds
+    (:func:`_add_robots`), the other objects (:func:`_add_objects`), the watched pairs
+    (:func:`_watch_pairs`), one agent per robot (:func:`_make_agent`) and the shared
+    jobs (:func:`_shared_jobs`)."""
+    plant = check_choice(plant, PLANT_NAMES, source="simulate", kind="plant")
     sc = load_scenario(scenario)
-    spec = sc.spec
-    scene = Scene(clock=clock) if server is None else _server_scene(server, clock)
+    scene = _make_scene(server, clock)
+    robots, solids = _add_robots(scene, sc)
+    movers = _add_objects(scene, sc, solids)
+    control = _watch_pairs(scene, sc, robots)
+    job_robots = set(sc.spec.jobs.robots) if sc.spec.jobs is not None else set()
+    agents = [
+        _make_agent(scene, sc, rs, robots[rs.name], control, avoidance, plant, job_robots)
+        for rs in sc.spec.robots
+    ]
+    jobs = _shared_jobs(sc, robots)
+    pairs = tuple(f"{p.a}|{p.b}" for p in scene.pairs)
+    margins = np.array([control[(p.a, p.b)] for p in scene.pairs], dtype=float)
+    return World(sc, scene, robots, agents, pairs, margins, solids, jobs, movers)
+
+
+def _make_scene(server: str | ServerOptions | None, clock: Callable[[], float] | None) -> SceneLike:
+    """The distance scene: in process, or on the collision server ``server``."""
+    return Scene(clock=clock) if server is None else _server_scene(server, clock)
+
+
+def _add_robots(
+    scene: SceneLike, sc: Scenario
+) -> tuple[dict[str, Robot], dict[str, tuple[Solid, str, str]]]:
+    """Every robot of the scenario with its joint state and one cloud per link (named
+    ``robot/link``), and the solid of each link cloud for the contact check."""
     robots: dict[str, Robot] = {}
     solids: dict[str, tuple[Solid, str, str]] = {}
-    for rs in spec.robots:
+    for rs in sc.spec.robots:
         robot = robot_of(rs, sc)
         if len(rs.q0) != robot.n:
             raise InputError(sc.source, f"robots.{rs.name}.q0", f"expected {robot.n} values")
@@ -125,39 +143,52 @@ def build_world(
             if link not in robot.link_names:
                 raise InputError(sc.source, f"robots.{rs.name}.links", f"no link {link!r}")
             obj = f"{rs.name}/{link}"
-            over = rs.link_clouds.get(link)
-            if over is not None:
-                import trimesh
-
-                from reachwise.geometry.cloud import sample_mesh_surface
-
-                path = sc.path(over.mesh)
-                try:
-                    mesh = trimesh.load(str(path), force="mesh", process=True)
-                except Exception as exc:
-                    raise InputError(
-                        sc.source, f"robots.{rs.name}.link_clouds.{link}.mesh", f"{exc}"
-                    ) from None
-                if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-                    raise InputError(
-                        sc.source, f"robots.{rs.name}.link_clouds.{link}.mesh", "no triangles"
-                    )
-                mesh.apply_transform(over.pose.matrix())
-                rng = np.random.default_rng([rs.seed, robot.link_index(link)])
-                cloud = sample_mesh_surface(mesh, n=over.points, seed=rng, frame=link, name=obj)
-                solid = solid_of_mesh(mesh)
-            else:
-                if link not in robot.geometry:
-                    raise InputError(
-                        sc.source, f"robots.{rs.name}.links", f"link {link!r} has no geometry"
-                    )
-                cloud = link_cloud(robot, link, rs.points, rs.seed)
-                g = robot.geometry[link]
-                solid = solid_of_geometry(g, link_mesh(robot, link) if g.shape == "mesh" else None)
+            cloud, solid = _link_cloud(sc, rs, robot, link, obj)
             scene.add_object(obj, cloud, robot=rs.name, link=link)
             solids[obj] = (solid, rs.name, link)
+    return robots, solids
+
+
+def _link_cloud(
+    sc: Scenario, rs: RobotSpec, robot: Robot, link: str, obj: str
+) -> tuple[PointCloud, Solid]:
+    """The cloud of ``link`` (the scenario's ``link_clouds`` mesh, or the robot's own
+    geometry) and its solid."""
+    from reachwise.io.robot_clouds import link_cloud, link_mesh
+
+    over = rs.link_clouds.get(link)
+    if over is not None:
+        import trimesh
+
+        from reachwise.geometry.cloud import sample_mesh_surface
+
+        path = sc.path(over.mesh)
+        try:
+            mesh = trimesh.load(str(path), force="mesh", process=True)
+        except Exception as exc:
+            raise InputError(
+                sc.source, f"robots.{rs.name}.link_clouds.{link}.mesh", f"{exc}"
+            ) from None
+        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+            raise InputError(sc.source, f"robots.{rs.name}.link_clouds.{link}.mesh", "no triangles")
+        mesh.apply_transform(over.pose.matrix())
+        rng = np.random.default_rng([rs.seed, robot.link_index(link)])
+        cloud = sample_mesh_surface(mesh, n=over.points, seed=rng, frame=link, name=obj)
+        return cloud, solid_of_mesh(mesh)
+    if link not in robot.geometry:
+        raise InputError(sc.source, f"robots.{rs.name}.links", f"link {link!r} has no geometry")
+    cloud = link_cloud(robot, link, rs.points, rs.seed)
+    g = robot.geometry[link]
+    return cloud, solid_of_geometry(g, link_mesh(robot, link) if g.shape == "mesh" else None)
+
+
+def _add_objects(
+    scene: SceneLike, sc: Scenario, solids: dict[str, tuple[Solid, str, str]]
+) -> list[_Mover]:
+    """The clouds not on a robot (a box also gets its solid); returns the ones that
+    move or change their cloud during the run."""
     movers: list[_Mover] = []
-    for os_ in spec.objects:
+    for os_ in sc.spec.objects:
         mover = _mover(os_, sc)
         moving = mover is not None and mover.trajectory is not None
         pose = mover.trajectory.pose(0.0) if moving else os_.pose.matrix()  # type: ignore[union-attr]
@@ -167,79 +198,104 @@ def build_world(
             solids[os_.name] = (box_solid, "", "")
         if mover is not None:
             movers.append(mover)
-    # watched pairs: scene margin = rho_O + monitor range; the controller uses rho_O
+    return movers
+
+
+def _watch_pairs(
+    scene: SceneLike, sc: Scenario, robots: dict[str, Robot]
+) -> dict[tuple[str, str], float]:
+    """Watch the scenario's pairs: the scene's margin is rho_O + the monitor range (the
+    log sees the pairs approach); returns each pair's rho_O, the controller's margin."""
+    spec = sc.spec
     control: dict[tuple[str, str], float] = {}
     for i, w in enumerate(spec.watch):
-        where = f"watch[{i}]"
-        qm = w.margin + spec.monitor
-        made = []
-        if w.self_ is not None:
-            r = robots[w.self_]
-            if w.pairs is not None:
-                for la, lb in w.pairs:
-                    a, b = f"{w.self_}/{la}", f"{w.self_}/{lb}"
-                    for o in (a, b):
-                        if o not in scene.objects:
-                            raise InputError(sc.source, where, f"no cloud {o!r}")
-                    made.append(scene.watch(a, b, qm, "self"))
-            else:
-                keep = set(w.links) if w.links is not None else set(r.link_names)
-                excl = [
-                    (o.name, p.name)
-                    for o in scene.robot_objects(w.self_)
-                    for p in scene.robot_objects(w.self_)
-                    if o.source.link not in keep or p.source.link not in keep  # type: ignore[union-attr]
-                ]
-                made.extend(scene.watch_self(w.self_, qm, exclude=excl))
-        elif w.environment is not None and w.robot is not None:
-            mine = _robot_objects(scene, w.robot, w.links, sc.source, where)
-            for o in mine:
-                for e in w.environment:
-                    made.append(scene.watch(o, e, qm, "robot-environment"))
-        elif w.robots is not None:
-            ra, rb = w.robots
-            for o in _robot_objects(scene, ra, w.links, sc.source, where):
-                for p in _robot_objects(scene, rb, w.links, sc.source, where):
-                    made.append(scene.watch(o, p, qm, "robot-robot"))
+        made = _watch_rule(scene, sc, robots, w, w.margin + spec.monitor, f"watch[{i}]")
         for pair in made:
             control[(pair.a, pair.b)] = w.margin
-    agents = []
-    job_robots = set(spec.jobs.robots) if spec.jobs is not None else set()
-    for rs in spec.robots:
-        robot = robots[rs.name]
-        cfg = _controller_config(rs, spec.dt, avoidance)
-        try:
-            tl = rs.tool_links
-            conv = SceneConverter(scene, robot, tool_links=tl, margins=control)
-        except InputError as exc:
-            raise InputError(sc.source, f"robots.{rs.name}.tool_links", str(exc)) from None
-        pc = PlantConfig(**rs.plant.model_dump())
-        own = [(_goal(g, robot), g) for g in rs.goals]
-        agents.append(
-            Agent(
-                rs.name,
-                robot,
-                Controller(robot, cfg),
-                _make_plant(plant, robot, rs.q0, pc),
-                conv,
-                own,
-                rs.name in job_robots,
-            )
-        )
-    jobs: list[tuple[Goal, GoalSpec]] = []
-    if spec.jobs is not None:
-        first = robots[spec.jobs.robots[0]]
-        work = spec.jobs.work
-        jobs = [
-            (_goal(g, first), g if g.work > 0 else g.model_copy(update={"work": work}))
-            for g in spec.jobs.goals
-        ]
-    pairs = tuple(f"{p.a}|{p.b}" for p in scene.pairs)
-    margins = np.array([control[(p.a, p.b)] for p in scene.pairs], dtype=float)
-    return World(sc, scene, robots, agents, pairs, margins, solids, jobs, movers)
+    return control
 
 
-def _server_scene(server: str | ServerOptions, clock: Callable[[], float] | None) -> Scene:
+def _watch_rule(
+    scene: SceneLike, sc: Scenario, robots: dict[str, Robot], w: WatchSpec, qm: float, where: str
+) -> list[WatchedPair]:
+    """The pairs one ``watch`` entry makes (self, robot-environment or robot-robot),
+    watched with margin ``qm``."""
+    made = []
+    if w.self_ is not None:
+        r = robots[w.self_]
+        if w.pairs is not None:
+            for la, lb in w.pairs:
+                a, b = f"{w.self_}/{la}", f"{w.self_}/{lb}"
+                for o in (a, b):
+                    if o not in scene.objects:
+                        raise InputError(sc.source, where, f"no cloud {o!r}")
+                made.append(scene.watch(a, b, qm, kind="self"))
+        else:
+            keep = set(w.links) if w.links is not None else set(r.link_names)
+            excl = [
+                (o.name, p.name)
+                for o in scene.robot_objects(w.self_)
+                for p in scene.robot_objects(w.self_)
+                if o.source.link not in keep or p.source.link not in keep  # type: ignore[union-attr]
+            ]
+            made.extend(scene.watch_self(w.self_, qm, exclude=excl))
+    elif w.environment is not None and w.robot is not None:
+        mine = _robot_objects(scene, w.robot, w.links, sc.source, where)
+        for o in mine:
+            for e in w.environment:
+                made.append(scene.watch(o, e, qm, kind="robot-environment"))
+    elif w.robots is not None:
+        ra, rb = w.robots
+        for o in _robot_objects(scene, ra, w.links, sc.source, where):
+            for p in _robot_objects(scene, rb, w.links, sc.source, where):
+                made.append(scene.watch(o, p, qm, kind="robot-robot"))
+    return made
+
+
+def _make_agent(
+    scene: SceneLike,
+    sc: Scenario,
+    rs: RobotSpec,
+    robot: Robot,
+    control: dict[tuple[str, str], float],
+    avoidance: bool,
+    plant: PlantName,
+    job_robots: set[str],
+) -> Agent:
+    """One robot's controller, scene converter, plant and own goals."""
+    cfg = _controller_config(rs, sc.spec.dt, avoidance)
+    try:
+        tl = rs.tool_links
+        conv = SceneConverter(scene, robot, tool_links=tl, margins=control)
+    except InputError as exc:
+        raise InputError(sc.source, f"robots.{rs.name}.tool_links", str(exc)) from None
+    pc = PlantConfig(**rs.plant.model_dump())
+    own = [(_goal(g, robot), g) for g in rs.goals]
+    return Agent(
+        rs.name,
+        robot,
+        Controller(robot, cfg),
+        _make_plant(plant, robot, rs.q0, pc),
+        conv,
+        own,
+        rs.name in job_robots,
+    )
+
+
+def _shared_jobs(sc: Scenario, robots: dict[str, Robot]) -> list[tuple[Goal, GoalSpec]]:
+    """The scenario's shared job list (goals of the first job robot; a job without its
+    own ``work`` time takes the list's)."""
+    if sc.spec.jobs is None:
+        return []
+    first = robots[sc.spec.jobs.robots[0]]
+    work = sc.spec.jobs.work
+    return [
+        (_goal(g, first), g if g.work > 0 else g.model_copy(update={"work": work}))
+        for g in sc.spec.jobs.goals
+    ]
+
+
+def _server_scene(server: str | ServerOptions, clock: Callable[[], float] | None) -> SceneLike:
     """A client of the collision server at ``server`` that owns its scene (cleared,
     mirrored locally, inputs sent with each query; :func:`reachwise.server.client.
     owned_scene`). It has the in-process scene's interface (``SceneLike``), so the
@@ -247,16 +303,14 @@ def _server_scene(server: str | ServerOptions, clock: Callable[[], float] | None
     its deadline is an invalid result (missing data: a protective stop)."""
     import time
 
-    from reachwise.server.client import owned_scene
+    from reachwise.server.client.owned import owned_scene
 
-    return cast(Scene, owned_scene(server, clock or time.monotonic))
+    return owned_scene(server, clock or time.monotonic)
 
 
-def close_scene(scene: object) -> None:
+def close_scene(scene: SceneLike) -> None:
     """Disconnect from a collision server (an in-process scene has nothing to close)."""
-    close = getattr(scene, "close", None)
-    if callable(close):
-        close()
+    scene.close()
 
 
 class SimClock:
@@ -269,7 +323,9 @@ class SimClock:
         return self.now
 
 
-def _make_plant(kind: str, robot: Robot, q0: list[float], pc: PlantConfig) -> Plant | MujocoPlant:
+def _make_plant(
+    kind: PlantName, robot: Robot, q0: list[float], pc: PlantConfig
+) -> Plant | MujocoPlant:
     if kind == "mujoco":
         from reachwise.sim.mujoco_plant import MujocoPlant, MujocoPlantConfig
 
@@ -278,7 +334,7 @@ def _make_plant(kind: str, robot: Robot, q0: list[float], pc: PlantConfig) -> Pl
 
 
 def _robot_objects(
-    scene: Scene, robot: str, links: list[str] | None, source: str, where: str
+    scene: SceneLike, robot: str, links: list[str] | None, source: str, where: str
 ) -> list[str]:
     objs = [o for o in scene.robot_objects(robot)]
     if links is None:
@@ -312,7 +368,9 @@ def _object_cloud(
     seed = getattr(spec, "seed", 0) if seed is None else seed
     where = f"objects.{name}"
     if getattr(spec, "scanner", None) is not None:
-        from reachwise.geometry.scanner import OcclusionFill, scan_scene
+        from reachwise.geometry.occlusion import OcclusionFill
+        from reachwise.geometry.scan_scene import scan_scene
+        from reachwise.sim.p5_scenes import get_scene
 
         occ = spec.occlusion
         fill = (
@@ -321,7 +379,8 @@ def _object_cloud(
             else None
         )
         try:
-            _, cloud = scan_scene(spec.scanner, rng=seed, noise=spec.noise, occlusion=fill)
+            target = get_scene(spec.scanner)
+            _, cloud = scan_scene(target, rng=seed, noise=spec.noise, occlusion=fill)
         except InputError as exc:
             raise InputError(sc.source, f"{where}.scanner", str(exc)) from None
         return PointCloud(cloud.points, name=name)
@@ -373,9 +432,7 @@ def _box_solid(box: Any) -> Solid | None:
     return None if box is None else Solid("box", np.eye(4), 0.5 * np.asarray(box, dtype=float))
 
 
-def move_objects(
-    world: World, t: float
-) -> dict[str, tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]]:
+def move_objects(world: World, t: float) -> Twists:
     """Per tick, before the distance query: each moving object's pose at ``t``, and
     the clouds due by ``t`` (scheduled, or a re-scan with the next seed). Returns the
     moving objects' twists ``{name: (v, ω, origin)}`` for the controllers."""
@@ -398,14 +455,14 @@ def move_objects(
             m.scans += 1
             due = _object_cloud(m.spec, world.scenario, seed=m.spec.seed + m.scans)
         if due is not None:
-            scene.replace_cloud(name, due)
+            scene.replace_cloud(name, due, block=True)
     return twists
 
 
-def frozen_scene(scene: Scene) -> Scene:
+def frozen_scene(scene: SceneLike) -> Scene:
     """A copy of ``scene`` in which every object not on a robot stays where it is now,
     with its current cloud: the world a static-world controller believes in."""
-    frozen = Scene(scene.strategy)
+    frozen = Scene(strategy=scene.strategy)
     for r in scene.robots.values():
         frozen.add_robot(r)
     now = scene.poses()
@@ -416,5 +473,5 @@ def frozen_scene(scene: Scene) -> Scene:
         else:
             frozen.add_object(name, obj.cloud, now[name])
     for pair in scene.pairs:
-        frozen.watch(pair.a, pair.b, pair.margin, pair.kind)
+        frozen.watch(pair.a, pair.b, pair.margin, kind=pair.kind)
     return frozen

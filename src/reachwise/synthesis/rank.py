@@ -27,11 +27,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Literal, get_args
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from reachwise.errors import InputError
+from reachwise.errors import InputError, check_choice
 from reachwise.kinematics.indices import (
     gci,
     inverse_condition,
@@ -42,8 +43,11 @@ from reachwise.kinematics.indices import (
 )
 from reachwise.kinematics.robot import Robot
 
+#: A ranking figure (P-II Table 2): the GCI/KCI mean, GCI, KCI, manipulability, link
+#: length or number of prismatic joints.
+RankKey = Literal["mean", "gci", "kci", "manipulability", "length", "prismatic"]
 # key -> +1 when higher is better, -1 when lower is better
-RANK_KEYS: dict[str, int] = {
+RANK_KEYS: dict[RankKey, int] = {
     "mean": 1,
     "gci": 1,
     "kci": 1,
@@ -64,15 +68,13 @@ class Measures:
     length: float
     prismatic: int
 
-    def value(self, key: str) -> float:
-        check_key(key)
-        return float(getattr(self, key))
+    def value(self, key: RankKey) -> float:
+        return float(getattr(self, check_key(key)))
 
 
-def check_key(key: str) -> str:
-    if key not in RANK_KEYS:
-        raise InputError("rank", "key", f"{key!r}: choose one of {', '.join(RANK_KEYS)}")
-    return key
+def check_key(key: object) -> RankKey:
+    """``key`` as a :data:`RankKey`, or :class:`~reachwise.errors.UnknownName`."""
+    return check_choice(key, get_args(RankKey), source="rank", kind="rank key")
 
 
 def link_length(robot: Robot) -> float:
@@ -128,7 +130,7 @@ class RankedRow:
     candidate: Candidate
 
 
-def _sort_key(c: Candidate, key: str) -> tuple[float | str, ...]:
+def _sort_key(c: Candidate, key: RankKey) -> tuple[float | str, ...]:
     m = c.measures
     if m is None:  # pragma: no cover - infeasible ones are sorted separately
         raise InputError("rank", c.name, "no measures")
@@ -143,10 +145,10 @@ def _sort_key(c: Candidate, key: str) -> tuple[float | str, ...]:
     )
 
 
-def rank(candidates: Sequence[Candidate], key: str = "mean") -> tuple[RankedRow, ...]:
+def rank(candidates: Sequence[Candidate], key: RankKey = "mean") -> tuple[RankedRow, ...]:
     """Feasible candidates ordered by ``key`` (ranks 1, 2, …), then the infeasible ones
     (``rank = None``; most points reached first, then by name). Deterministic."""
-    check_key(key)
+    key = check_key(key)
     names = [c.name for c in candidates]
     if len(set(names)) != len(names):
         raise InputError("rank", "candidates", "candidate names must be unique")

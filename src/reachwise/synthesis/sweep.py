@@ -48,14 +48,21 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise.errors import InputError, ReachwiseError
+from reachwise.errors import InputError, MissingDependency, ReachwiseError, check_choice
 from reachwise.kinematics.robot import Robot
 from reachwise.synthesis.problem import SynthesisProblem
-from reachwise.synthesis.rank import Candidate, Measures, RankedRow, best_run_index, check_key
+from reachwise.synthesis.rank import (
+    Candidate,
+    Measures,
+    RankedRow,
+    RankKey,
+    best_run_index,
+    check_key,
+)
 from reachwise.synthesis.rank import measures as design_measures
 from reachwise.synthesis.rank import rank as rank_candidates
 from reachwise.synthesis.solvers import SolverOptions
-from reachwise.synthesis.synthesize import SOLVERS, run_once
+from reachwise.synthesis.synthesize import SOLVERS, SolverName, run_once
 from reachwise.synthesis.topology import Topology
 from reachwise.tasks.task import Task
 
@@ -81,9 +88,9 @@ class SweepConfig:
     top: int = 3
     runs: int = 3
     seed: int = 0
-    solver: str = "dls"
+    solver: SolverName = "dls"
     init_sets: int = 8
-    rank_key: str = "mean"
+    rank_key: RankKey = "mean"
     workspace: bool = True
     options: SolverOptions | None = None
     batch_size: int = 1
@@ -95,8 +102,7 @@ class SweepConfig:
             raise InputError("sweep", "top", "must be >= 1")
         if self.runs < 1:
             raise InputError("sweep", "runs", "must be >= 1")
-        if self.solver not in SOLVERS:
-            raise InputError("sweep", "solver", f"{self.solver!r}: one of {SOLVERS}")
+        check_choice(self.solver, SOLVERS, source="sweep", kind="solver")
         if self.init_sets < 1:
             raise InputError("sweep", "init_sets", "must be >= 1")
         if self.batch_size < 1:
@@ -114,7 +120,7 @@ class WorkItem:
     seed: int
     template: Robot
     task: Task
-    solver: str = "dls"
+    solver: SolverName = "dls"
     init_sets: int = 8
     options: SolverOptions | None = None
     workspace: bool = True
@@ -180,7 +186,7 @@ def versions() -> dict[str, str]:
     """Versions the results were computed with (stored per item)."""
     import scipy
 
-    from reachwise import __version__
+    from reachwise._version import __version__
 
     return {
         "reachwise": __version__,
@@ -320,7 +326,7 @@ class RoundTable:
 
     round: int
     task_points: int
-    rank_key: str
+    rank_key: RankKey
     rows: tuple[RankedRow, ...]
     runs: dict[str, tuple[ItemResult, ...]]
     best: dict[str, int]
@@ -362,7 +368,7 @@ class RoundTable:
         return out
 
 
-def round_table(results: Sequence[ItemResult], round: int, key: str) -> RoundTable:
+def round_table(results: Sequence[ItemResult], round: int, key: RankKey) -> RoundTable:
     """Rank the topologies of one round from their runs (best run per topology)."""
     by: dict[str, list[ItemResult]] = {}
     for r in results:
@@ -492,9 +498,7 @@ def dask_executor(address: str, workers: int | None = None) -> Iterator[Executor
     try:
         from distributed import Client, LocalCluster
     except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise InputError(
-            "sweep", "dask", 'Dask is not installed: pip install "dask[distributed]"'
-        ) from exc
+        raise MissingDependency("distributed", "cluster", "a sweep on a Dask cluster") from exc
     if address == "local":
         n = workers or os.cpu_count() or 1
         cluster = LocalCluster(

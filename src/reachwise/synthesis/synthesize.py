@@ -10,11 +10,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Literal, get_args
 
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise.errors import InputError
+from reachwise.errors import InputError, check_choice
 from reachwise.kinematics.indices import lci
 from reachwise.kinematics.robot import Robot
 from reachwise.synthesis.init import initial_guess
@@ -23,7 +24,10 @@ from reachwise.synthesis.solvers import SolverOptions, Workspace, solve_dls, sol
 from reachwise.tasks.task import Task
 
 Array = NDArray[np.float64]
-SOLVERS = ("dls", "trf")
+#: A synthesis solver: ``dls`` (the thesis's damped least squares, P-I Eq. 13–14) or
+#: ``trf`` (scipy's trust-region reflective least squares, the baseline).
+SolverName = Literal["dls", "trf"]
+SOLVERS: tuple[SolverName, ...] = get_args(SolverName)
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,7 +61,7 @@ class SynthesisResult:
     problem: SynthesisProblem
     runs: tuple[RunResult, ...]
     best_index: int
-    solver: str = "dls"
+    solver: SolverName = "dls"
     notes: tuple[str, ...] = field(default_factory=tuple)
 
     @property
@@ -112,7 +116,7 @@ def _lci_at(problem: SynthesisProblem, robot: Robot, Q: Array) -> Array:
 def run_once(
     problem: SynthesisProblem,
     seed: int,
-    solver: str = "dls",
+    solver: SolverName = "dls",
     init_sets: int = 8,
     options: SolverOptions | None = None,
     workspace: Workspace | None = None,
@@ -153,7 +157,7 @@ def synthesize(
     template: Robot | str,
     *,
     runs: int = 10,
-    solver: str = "dls",
+    solver: SolverName = "dls",
     seed: int = 0,
     init_sets: int = 8,
     locked: Sequence[int] | dict[int, float] | None = None,
@@ -174,8 +178,7 @@ def synthesize(
         from reachwise.io.robot_file import load_robot
 
         template = load_robot(template)
-    if solver not in SOLVERS:
-        raise InputError("synthesize", "solver", f"{solver!r}: choose one of {SOLVERS}")
+    solver = check_choice(solver, SOLVERS, source="synthesize", kind="solver")
     if runs < 1:
         raise InputError("synthesize", "runs", "at least one run")
     problem = SynthesisProblem(template, task, locked_from_spec(template, locked))
@@ -193,7 +196,7 @@ def synthesize(
 
 
 def result_of(
-    problem: SynthesisProblem, runs: Sequence[RunResult], solver: str = "dls"
+    problem: SynthesisProblem, runs: Sequence[RunResult], solver: SolverName = "dls"
 ) -> SynthesisResult:
     """Assemble a result from finished runs (also used for interrupted syntheses)."""
     if not runs:

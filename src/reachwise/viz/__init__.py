@@ -1,1 +1,1 @@
-"""Figures (matplotlib), the browser viewer and reports."""
+"""The browser viewer (viser): robots, scenarios, results and live runs."""

@@ -15,7 +15,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from reachwise.errors import InputError
 from reachwise.viz.scene_data import (
+    COLOUR_WORDS,
     joint_ranges,
+    legend,
+    node_name,
     skeleton_segments,
     status_colours,
     tunnel_wireframe,
@@ -38,11 +41,6 @@ __all__ = [
     "show_scenario",
     "show_synthesis",
 ]
-
-
-def node_name(name: str) -> str:
-    """A scene-node-safe version of ``name`` (no slashes or spaces)."""
-    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name) or "robot"
 
 
 def robot_clouds(robot: Robot, points: int | None = None) -> tuple[dict[str, Any], str]:
@@ -119,22 +117,6 @@ class JointSliders:
         self.q = qv.copy()
         if notify:
             self.on_change(self.q.copy())
-
-
-def legend(keys: tuple[str, ...]) -> str:
-    """The colours of the statuses ``keys`` in words (markdown)."""
-    return ", ".join(f"{_COLOUR_WORD.get(k, '?')} = {k}" for k in keys)
-
-
-_COLOUR_WORD = {
-    "full": "green",
-    "position": "blue",
-    "orientation": "yellow",
-    "neither": "red",
-    "reached": "green",
-    "unreached": "red",
-    "pending": "grey",
-}
 
 
 def show_robot(
@@ -266,7 +248,7 @@ class SynthesisBrowser:
         viewer.set_info(
             f"**{robot.name}** for **{s.get('task', '?')}**: {int(out.reached.sum())}/{K} "
             f"points reached  \n"
-            + ", ".join(f"{v} {k} ({_COLOUR_WORD[k]})" for k, v in counts.items())
+            + ", ".join(f"{v} {k} ({COLOUR_WORDS[k]})" for k, v in counts.items())
             + (f"  \n{note}" if note else "")
         )
 

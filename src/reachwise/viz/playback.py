@@ -26,10 +26,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from reachwise.errors import InputError
-from reachwise.viz.modes import legend, node_name
 from reachwise.viz.scene_data import (
     distance_colours,
     height_colours,
+    legend,
+    node_name,
     pair_segments,
     polyline_segments,
     wxyz_position,
@@ -190,7 +191,7 @@ class SimScene:
             v = sum(1 for ti, _ in sched if ti <= t + 1e-9)
             if v != self._cloud_version.get(name, 0):
                 cloud = sched[v - 1][1] if v > 0 else self._original(name)
-                self.world.scene.replace_cloud(name, cloud)
+                self.world.scene.replace_cloud(name, cloud, block=True)
                 h = self.env_nodes.get(name)
                 if h is not None:
                     T0 = self.world.scene.poses()[name]

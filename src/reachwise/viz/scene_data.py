@@ -7,7 +7,7 @@ kinematic model and the results, so it can be tested without a browser:
   ``Robot.fk_all(q)`` (base, link_1 … link_N, tool — the stick figures of P-I Fig. 5);
 - task-point colours by status, after P-I Fig. 4 (green: full pose reached; blue:
   position only; yellow: orientation only; red: neither), the same colours as
-  :mod:`reachwise.viz.plots`;
+  :mod:`reachwise.report.plots`;
 - closest-point lines of the watched pairs of a :class:`~reachwise.distance.scene.SceneResult`
   (``point_a``–``point_b`` in world frame, thesis §3.1 / P-V Fig. 4);
 - tool paths, tool axes, clouds coloured by height, a tunnel wireframe, a camera that
@@ -31,12 +31,15 @@ if TYPE_CHECKING:
     from reachwise.tasks.workspace import TunnelEnvelope
 
 __all__ = [
+    "COLOUR_WORDS",
     "STATUS_RGB",
     "axis_segments",
     "camera_view",
     "distance_colours",
     "height_colours",
     "joint_ranges",
+    "legend",
+    "node_name",
     "pair_segments",
     "polyline_segments",
     "skeleton_segments",
@@ -57,7 +60,7 @@ def _rgb(name: str) -> tuple[int, int, int]:
 
 
 def _status_rgb() -> dict[str, tuple[int, int, int]]:
-    from reachwise.viz.plots import STATUS_COLOURS
+    from reachwise.report.plots import STATUS_COLOURS
 
     out = {k: _rgb(v) for k, v in STATUS_COLOURS.items()}
     # simulation goals: reached (the full goal) or not yet
@@ -199,3 +202,25 @@ def tunnel_wireframe(envelope: TunnelEnvelope, x: ArrayLike, spacing: float = 0.
             y, z = yz[c]
             out.append(np.array([[[xs.min(), y, z], [xs.max(), y, z]]]))
     return np.concatenate(out) if out else np.zeros((0, 2, 3))
+
+
+def node_name(name: str) -> str:
+    """A scene-node-safe version of ``name`` (no slashes or spaces)."""
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name) or "robot"
+
+
+def legend(keys: tuple[str, ...]) -> str:
+    """The colours of the statuses ``keys`` in words (markdown)."""
+    return ", ".join(f"{COLOUR_WORDS.get(k, '?')} = {k}" for k in keys)
+
+
+#: Status → the colour's name, for legends in words.
+COLOUR_WORDS = {
+    "full": "green",
+    "position": "blue",
+    "orientation": "yellow",
+    "neither": "red",
+    "reached": "green",
+    "unreached": "red",
+    "pending": "grey",
+}

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 import yaml
 
-from reachwise.errors import InputError
+from reachwise.errors import InputError, UnknownName
 
 if TYPE_CHECKING:
     from reachwise.viz.viewer import Viewer
@@ -74,11 +74,8 @@ def find_results(path: str | Path, scenario: str | Path | None = None) -> dict[s
                 "of them",
             )
         return found
-    raise InputError(
-        s,
-        "",
-        f"no such file or folder, built-in robot {builtin_robots()} or built-in scenario "
-        f"{builtin_scenarios()}",
+    raise UnknownName(
+        s, "file, folder, built-in robot or scenario", s, builtin_robots() + builtin_scenarios()
     )
 
 

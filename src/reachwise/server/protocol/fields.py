@@ -7,7 +7,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -204,6 +204,20 @@ def check_name(value: object, where: str) -> str:
             f"a name must be 1..{MAX_NAME_LENGTH} printable characters",
         )
     return value
+
+
+_S = TypeVar("_S", bound=str)
+
+
+def check_choice(value: object, valid: tuple[_S, ...], where: str) -> _S:
+    """One of the ``valid`` names (a ``Literal`` mode such as a pair kind)."""
+    name = check_name(value, where)
+    for v in valid:
+        if name == v:
+            return v
+    raise ProtocolError(
+        ErrorCode.INVALID, where, f"unknown name {name!r}; valid: {', '.join(valid)}"
+    )
 
 
 def check_text(value: object, where: str, max_length: int = 4096) -> str:

@@ -9,6 +9,8 @@ from typing import Any, Self
 import numpy as np
 from numpy.typing import NDArray
 
+from reachwise.distance.engine import STRATEGIES, StrategyName
+from reachwise.distance.scene import PAIR_KINDS, PairKind
 from reachwise.server.protocol.fields import (
     MAX_NAME_LENGTH,
     Body,
@@ -17,6 +19,7 @@ from reachwise.server.protocol.fields import (
     Reader,
     check_array,
     check_bool,
+    check_choice,
     check_float,
     check_int,
     check_list,
@@ -212,7 +215,7 @@ class PairInfo:
     a: str
     b: str
     margin: float
-    kind: str
+    kind: PairKind
 
     def wire(self) -> list[Any]:
         return [self.a, self.b, self.margin, self.kind]
@@ -226,7 +229,7 @@ class PairInfo:
             check_name(v[0], f"{where}[0]"),
             check_name(v[1], f"{where}[1]"),
             check_float(v[2], f"{where}[2]", finite=False, minimum=0.0),
-            check_name(v[3], f"{where}[3]"),
+            check_choice(v[3], PAIR_KINDS, f"{where}[3]"),
         )
 
 
@@ -390,7 +393,7 @@ class DescribeReply(Reply):
     """The scene: distance ``strategy``, robots (YAML mappings) and their joint
     states, objects in insertion order, watched pairs in query order, the sequence."""
 
-    strategy: str
+    strategy: StrategyName
     robots: dict[str, dict[str, Any]]
     joints: dict[str, NDArray[np.float64]]
     objects: tuple[ObjectInfo, ...]
@@ -416,7 +419,7 @@ class DescribeReply(Reply):
         }
         objs = check_list(r.get("objects"), r.path("objects"))
         return cls(
-            check_name(r.get("strategy"), r.path("strategy")),
+            check_choice(r.get("strategy"), STRATEGIES, r.path("strategy")),
             models,
             _array_map(r, "joints", (None,)) or {},
             tuple(ObjectInfo.parse(o, f"{r.path('objects')}[{i}]") for i, o in enumerate(objs)),

@@ -9,6 +9,7 @@ from typing import Any, ClassVar, Self
 import numpy as np
 from numpy.typing import NDArray
 
+from reachwise.distance.scene import PAIR_KINDS, PairKind
 from reachwise.server.protocol.fields import (
     MAX_LIST,
     MAX_NAME_LENGTH,
@@ -20,6 +21,7 @@ from reachwise.server.protocol.fields import (
     Reader,
     check_array,
     check_bool,
+    check_choice,
     check_float,
     check_int,
     check_list,
@@ -235,7 +237,7 @@ class Watch(Request):
     a: str
     b: str
     margin: float
-    kind: str = "custom"
+    kind: PairKind = "custom"
 
     def body(self) -> Body:
         return {"a": self.a, "b": self.b, "margin": self.margin, "kind": self.kind}
@@ -246,7 +248,7 @@ class Watch(Request):
             check_name(r.get("a"), r.path("a")),
             check_name(r.get("b"), r.path("b")),
             _margin(r),
-            check_name(r.get("kind"), r.path("kind")),
+            check_choice(r.get("kind"), PAIR_KINDS, r.path("kind")),
         )
 
 

@@ -7,8 +7,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, Protocol
 
-from reachwise.viz import report_thesis as thesis
-from reachwise.viz.report_html import (
+import reachwise.report.thesis as thesis
+from reachwise.report.html import (
     Raw,
     comparison,
     esc,

@@ -19,23 +19,19 @@ import csv
 import hashlib
 import io
 import json
-import os
 import re
 from pathlib import Path
 from typing import Any
 
-from reachwise import __version__
+from reachwise._version import __version__
+from reachwise.io.atomic import atomic_write
+from reachwise.io.robot_file import save_robot
+from reachwise.report.png import save_png
 from reachwise.synthesis.sweep import SweepResult, versions
 
 _FIELDS = ("rank", "topology", "round", "feasible", "reached", "points", "gci", "kci", "mean",
            "manipulability", "length", "prismatic", "e_obj", "best_run", "best_seed", "runs",
            "runs_feasible", "note", "error")  # fmt: skip
-
-
-def _atomic_write(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
 
 
 def safe_name(name: str) -> str:
@@ -154,8 +150,8 @@ def write_report(
     of the exported designs (``designs``)."""
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
-    _atomic_write(folder / "ranking.md", markdown(result))
-    _atomic_write(folder / "ranking.csv", csv_text(result.table()))
+    atomic_write(folder / "ranking.md", markdown(result))
+    atomic_write(folder / "ranking.csv", csv_text(result.table()))
     data = report_data(result)
     k = result.config.top if top is None else top
     designs = []
@@ -164,23 +160,23 @@ def write_report(
         ddir.mkdir(exist_ok=True)
         robot = result.robot(name)
         stem = ddir / f"{i:02d}-{safe_name(name)}"
-        robot.save(str(stem.with_suffix(".yaml")))
+        save_robot(robot, stem.with_suffix(".yaml"))
         from reachwise.io.urdf import export_urdf
 
         export_urdf(robot, stem.with_suffix(".urdf"))
         entry = {"rank": i, "topology": name, "yaml": str(stem.with_suffix(".yaml")),
                  "urdf": str(stem.with_suffix(".urdf"))}  # fmt: skip
         if figures:
-            from reachwise.viz.plots import configurations_figure
+            from reachwise.report.plots import configurations_figure
 
             best = result.final.best_result(name)
             fig = configurations_figure(
                 robot, best.q, result.task.poses, best.status, every=2,
                 title=f"#{i} {_types(result, name)} {name}"[:90],
             )  # fmt: skip
-            fig.savefig(stem.with_suffix(".png"), dpi=100)
+            save_png(fig, stem.with_suffix(".png"), dpi=100)
             entry["figure"] = str(stem.with_suffix(".png"))
         designs.append(entry)
     data["designs"] = designs
-    _atomic_write(folder / "ranking.json", json.dumps(data, indent=2))
+    atomic_write(folder / "ranking.json", json.dumps(data, indent=2))
     return data

@@ -9,8 +9,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from reachwise.viz import report_thesis as thesis
-from reachwise.viz.report_html import (
+import reachwise.report.thesis as thesis
+from reachwise.report.html import (
     Raw,
     comparison,
     details,
@@ -24,6 +24,7 @@ from reachwise.viz.report_html import (
     write_page,
     yes_no,
 )
+from reachwise.report.png import save_png
 
 if TYPE_CHECKING:
     from reachwise.kinematics.robot import Robot
@@ -42,7 +43,7 @@ _FIGURES = {
 
 def synthesis_figures(result: SynthesisResult) -> dict[str, FigureSource]:
     """Draw the report's figures from the result (P-I Figs. 5–6)."""
-    from reachwise.viz.plots import configurations_figure, lci_figure
+    from reachwise.report.plots import configurations_figure, lci_figure
 
     best = result.best
     prob = result.problem
@@ -54,6 +55,18 @@ def synthesis_figures(result: SynthesisResult) -> dict[str, FigureSource]:
             best.lci_initial, best.lci_final, f"{prob.template.name} on {prob.task.name}"
         ),
     }
+
+
+def save_synthesis_figures(result: SynthesisResult, folder: str | Path) -> dict[str, Path]:
+    """Write ``configurations.png`` and ``lci.png`` (P-I Figs. 5–6) into ``folder``;
+    return their paths by figure name."""
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {}
+    for name, fig in synthesis_figures(result).items():
+        paths[name] = out / f"{name}.png"
+        save_png(fig, paths[name], dpi=110)
+    return paths
 
 
 def _deg(x: float) -> str:

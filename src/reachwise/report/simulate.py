@@ -10,8 +10,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise.viz import report_thesis as thesis
-from reachwise.viz.report_html import (
+import reachwise.report.thesis as thesis
+from reachwise.report.html import (
     Raw,
     comparison,
     details,
@@ -376,8 +376,8 @@ def simulation_html(
 def simulation_figures(
     logs: Mapping[str, SimulationLog], cloud: NDArray[np.float64] | None = None
 ) -> dict[str, FigureSource]:
-    """Draw the report's figures (``viz.sim_plots``)."""
-    from reachwise.viz.sim_plots import joint_figure, min_distance_figure, tool_path_figure
+    """Draw the report's figures (``report.sim_plots``)."""
+    from reachwise.report.sim_plots import joint_figure, min_distance_figure, tool_path_figure
 
     main = logs["avoidance"] if "avoidance" in logs else next(iter(logs.values()))
     base = logs.get("baseline")

@@ -1,5 +1,6 @@
-"""A headless browser for the viewer and report tests: Debian's chromium, driven by
-Playwright (never a browser Playwright downloads itself). ``.ci/run`` installs it."""
+"""A headless browser for the viewer and report tests (a plugin of tests/conftest.py):
+Debian's chromium, driven by Playwright (never a browser Playwright downloads itself).
+``.ci/run`` installs it."""
 
 from __future__ import annotations
 

@@ -9,6 +9,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from reachwise.report.png import save_png
+
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
@@ -128,7 +130,7 @@ def save_figures(
     paths = []
     for name, fig in figs.items():
         p = out / name
-        fig.savefig(p, dpi=110)
+        save_png(fig, p, dpi=110)
         paths.append(p)
     return paths
 

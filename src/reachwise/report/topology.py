@@ -8,8 +8,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from reachwise.viz import report_thesis as thesis
-from reachwise.viz.report_html import (
+import reachwise.report.thesis as thesis
+from reachwise.report.html import (
     Raw,
     comparison,
     figure,

@@ -1,28 +1,29 @@
-"""Client of the collision server, with the in-process scene's interface.
+"""The remote scene: :class:`SceneClient`, a scene on a collision server with the
+in-process scene's interface.
 
 The control system of the thesis asks the collision server for the shortest distances
 every control cycle (P-III §4.1 Fig. 2, P-IV, P-V §II). :class:`SceneClient` has the
 methods and result types of :class:`reachwise.distance.Scene` — ``add_robot``,
 ``set_joints``, ``add_object``, ``set_pose``, ``replace_cloud``, ``watch*``,
-``unwatch``, ``robot_objects``, ``poses``, ``query_all`` — so a controller written
-against :class:`SceneLike` runs unchanged against either.
+``unwatch``, ``robot_objects``, ``poses``, ``query_all`` — and satisfies
+:class:`~reachwise.distance.scene.SceneLike`, so a controller written against it runs
+unchanged against either.
 
 What the network adds, and how the client reports it:
 
 - **Deadlines.** Every call has one (``deadline`` for the per-tick calls
   ``set_joints``, ``set_pose``, ``query_all``; ``setup_deadline`` for the rest; or
-  ``deadline=`` on the call). ZeroMQ REQ sockets cannot tell a slow server from a dead
-  one, so after a missed deadline the client closes the socket and makes a new one
-  (the ZeroMQ guide's *Lazy Pirate*): the next call goes out on a fresh connection,
-  which reaches a restarted server by itself.
+  ``deadline=`` on the call). A missed deadline drops the socket
+  (:class:`~reachwise.server.client.channel.Channel`, the *Lazy Pirate*).
 - **Missing data is a result, not an exception.** When ``query_all`` gets no answer in
   time (or the server is still restoring its state), it returns a
-  :class:`ServerSceneResult` with ``valid=False``, the ``reason``, the last sequence
-  number, and every pair's distance NaN — missing data, on which the controller's
-  safety layer makes a protective stop (thesis §3.3; controller issue). A joint state
-  or pose that could not be delivered makes the next result invalid too, since the
-  server answered with older inputs. Setup calls (registering robots and clouds,
-  pair rules) raise :class:`ServerUnavailable` instead: nothing sensible follows them.
+  :class:`~reachwise.server.client.results.ServerSceneResult` with ``valid=False``, the
+  ``reason``, the last sequence number, and every pair's distance NaN — missing data,
+  on which the controller's safety layer makes a protective stop (thesis §3.3;
+  controller issue). A joint state or pose that could not be delivered makes the next
+  result invalid too, since the server answered with older inputs. Setup calls
+  (registering robots and clouds, pair rules) raise :class:`ServerUnavailable`
+  instead: nothing sensible follows them.
 - **Time stamps** (seconds, this client's ``clock``, :func:`time.monotonic` by
   default): ``set_joints``/``set_pose`` stamp their measurement (``stamp=``, default
   now); a result carries ``measured_at`` (the oldest input it depends on),
@@ -36,11 +37,11 @@ What the network adds, and how the client reports it:
 sends them with it, atomically: one round trip per control tick.
 
 ``mirror=True`` is for a client that *owns* the server's scene, as a simulator does
-(:func:`owned_scene`): it keeps a local copy of everything it registers and sends, so
-``objects``, ``robots``, ``pairs``, ``robot_objects`` and ``poses()`` are answered
-without a round trip (and without waiting on a server that may be gone); the
-distance queries still go to the server, and a reply whose pair list differs from the
-local copy is reported as invalid.
+(:func:`~reachwise.server.client.owned.owned_scene`): it keeps a local copy of
+everything it registers and sends, so ``objects``, ``robots``, ``pairs``,
+``robot_objects`` and ``poses()`` are answered without a round trip (and without
+waiting on a server that may be gone); the distance queries still go to the server,
+and a reply whose pair list differs from the local copy is reported as invalid.
 
 A client belongs to one thread (one REQ socket); give each thread its own.
 """
@@ -50,112 +51,49 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
-import zmq
 from numpy.typing import ArrayLike, NDArray
 
-from reachwise.distance._common import (
-    NO_RISK,
-    DistanceResult,
-    as_cloud,
-    check_margin,
-    check_pose,
-)
+import reachwise.server.protocol as P
+from reachwise.distance._common import as_cloud, check_margin, check_pose
+from reachwise.distance.engine import STRATEGIES, StrategyName
 from reachwise.distance.scene import (
     Fixed,
     OnLink,
-    PairResult,
+    PairKind,
     RobotLike,
     Runtime,
     Scene,
     SceneLike,
     SceneObject,
-    SceneResult,
     WatchedPair,
 )
-from reachwise.errors import InputError, ReachwiseError
+from reachwise.errors import InputError, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_file import robot_from_dict, robot_to_dict
 from reachwise.kinematics.robot import Robot
-from reachwise.server import protocol as P
-from reachwise.server.security import ClientKeys, load_client_keys, secure_client_socket
+from reachwise.server.client.channel import Channel
+from reachwise.server.client.errors import ServerError, ServerInputError, ServerUnavailable
+from reachwise.server.client.results import (
+    ServerSceneResult,
+    missing_result,
+    pair_results,
+    scene_object,
+    watched_pair,
+)
+from reachwise.server.security import ClientKeys, load_client_keys
+
+__all__ = ["SETUP_DEADLINE", "TICK_DEADLINE", "SceneClient"]
 
 #: Default deadline of the per-tick calls (s): one 10 ms control cycle of P-V.
 TICK_DEADLINE = 0.010
 #: Default deadline of setup calls (s): building a large cloud's index takes a while.
 SETUP_DEADLINE = 30.0
-#: Replies the client accepts: describe with clouds can be large.
-CLIENT_LIMITS = P.Limits(max_message_bytes=4 * P.MAX_MESSAGE_BYTES)
 
 _R = TypeVar("_R", bound=P.Reply)
-
-
-@dataclass(frozen=True)
-class ServerSceneResult(SceneResult):
-    """A :class:`~reachwise.distance.scene.SceneResult` from the server. The fields a
-    controller reads are the in-process result's: ``sequence``, ``measured_at`` (s,
-    the oldest joint state or run-time pose the answer depends on, and the query's
-    own stamp), ``computed_at`` (s, when the reply arrived), both on the client's
-    clock, and ``valid`` False with a ``reason`` when the data is missing (then every
-    distance is NaN and ``sequence`` is the last one received). Added:
-    ``compute_time`` (s, the computation on the server)."""
-
-    compute_time: float = math.nan
-
-
-#: Default per-tick deadline of a simulation on a server (s): in simulated time a
-#: late reply only has to be told from a lost one.
-SIMULATION_DEADLINE = 0.1
-
-
-@dataclass(frozen=True)
-class ServerOptions:
-    """How a simulation reaches its collision server: ``address``, the per-tick
-    ``deadline`` (s; a reply later than that is missing data), CURVE ``keys`` (a
-    ``reachwise serve keygen`` folder) and how long to wait for the server to be
-    ready at the start (``ready_timeout``, s)."""
-
-    address: str
-    deadline: float = SIMULATION_DEADLINE
-    keys: str | Path | None = None
-    ready_timeout: float = 30.0
-
-
-def _nan3() -> NDArray[np.float64]:
-    v = np.full(3, np.nan)
-    v.setflags(write=False)
-    return v
-
-
-#: The result of a pair whose answer is missing: every number NaN, not "no risk".
-MISSING = DistanceResult(math.nan, _nan3(), _nan3(), _nan3(), -1, -1, False)
-
-
-class ServerError(ReachwiseError):
-    """The collision server could not answer: ``code`` (None when there was no reply)."""
-
-    def __init__(self, message: str, code: P.ErrorCode | None = None, field: str = "") -> None:
-        self.code = code
-        self.field = field
-        super().__init__(message)
-
-
-class ServerUnavailable(ServerError):
-    """No reply within the deadline (the socket has been recreated)."""
-
-
-class ServerInputError(InputError):
-    """The server rejected the request's content: ``code`` and ``field`` as sent."""
-
-    def __init__(self, address: str, error: P.ErrorReply) -> None:
-        self.code = error.code
-        super().__init__(
-            f"collision server {address}", error.field, f"{error.message} [{error.code}]"
-        )
 
 
 def _vector(q: ArrayLike, robot: str) -> NDArray[np.float64]:
@@ -198,11 +136,7 @@ class SceneClient:
         self.clock = clock
         self.batch_inputs = batch_inputs
         self.name = name
-        self._ctx: zmq.Context[zmq.Socket[bytes]] = zmq.Context()
-        self._sock: zmq.Socket[bytes] | None = None
-        self._poller = zmq.Poller()  # one per socket, not one per call
-        self._next_id = 0
-        self._reconnects = 0
+        self._channel = Channel(address, self.keys)
         self._pending_joints: dict[str, tuple[NDArray[np.float64], float]] = {}
         self._pending_poses: dict[str, tuple[NDArray[np.float64], float]] = {}
         self._lost: str | None = None
@@ -212,81 +146,19 @@ class SceneClient:
         self._last_pairs: tuple[P.PairInfo, ...] = ()
         self._robot_cache: dict[str, Robot] = {}
         self._mirror: Scene | None = Scene() if mirror else None
+        self._cloud_versions: dict[str, int] = {}
 
-    # ------------------------------------------------------------------ transport
+    # ------------------------------------------------------------------ channel
     @property
     def reconnects(self) -> int:
         """How many times the socket was recreated after a lost reply."""
-        return self._reconnects
-
-    def _socket(self) -> zmq.Socket[bytes]:
-        if self._sock is None:
-            sock = self._ctx.socket(zmq.REQ)
-            sock.linger = 0
-            sock.setsockopt(zmq.RECONNECT_IVL, 20)
-            sock.setsockopt(zmq.RECONNECT_IVL_MAX, 200)
-            if self.keys is not None:
-                secure_client_socket(sock, self.keys)
-            sock.connect(self.address)
-            self._sock = sock
-            self._poller = zmq.Poller()
-            self._poller.register(sock, zmq.POLLIN)
-        return self._sock
-
-    def _reset(self) -> None:
-        """Lazy Pirate: drop the socket (and any reply still on its way)."""
-        if self._sock is not None:
-            self._sock.close(linger=0)
-            self._sock = None
-            self._reconnects += 1
+        return self._channel.reconnects
 
     def call(self, request: P.Request, deadline: float | None = None) -> P.Reply:
-        """Send one request and wait for its reply until ``deadline`` seconds.
-
-        Raises :class:`ServerUnavailable` (no reply in time; the socket is recreated),
-        :class:`ServerInputError` (the request's content was rejected) or
-        :class:`ServerError` (any other typed error or an invalid reply).
-        """
+        """Send one request and wait for its reply until ``deadline`` seconds (default
+        ``setup_deadline``); see :meth:`Channel.call` for what it raises."""
         limit = self.setup_deadline if deadline is None else float(deadline)
-        reply_type = P.REPLIES[request.OP]
-        sock = self._socket()
-        self._next_id += 1
-        rid = self._next_id
-        end = time.monotonic() + limit
-        try:
-            sock.send(P.encode_request(rid, request), zmq.NOBLOCK)
-        except zmq.Again:
-            self._reset()
-            raise ServerUnavailable(f"cannot send {request.OP} to {self.address}") from None
-        wait_ms = max(1, math.ceil((end - time.monotonic()) * 1e3))
-        if not self._poller.poll(wait_ms):
-            self._reset()
-            raise ServerUnavailable(
-                f"no reply to {request.OP} from {self.address} within {limit * 1e3:.1f} ms"
-            )
-        raw = sock.recv()
-        try:
-            decoded = P.decode_reply(raw, reply_type, CLIENT_LIMITS)
-        except P.ProtocolError as exc:
-            self._reset()
-            raise ServerError(
-                f"invalid reply to {request.OP}: {exc}", exc.code, exc.field
-            ) from None
-        if decoded.request_id not in (rid, None):
-            self._reset()
-            raise ServerError(
-                f"reply to request {decoded.request_id} received for request {rid}",
-                P.ErrorCode.BAD_MESSAGE,
-                "id",
-            )
-        if decoded.error is not None:
-            err = decoded.error
-            if err.code in P.INPUT_CODES:
-                raise ServerInputError(self.address, err)
-            raise ServerError(f"{request.OP}: {err.message} [{err.code}]", err.code, err.field)
-        if decoded.reply is None:  # decode_reply gives one of the two
-            raise ServerError(f"empty reply to {request.OP}", P.ErrorCode.BAD_MESSAGE)
-        return decoded.reply
+        return self._channel.call(request, limit)
 
     def _setup(self, request: P.Request, kind: type[_R], deadline: float | None = None) -> _R:
         """A setup call whose reply must be of type ``kind``."""
@@ -297,11 +169,7 @@ class SceneClient:
 
     def close(self) -> None:
         """Close the socket and the client's ZeroMQ context."""
-        if self._sock is not None:
-            self._sock.close(linger=0)
-            self._sock = None
-        if not self._ctx.closed:
-            self._ctx.term()
+        self._channel.close()
 
     def __enter__(self) -> SceneClient:
         return self
@@ -350,9 +218,11 @@ class SceneClient:
 
     # ------------------------------------------------------------------ scene interface
     @property
-    def strategy(self) -> str:
+    def strategy(self) -> StrategyName:
         """The server scene's distance strategy."""
-        return self.describe().strategy
+        return check_choice(
+            self.describe().strategy, STRATEGIES, source=self.address, kind="strategy"
+        )
 
     @property
     def sequence(self) -> int:
@@ -380,14 +250,14 @@ class SceneClient:
         ``mirror``: the local copy)."""
         if self._mirror is not None:
             return self._mirror.objects
-        return {o.name: _scene_object(o) for o in self.describe(clouds=True).objects}
+        return {o.name: scene_object(o) for o in self.describe(clouds=True).objects}
 
     @property
     def pairs(self) -> tuple[WatchedPair, ...]:
         """Watched pairs in query order (with ``mirror``: the local copy)."""
         if self._mirror is not None:
             return self._mirror.pairs
-        return tuple(_watched(p) for p in self.describe().pairs)
+        return tuple(watched_pair(p) for p in self.describe().pairs)
 
     def add_robot(
         self,
@@ -499,20 +369,33 @@ class SceneClient:
         return SceneObject(name, c, source)
 
     def replace_cloud(
-        self, name: str, cloud: PointCloud | ArrayLike, *, deadline: float | None = None
-    ) -> None:
-        """Swap object ``name``'s cloud (e.g. a new scan); the server rebuilds its index."""
+        self,
+        name: str,
+        cloud: PointCloud | ArrayLike,
+        *,
+        block: bool = False,
+        stamp: float | None = None,
+        deadline: float | None = None,
+    ) -> int:
+        """Swap object ``name``'s cloud (e.g. a new scan); returns its version (1, 2, …
+        per object, counted here in the order the server applies them). The server
+        indexes the cloud before it replies, so the call returns once the new cloud is
+        in use whatever ``block`` says; ``stamp`` is not sent (the server stamps the
+        cloud when it arrives)."""
         c = as_cloud(cloud, name)
         self._setup(P.ReplaceCloud(name, c.points), P.ObjectReply, deadline)
+        version = self._cloud_versions.get(name, 0) + 1
+        self._cloud_versions[name] = version
         if self._mirror is not None:
-            self._mirror.replace_cloud(name, c)
+            self._mirror.replace_cloud(name, c, block=True, stamp=stamp)
+        return version
 
     def watch(
         self,
         a: str,
         b: str,
         margin: float,
-        kind: str = "custom",
+        kind: PairKind = "custom",
         *,
         deadline: float | None = None,
     ) -> WatchedPair:
@@ -538,10 +421,10 @@ class SceneClient:
 
     def _watched(self, rep: P.PairsReply) -> tuple[WatchedPair, ...]:
         """The pairs a watch request made (copied into the mirror, in the same order)."""
-        out = tuple(_watched(p) for p in rep.pairs)
+        out = tuple(watched_pair(p) for p in rep.pairs)
         if self._mirror is not None:
             for w in out:
-                self._mirror.watch(w.a, w.b, w.margin, w.kind)
+                self._mirror.watch(w.a, w.b, w.margin, kind=w.kind)
         return out
 
     def watch_self(
@@ -593,7 +476,7 @@ class SceneClient:
             )
         order = {n: i for i, n in enumerate(self.robots[robot].link_names)}
         mine = [o for o in d.objects if o.source == "link" and o.robot == robot]
-        return tuple(_scene_object(o) for o in sorted(mine, key=lambda o: order[str(o.link)]))
+        return tuple(scene_object(o) for o in sorted(mine, key=lambda o: order[str(o.link)]))
 
     def poses(self) -> dict[str, NDArray[np.float64]]:
         """Current world pose of every object (with ``mirror``: computed locally from
@@ -644,7 +527,7 @@ class SceneClient:
             infos = self._layout[1]
         else:  # the server left out a pair list this client does not hold
             self._layout = None
-            self._reset()
+            self._channel.reset()
             return self._missing(f"reply without the pair list of layout {rep.layout!r}")
         if len(infos) != rep.rows.shape[0]:
             self._layout = None
@@ -664,7 +547,7 @@ class SceneClient:
         lost, self._lost = self._lost, None
         return ServerSceneResult(
             rep.sequence,
-            _pair_results(infos, rep),
+            pair_results(infos, rep),
             measured_at=rep.measured_at,
             computed_at=arrived,
             compute_time=rep.compute_time,
@@ -677,94 +560,10 @@ class SceneClient:
         pairs: tuple[P.PairInfo | WatchedPair, ...] = self._last_pairs
         if self._mirror is not None:
             pairs = self._mirror.pairs
-        return ServerSceneResult(
-            self._last_sequence,
-            tuple(PairResult(p.a, p.b, p.margin, p.kind, MISSING) for p in pairs),
-            measured_at=self._last_measured,
-            valid=False,
-            reason=reason,
-        )
-
-
-def _watched(p: P.PairInfo) -> WatchedPair:
-    return WatchedPair(p.a, p.b, p.margin, p.kind)
-
-
-def _scene_object(o: P.ObjectInfo) -> SceneObject:
-    if o.cloud is None:
-        raise ServerError(f"object {o.name!r} came without its cloud")
-    cloud = PointCloud(o.cloud, frame=o.link or "world", name=o.name)
-    source: Fixed | OnLink | Runtime
-    if o.source == "link":
-        source = OnLink(str(o.robot), str(o.link), np.array(o.pose))
-    elif o.source == "runtime":
-        source = Runtime()
-    else:
-        source = Fixed(np.array(o.pose))
-    return SceneObject(o.name, cloud, source)
-
-
-def _pair_results(infos: tuple[P.PairInfo, ...], rep: P.QueryReply) -> tuple[PairResult, ...]:
-    """The reply's rows as PairResults, equal to the in-process scene's."""
-    out = []
-    rows = rep.rows
-    for k, p in enumerate(infos):
-        row = rows[k]
-        if row[12] == 1.0:
-            res = NO_RISK
-        else:
-            res = DistanceResult(
-                float(row[0]), row[1:4], row[4:7], row[7:10], int(row[10]), int(row[11]), False
-            )
-        out.append(PairResult(p.a, p.b, p.margin, p.kind, res))
-    return tuple(out)
-
-
-def owned_scene(
-    server: str | ServerOptions, clock: Callable[[], float] = time.monotonic
-) -> SceneClient:
-    """A client that owns the server's scene, as a simulator does: it waits until the
-    server is ready, clears its scene, mirrors what it registers (``mirror``), sends
-    joint states and poses with the query (``batch_inputs``) and stamps with ``clock``
-    (a simulation's simulated time). Raises :class:`ServerUnavailable` if the server
-    does not become ready in time."""
-    opts = server if isinstance(server, ServerOptions) else ServerOptions(server)
-    client = SceneClient(
-        opts.address,
-        deadline=opts.deadline,
-        keys=opts.keys,
-        clock=clock,
-        batch_inputs=True,
-        mirror=True,
-        name="reachwise-simulate",
-    )
-    try:
-        client.wait_ready(opts.ready_timeout)
-        client.hello()
-        client.clear()
-    except BaseException:
-        client.close()
-        raise
-    return client
+        return missing_result(pairs, self._last_sequence, self._last_measured, reason)
 
 
 if TYPE_CHECKING:
 
     def _conforms(a: Scene, b: SceneClient) -> tuple[SceneLike, SceneLike]:
         return a, b  # mypy checks that both satisfy SceneLike
-
-
-__all__ = [
-    "MISSING",
-    "SETUP_DEADLINE",
-    "SIMULATION_DEADLINE",
-    "TICK_DEADLINE",
-    "SceneClient",
-    "SceneLike",
-    "ServerError",
-    "ServerInputError",
-    "ServerOptions",
-    "ServerSceneResult",
-    "ServerUnavailable",
-    "owned_scene",
-]

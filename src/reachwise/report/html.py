@@ -1,4 +1,4 @@
-"""Building blocks of the self-contained HTML reports (``reachwise.viz.report``).
+"""Building blocks of the self-contained HTML reports (``reachwise.report``).
 
 A report is one HTML file: CSS inline, figures embedded as base64 PNG ``data:`` URIs,
 no external URL, no JavaScript. Every string that may come from user input (robot,
@@ -13,14 +13,14 @@ import base64
 import html
 import io
 import math
-import os
 from collections.abc import Iterable, Mapping, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 from string import Template
 from typing import TYPE_CHECKING, Any
 
-from reachwise import __version__
+from reachwise._version import __version__
+from reachwise.io.atomic import atomic_write
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -215,10 +215,7 @@ def write_page(path: str | Path, text: str) -> Path:
     """Write the report atomically (a reader never sees half a file)."""
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + ".tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, out)
-    return out
+    return atomic_write(out, text)
 
 
 def comparison(rows: Sequence[tuple[object, object, object, object]], id: str) -> Raw:

@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from reachwise import load_robot, load_task
-from reachwise.viz import report_thesis as thesis
-from reachwise.viz.report import (
+from reachwise.report import (
+    thesis,
     write_simulation_report,
     write_synthesis_report,
     write_topology_report,
@@ -198,7 +198,7 @@ def test_dh_table_shows_template_and_found(synthesis: Any, tmp_path: Path) -> No
 
 
 def synthesis_html_of(result: Any) -> str:
-    from reachwise.viz.report_synthesis import synthesis_html
+    from reachwise.report.synthesis import synthesis_html
 
     return synthesis_html(result, None)
 
@@ -231,7 +231,7 @@ def test_hostile_names_are_escaped(tmp_path: Path, browser: Any) -> None:
 
 # ---- topology ----------------------------------------------------------------------------------
 def test_topology_report_ranks_like_the_sweep(sweep: Any, tmp_path: Path) -> None:
-    from reachwise.io.sweep_report import write_report
+    from reachwise.report.ranking import write_report
 
     data = write_report(sweep, tmp_path)
     path = write_topology_report(sweep, tmp_path, data["designs"])
@@ -259,7 +259,7 @@ def test_topology_report_ranks_like_the_sweep(sweep: Any, tmp_path: Path) -> Non
 
 # ---- simulation --------------------------------------------------------------------------------
 def test_simulation_report_holds_the_logs(p5: Any, tmp_path: Path) -> None:
-    from reachwise.viz.report_simulate import leg_lengths, scene_cloud
+    from reachwise.report.simulate import leg_lengths, scene_cloud
 
     sc, logs = p5
     cloud = scene_cloud(sc)
@@ -309,7 +309,7 @@ def test_p3_report_states_the_thesis_collision_time(tmp_path: Path) -> None:
 def test_reports_open_in_chromium_with_their_figures(
     synthesis: Any, sweep: Any, p5: Any, tmp_path: Path, page: Any
 ) -> None:
-    from reachwise.io.sweep_report import write_report
+    from reachwise.report.ranking import write_report
 
     sc, logs = p5
     paths = {

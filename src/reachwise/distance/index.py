@@ -1,0 +1,156 @@
+"""A cloud's spatial index, kept by the distance layer (P-V Table 1, initialization phase).
+
+A :class:`~reachwise.geometry.cloud.PointCloud` holds its points and nothing else. What
+the distance strategies derive from the points — the tree of AABBs in the cloud's own
+frame (:mod:`reachwise.distance._build`), the centroid and the tight AABB — is a
+:class:`CloudIndex`, built once per cloud and looked up by the cloud:
+
+- :func:`build_index` is a pure function of the points: no shared state, no lock, and
+  the tree kernel releases the GIL (numba ``nogil``). So an index may be built on any
+  thread — a worker that ingests a new scan while the control loop keeps querying the
+  old one — and handed over whole; a :class:`CloudIndex` is immutable, so swapping one
+  reference for another is atomic.
+- :class:`IndexRegistry` keeps the index of every cloud in use in a
+  ``weakref.WeakKeyDictionary`` keyed by the cloud: an entry lives as long as its cloud,
+  and repeated queries of the same cloud find it instead of rebuilding it
+  (:attr:`IndexRegistry.builds` counts the builds). :data:`INDICES` is the one the
+  strategies and the scene use; :func:`cloud_index` looks a cloud up in it.
+
+Each index carries a ``version``, set by whoever builds it (0 by default): a scene that
+replaces an object's cloud can number the clouds it swaps in and report, with every
+answer, which one it used.
+"""
+
+from __future__ import annotations
+
+import threading
+import weakref
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from reachwise.distance import _kernels as K
+from reachwise.distance._build import build_tree
+from reachwise.errors import InputError
+from reachwise.geometry.boxes import AABB
+from reachwise.geometry.cloud import PointCloud
+
+__all__ = [
+    "INDICES",
+    "LEAF_SIZE",
+    "CloudIndex",
+    "IndexRegistry",
+    "build_index",
+    "cloud_centroid",
+    "cloud_index",
+]
+
+#: Leaf size of the per-cloud tree (points per leaf at most).
+LEAF_SIZE = 8
+
+
+@dataclass(frozen=True, eq=False)
+class CloudIndex:
+    """Everything the distance strategies derive from a cloud's points, in its frame.
+
+    The tree (:func:`reachwise.distance._build.build_tree`): ``points`` in tree
+    order, ``perm[k]`` the input row of tree point ``k``, ``inverse`` the reverse map,
+    ``boxes`` (M, 6) node AABBs (lo, hi; node 0 is the root), ``info`` (M, 3) start,
+    end, right child. ``centroid`` the mean point (the direction rule at distance 0),
+    ``aabb`` the tight bounds (Table 1 step 3), ``version`` the cloud version it
+    indexes (see the module docstring).
+    """
+
+    points: NDArray[np.float64]
+    perm: NDArray[np.int64]
+    inverse: NDArray[np.int64]
+    boxes: NDArray[np.float64]
+    info: NDArray[np.int64]
+    centroid: NDArray[np.float64]
+    aabb: AABB
+    version: int = 0
+
+    def __len__(self) -> int:
+        return int(self.points.shape[0])
+
+
+def build_index(points: ArrayLike, *, version: int = 0, leaf_size: int = LEAF_SIZE) -> CloudIndex:
+    """The index of (N, 3) ``points`` (a pure function: safe on any thread).
+
+    ``points`` are taken as given (a :class:`PointCloud`'s are validated already).
+    """
+    if not 1 <= leaf_size <= K.LEAF_MAX:
+        raise InputError("leaf_size", "", f"must be in 1..{K.LEAF_MAX}, got {leaf_size}")
+    pts = np.array(points, dtype=np.float64, order="C", copy=True)
+    tp, perm, boxes, info = build_tree(pts, leaf_size)
+    inverse = np.empty_like(perm)
+    inverse[perm] = np.arange(perm.shape[0])
+    centroid = np.ascontiguousarray(pts.mean(axis=0))
+    aabb = AABB(boxes[0, :3].copy(), boxes[0, 3:].copy())  # the root box: exact min, max
+    return CloudIndex(tp, perm, inverse, boxes, info, centroid, aabb, int(version))
+
+
+class IndexRegistry:
+    """The indices of the clouds in use, keyed weakly by the cloud (thread-safe).
+
+    :meth:`get` returns a cloud's index, building and keeping it on first use;
+    :meth:`put` installs one built elsewhere (e.g. on a worker thread); :meth:`peek`
+    looks without building. :attr:`builds` counts the indices :meth:`get` built.
+    """
+
+    def __init__(self) -> None:
+        self._indices: weakref.WeakKeyDictionary[PointCloud, CloudIndex] = (
+            weakref.WeakKeyDictionary()
+        )
+        self._lock = threading.Lock()
+        self._builds = 0
+
+    @property
+    def builds(self) -> int:
+        """How many indices this registry has built."""
+        return self._builds
+
+    def peek(self, cloud: PointCloud) -> CloudIndex | None:
+        """The index kept for ``cloud``, or None (nothing is built)."""
+        return self._indices.get(cloud)
+
+    def get(self, cloud: PointCloud) -> CloudIndex:
+        """The index of ``cloud``: the one kept, else built now (outside the lock, so
+        other lookups go on meanwhile) and kept for as long as the cloud lives."""
+        index = self._indices.get(cloud)
+        if index is None:
+            built = build_index(cloud.points)
+            with self._lock:
+                self._builds += 1
+                index = self._indices.setdefault(cloud, built)
+        return index
+
+    def put(self, cloud: PointCloud, index: CloudIndex) -> None:
+        """Keep ``index`` (built elsewhere from ``cloud``'s points) as ``cloud``'s."""
+        if len(index) != len(cloud):
+            raise InputError(
+                cloud.name or "point cloud",
+                "index",
+                f"built from {len(index)} points, the cloud has {len(cloud)}",
+            )
+        with self._lock:
+            self._indices[cloud] = index
+
+
+#: The registry the distance strategies and the scene use.
+INDICES = IndexRegistry()
+
+
+def cloud_index(cloud: PointCloud) -> CloudIndex:
+    """The index of ``cloud`` in :data:`INDICES` (built on first use, then kept)."""
+    return INDICES.get(cloud)
+
+
+def cloud_centroid(cloud: PointCloud) -> NDArray[np.float64]:
+    """Mean point of ``cloud`` in its frame: its index's, or computed now if it has none
+    (a strategy that needs no tree builds none)."""
+    index = INDICES.peek(cloud)
+    if index is not None:
+        return index.centroid
+    return np.ascontiguousarray(cloud.points.mean(axis=0))

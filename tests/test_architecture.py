@@ -1,0 +1,249 @@
+"""The package's import structure, read from its source (every import, at module level or
+inside a function; imports under ``if TYPE_CHECKING:`` are only for the type checker and
+do not count): no module cycle, nothing imports the package root, no submodule imports
+its own package's ``__init__``, and the math layers import nothing from the layers that
+touch files, clocks, sockets or screens. ``lint-imports`` (the layers contract in
+pyproject.toml) checks the whole layer order; this test states the rules that must hold
+whatever the order, and is itself tested on a small package that breaks each of them."""
+
+from __future__ import annotations
+
+import ast
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+import reachwise
+
+SRC = Path(reachwise.__file__).parent.parent
+ROOT = "reachwise"
+MATH = ("kinematics", "geometry", "tasks", "distance", "control", "synthesis")
+UPPER = ("io", "sim", "server", "report", "viz", "cli", "benchmarks")
+
+
+@dataclass(frozen=True)
+class Import:
+    """``source`` imports ``target`` at ``line``; ``origin`` is the module named in the
+    statement (``from origin import …``), which runs ``origin``'s ``__init__``."""
+
+    source: str
+    target: str
+    origin: str
+    line: int
+
+
+def modules(src: Path, root: str) -> dict[str, tuple[Path, bool]]:
+    """Every module of package ``root`` under ``src``: name → (file, is a package)."""
+    out = {}
+    for path in sorted((src / root).rglob("*.py")):
+        parts = list(path.relative_to(src).with_suffix("").parts)
+        is_package = parts[-1] == "__init__"
+        if is_package:
+            parts = parts[:-1]
+        out[".".join(parts)] = (path, is_package)
+    return out
+
+
+def _is_type_checking(test: ast.expr) -> bool:
+    return ast.unparse(test) in ("TYPE_CHECKING", "typing.TYPE_CHECKING")
+
+
+def _statements(tree: ast.AST) -> Iterator[ast.Import | ast.ImportFrom]:
+    """Import statements anywhere in ``tree`` except the body of ``if TYPE_CHECKING:``."""
+    stack: list[ast.AST] = [tree]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, ast.If) and _is_type_checking(node.test):
+            stack.extend(node.orelse)
+            continue
+        if isinstance(node, ast.Import | ast.ImportFrom):
+            yield node
+        stack.extend(ast.iter_child_nodes(node))
+
+
+def imports(src: Path, root: str) -> list[Import]:
+    """Every import between modules of ``root`` (see the module docstring)."""
+    mods = modules(src, root)
+    found = []
+    for name, (path, is_package) in mods.items():
+        for node in _statements(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                pairs = [(a.name, a.name) for a in node.names]
+            else:
+                if node.level:
+                    base = name.split(".")[: len(name.split(".")) - node.level + is_package]
+                    origin = ".".join(base + ([node.module] if node.module else []))
+                else:
+                    origin = node.module or ""
+                pairs = [
+                    (origin, f"{origin}.{a.name}" if f"{origin}.{a.name}" in mods else origin)
+                    for a in node.names
+                ]
+            for origin, target in pairs:
+                if target == root or target.startswith(root + "."):
+                    while target not in mods and "." in target:
+                        target = target.rsplit(".", 1)[0]
+                    found.append(Import(name, target, origin, node.lineno))
+    return found
+
+
+def cycles(edges: list[Import]) -> list[list[str]]:
+    """Groups of modules that import each other, directly or through others (Tarjan)."""
+    graph: dict[str, set[str]] = {}
+    for e in edges:
+        if e.source != e.target:
+            graph.setdefault(e.source, set()).add(e.target)
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    out: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            group = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                group.append(w)
+                if w == v:
+                    break
+            if len(group) > 1:
+                out.append(sorted(group))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return sorted(out)
+
+
+def root_imports(edges: list[Import], root: str) -> list[str]:
+    """Modules that import the package root (its ``__init__`` loads everything)."""
+    return sorted({f"{e.source}:{e.line}" for e in edges if e.origin == root})
+
+
+def own_init_imports(edges: list[Import], mods: dict[str, tuple[Path, bool]]) -> list[str]:
+    """Submodules that import a package they are inside (other than the root), e.g.
+    ``from reachwise.distance import _kernels`` in ``reachwise.distance.engine``."""
+    bad = set()
+    for e in edges:
+        if mods[e.source][1]:  # a package's __init__ may import its own submodules
+            continue
+        parents = e.source.split(".")[:-1]
+        ancestors = {".".join(parents[:k]) for k in range(2, len(parents) + 1)}
+        if e.origin in ancestors:
+            bad.add(f"{e.source}:{e.line} imports {e.origin}")
+    return sorted(bad)
+
+
+def upward_imports(
+    edges: list[Import], lower: tuple[str, ...], upper: tuple[str, ...]
+) -> list[str]:
+    """Imports from a module of a ``lower`` layer into an ``upper`` one."""
+
+    def layer(module: str) -> str:
+        parts = module.split(".")
+        return parts[1] if len(parts) > 1 else ""
+
+    return sorted(
+        f"{e.source}:{e.line} -> {e.target}"
+        for e in edges
+        if layer(e.source) in lower and layer(e.target) in upper
+    )
+
+
+# ---- the package --------------------------------------------------------------------
+
+EDGES = imports(SRC, ROOT)
+MODULES = modules(SRC, ROOT)
+
+
+def test_the_scan_sees_the_package() -> None:
+    assert len(MODULES) > 100
+    pairs = {(e.source, e.target) for e in EDGES}
+    assert ("reachwise.io.robot_file", "reachwise.kinematics.robot") in pairs  # module level
+    assert ("reachwise.cli.synth", "reachwise.synthesis.synthesize") in pairs  # in a function
+
+
+def test_no_module_cycle() -> None:
+    assert cycles(EDGES) == []
+
+
+def test_nothing_imports_the_package_root() -> None:
+    assert root_imports(EDGES, ROOT) == []
+
+
+def test_no_submodule_imports_its_own_package() -> None:
+    assert own_init_imports(EDGES, MODULES) == []
+
+
+def test_the_math_layers_import_no_upper_layer() -> None:
+    assert upward_imports(EDGES, MATH, UPPER) == []
+
+
+# ---- the checks themselves, on a package that breaks every rule ---------------------
+
+_BROKEN = {
+    "__init__.py": "",
+    "_version.py": "__version__ = '1'\n",
+    "geo/__init__.py": "from pkg.geo.shape import Box\n",
+    "geo/shape.py": (
+        "from __future__ import annotations\n"
+        "from typing import TYPE_CHECKING\n"
+        "from pkg import _version\n"  # through the root: runs its __init__
+        "from pkg.geo import core\n"  # own package's __init__
+        "if TYPE_CHECKING:\n"
+        "    from pkg.io.files import Reader\n"  # for the type checker only: no edge
+        "else:\n"
+        "    Reader = None\n"
+        "class Box:\n"
+        "    def save(self):\n"
+        "        from pkg.io.files import write\n"  # up into io, inside a function
+        "        return write(self)\n"
+    ),
+    "geo/core.py": "from .. import __version__\n",  # the root, relatively
+    "io/__init__.py": "",
+    "io/files.py": "import pkg.geo.shape as S\ndef write(x):\n    return S\n",
+    "io/plain.py": "from . import files\n",  # own package, relatively
+}
+
+
+@pytest.fixture
+def broken(tmp_path: Path) -> Path:
+    for rel, text in _BROKEN.items():
+        (tmp_path / "pkg" / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / "pkg" / rel).write_text(text)
+    return tmp_path
+
+
+def test_the_checks_find_each_known_violation(broken: Path) -> None:
+    edges = imports(broken, "pkg")
+    mods = modules(broken, "pkg")
+    assert ("pkg.geo.shape", "pkg.io.files") in {(e.source, e.target) for e in edges}
+    assert not any(e.line == 6 and e.source == "pkg.geo.shape" for e in edges)  # TYPE_CHECKING
+    assert cycles(edges) == [["pkg.geo.shape", "pkg.io.files"]]
+    assert root_imports(edges, "pkg") == ["pkg.geo.core:1", "pkg.geo.shape:3"]
+    assert own_init_imports(edges, mods) == [
+        "pkg.geo.shape:4 imports pkg.geo",
+        "pkg.io.plain:1 imports pkg.io",
+    ]
+    assert upward_imports(edges, ("geo",), ("io",)) == ["pkg.geo.shape:11 -> pkg.io.files"]
+
+
+def test_an_import_under_type_checking_makes_no_cycle(broken: Path) -> None:
+    files = broken / "pkg" / "io" / "files.py"
+    files.write_text(
+        "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    import pkg.geo.shape\n"
+    )
+    assert cycles(imports(broken, "pkg")) == []
