@@ -9,6 +9,7 @@ import sqlite3
 import subprocess
 import sys
 import textwrap
+import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -156,8 +157,10 @@ def test_sigkill_during_writes_leaves_a_sound_database(tmp_path: Path) -> None:
     try:
         assert proc.stdout is not None and proc.stdout.readline().strip() == b"ready"
         reader = SweepStore(path)
-        while reader.count() < 50:
-            pass
+        give_up = time.monotonic() + 120.0  # a hang guard, not a pass/fail clock
+        while reader.count() < 50 and proc.poll() is None and time.monotonic() < give_up:
+            time.sleep(0.001)
+        assert reader.count() >= 50, f"the writer stopped early (exit {proc.poll()})"
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait(timeout=30)
         reader.close()

@@ -93,31 +93,70 @@ class SimulationLog:
         return np.asarray(self.signed.min(axis=1))
 
     @property
+    def closest_pair(self) -> NDArray[np.str_]:
+        """The pair (``"a|b"``) with the smallest signed distance at each tick (``""``
+        without pairs or when every pair is beyond range)."""
+        if self.signed.shape[1] == 0:
+            return np.full(self.t.shape, "", dtype=np.str_)
+        names = np.array([*self.pairs, ""], dtype=np.str_)
+        k = np.argmin(self.signed, axis=1)
+        k = np.where(np.isfinite(self.signed[np.arange(k.size), k]), k, len(self.pairs))
+        return names[k]
+
+    def first_contact(self) -> tuple[float, str] | None:
+        """The first tick whose signed distance is ≤ 0 for some pair (the solids
+        overlap or the clouds touch): its time and the first such pair; else None."""
+        hit = self.signed <= 0.0
+        ticks = np.flatnonzero(hit.any(axis=1))
+        if ticks.size == 0:
+            return None
+        k = int(ticks[0])
+        return float(self.t[k]), self.pairs[int(np.argmax(hit[k]))]
+
+    @property
     def all_goals_reached(self) -> bool:
         return all(g.reached_at is not None for g in self.goals)
 
-    def limits_held(self, tol: float = 1e-9) -> dict[str, bool]:
-        """Per robot: every joint inside its limits at every tick (a joint that starts
-        outside must not move farther out)."""
+    def limit_violations(self, tol: float = 1e-9) -> dict[str, NDArray[np.bool_]]:
+        """Per robot, ``(T, n)``: True where joint ``j`` at tick ``k`` breaks its limits.
+
+        A joint inside ``[lower, upper]`` must stay inside (within ``tol``). A joint
+        that starts outside may only move back inward: its violation (how far it is
+        outside) may never exceed the smallest violation it has had so far by more
+        than ``tol`` — it must not move farther out, and once back inside it must stay
+        inside."""
         out = {}
         for r in self.robots:
-            q = self.q[r]
-            lo = np.minimum(self.lower[r], q[0])
-            hi = np.maximum(self.upper[r], q[0])
-            ok = bool(np.all(q >= lo - tol) & np.all(q <= hi + tol))
-            # a joint outside at the start: monotone back inward
-            out[r] = ok
+            q = np.asarray(self.q[r], dtype=float)
+            lo = np.asarray(self.lower[r], dtype=float)
+            hi = np.asarray(self.upper[r], dtype=float)
+            outside = np.maximum(np.maximum(q - hi, lo - q), 0.0)  # (T, n), 0 inside
+            if outside.shape[0] == 0:
+                out[r] = np.zeros(outside.shape, dtype=bool)
+                continue
+            best = np.minimum.accumulate(outside, axis=0)  # smallest violation so far
+            allowed = np.vstack([outside[:1], best[:-1]])  # the start is what it is
+            out[r] = outside > allowed + tol
         return out
+
+    def limits_held(self, tol: float = 1e-9) -> dict[str, bool]:
+        """Per robot: every joint inside its limits at every tick (a joint that starts
+        outside must move monotonically back inward: never farther out, and once inside
+        it stays inside; see :meth:`limit_violations`)."""
+        return {r: not bool(v.any()) for r, v in self.limit_violations(tol).items()}
+
+    def speed_violations(self, tol: float = 1e-9) -> dict[str, NDArray[np.bool_]]:
+        """Per robot, ``(T, n)``: True where the commanded or the actual speed of joint
+        ``j`` at tick ``k`` exceeds its ``v_max`` by more than ``tol``."""
+        return {
+            r: (np.abs(self.command[r]) > self.vmax[r] + tol)
+            | (np.abs(self.qdot[r]) > self.vmax[r] + tol)
+            for r in self.robots
+        }
 
     def speeds_held(self, tol: float = 1e-9) -> dict[str, bool]:
         """Per robot: |command| and |actual velocity| ≤ v_max at every tick."""
-        return {
-            r: bool(
-                np.all(np.abs(self.command[r]) <= self.vmax[r] + tol)
-                and np.all(np.abs(self.qdot[r]) <= self.vmax[r] + tol)
-            )
-            for r in self.robots
-        }
+        return {r: not bool(v.any()) for r, v in self.speed_violations(tol).items()}
 
     def summary(self) -> dict[str, Any]:
         """A JSON-ready summary of the outcome."""
