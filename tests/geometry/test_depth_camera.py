@@ -96,3 +96,40 @@ def test_bad_settings_are_input_errors() -> None:
         DepthCamera(SMALL, noise=0.01).measure(np.ones((48, 64)))
     with pytest.raises(InputError, match="rotation"):
         DepthCamera(SMALL).depth(wall(2.0), np.diag([1.0, 1.0, -1.0, 1.0]))
+
+
+def test_the_body_filter_drops_the_robot_and_keeps_its_shadow() -> None:
+    """A sphere (the robot's own body) between the camera and a wall: with the sphere
+    as ``body`` its pixels return nothing and it still hides the wall behind it."""
+    cam = DepthCamera(Intrinsics.from_fov(81, 61, math.radians(40.0)))
+    sphere = trimesh.creation.icosphere(subdivisions=5, radius=0.3)
+    sphere.apply_translation([2.0, 0.0, 0.0])
+    seen = cam.frame([sphere, wall(4.0)], looking_along_x())
+    filtered = cam.frame(wall(4.0), looking_along_x(), body=[sphere])
+    on_sphere = np.isfinite(seen.depth) & (seen.depth < 3.0)
+    assert on_sphere.sum() > 100
+    assert filtered.body is not None
+    np.testing.assert_array_equal(filtered.body, on_sphere)  # exactly the sphere's pixels
+    assert np.isnan(filtered.depth[on_sphere]).all()  # gone, and no wall behind them
+    np.testing.assert_array_equal(filtered.depth[~on_sphere], seen.depth[~on_sphere])
+    np.testing.assert_allclose(filtered.points[:, 0], 4.0, atol=1e-12)  # only the wall
+    assert len(filtered.points) == on_sphere.size - on_sphere.sum()
+
+
+def test_first_hits_name_the_mesh_each_ray_hit() -> None:
+    from reachwise.geometry.raycast import first_hits
+
+    near, far = wall(1.0, half=0.5), wall(3.0)
+    origins = np.zeros((3, 3))
+    directions = np.array([[1.0, 0.0, 0.0], [1.0, 0.9, 0.0], [-1.0, 0.0, 0.0]])
+    hit, dist, which = first_hits([near, far], origins, directions)
+    np.testing.assert_array_equal(hit, [True, True, False])
+    np.testing.assert_array_equal(which, [0, 1, -1])
+    np.testing.assert_allclose(dist[:2], [1.0, 3.0 * math.hypot(1.0, 0.9)])
+
+
+def test_pixel_spacing_is_the_distance_of_diagonal_neighbours() -> None:
+    cam = DepthCamera(Intrinsics(32, 24, 40.0, 50.0, 15.0, 12.5))
+    pts = cam.points(np.full(cam.shape, 2.0))
+    diagonal = np.linalg.norm(pts[0] - pts[32 + 1])  # pixel (0, 0) and (1, 1)
+    assert cam.pixel_spacing(2.0) == pytest.approx(diagonal)

@@ -17,6 +17,10 @@ optical axis, ``x`` right, ``y`` down in the image):
   the valid pixels, drawn at random, returns nothing (specular or dark surfaces).
 - A returned pixel becomes the point ``z · ((u − c_x)/f_x, (v − c_y)/f_y, 1)`` in the
   camera frame; :meth:`DepthCamera.frame` maps it to world with the camera's pose.
+- **Robot-body filter.** Meshes passed as ``body`` (the robot's own links) are rendered
+  like any surface — they hide what lies behind them — but the pixels that see them
+  first return nothing, as a real pipeline's robot self-filter removes the robot from
+  its cloud, so the robot never avoids itself.
 
 This module is pure math: meshes, a pose and a random Generator in, arrays out.
 """
@@ -33,7 +37,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from reachwise.errors import InputError
 from reachwise.geometry.checks import finite_number
-from reachwise.geometry.raycast import Engine, cast_rays
+from reachwise.geometry.raycast import Engine, first_hits
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -103,11 +107,14 @@ class Intrinsics:
 class DepthFrame:
     """One frame: the ``depth`` image (``(height, width)``, metres along the optical
     axis, NaN where no return), the returned ``points`` in world (``(k, 3)``, row-major
-    pixel order) and the camera ``pose`` (4 × 4, camera → world) it was taken from."""
+    pixel order), the camera ``pose`` (4 × 4, camera → world) it was taken from and
+    ``body``, the pixels that saw a ``body`` mesh first and were filtered out
+    (``(height, width)`` bool)."""
 
     depth: NDArray[np.float64]
     points: NDArray[np.float64]
     pose: NDArray[np.float64]
+    body: NDArray[np.bool_] | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -159,18 +166,34 @@ class DepthCamera:
         rng: np.random.Generator | None = None,
         *,
         engine: Engine = "auto",
+        body: Sequence[MeshLike] = (),
     ) -> NDArray[np.float64]:
         """The depth image (``(height, width)``, m, NaN where no return) of the world
-        ``meshes`` seen from the camera at ``pose`` (4 × 4, camera → world). Noise and
+        ``meshes`` seen from the camera at ``pose`` (4 × 4, camera → world); pixels that
+        see a ``body`` mesh first return nothing (the robot-body filter). Noise and
         dropout need ``rng`` when they are on."""
-        T = _pose(pose)
+        z, _ = self._render(meshes, body, _pose(pose), engine)
+        return self.measure(z, rng)
+
+    def _render(
+        self,
+        meshes: MeshLike | Sequence[MeshLike],
+        body: Sequence[MeshLike],
+        T: NDArray[np.float64],
+        engine: Engine,
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """The true depth image (NaN: no surface, or a ``body`` pixel) and the mask of
+        the pixels that saw a ``body`` mesh first."""
         rays, norm = self._rays
         directions = rays @ T[:3, :3].T
         origins = np.broadcast_to(T[:3, 3], directions.shape)
-        hit, t = cast_rays(meshes, origins, directions, engine=engine)
+        scene = _mesh_list(meshes)
+        hit, t, which = first_hits([*scene, *body], origins, directions, engine=engine)
+        on_body = which >= len(scene)
+        seen = hit & ~on_body
         z = np.full(hit.shape, np.nan)
-        z[hit] = t[hit] / norm[hit]
-        return self.measure(z.reshape(self.shape), rng)
+        z[seen] = t[seen] / norm[seen]
+        return z.reshape(self.shape), on_body.reshape(self.shape)
 
     def measure(
         self, depth: ArrayLike, rng: np.random.Generator | None = None
@@ -212,14 +235,43 @@ class DepthCamera:
         rng: np.random.Generator | None = None,
         *,
         engine: Engine = "auto",
+        body: Sequence[MeshLike] = (),
     ) -> DepthFrame:
-        """One frame of the world ``meshes`` from ``pose``: depth image and world points."""
+        """One frame of the world ``meshes`` from ``pose``: depth image and world points,
+        with the pixels that saw a ``body`` mesh filtered out (see :meth:`depth`)."""
         T = _pose(pose)
-        z = self.depth(meshes, T, rng, engine=engine)
+        true, on_body = self._render(meshes, body, T, engine)
+        z = self.measure(true, rng)
         pts = self.points(z, T)
-        for a in (z, pts, T):
+        for a in (z, pts, T, on_body):
             a.setflags(write=False)
-        return DepthFrame(z, pts, T)
+        return DepthFrame(z, pts, T, on_body)
+
+    def pixel_spacing(self, depth: float) -> float:
+        """The diagonal distance (m) between the points of two diagonally neighbouring
+        pixels on a surface facing the camera at ``depth`` (m, along the optical axis):
+        ``depth · √(1/f_x² + 1/f_y²)``. Every point of such a surface lies within half
+        of it from a returned point (without dropout); a surface seen at an angle
+        ``θ`` is sampled ``1/cos θ`` more sparsely along its slope."""
+        d = finite_number(depth, _SRC, "depth", positive=True)
+        i = self.intrinsics
+        return float(d * math.hypot(1.0 / i.fx, 1.0 / i.fy))
+
+
+def _mesh_list(meshes: MeshLike | Sequence[MeshLike]) -> list[MeshLike]:
+    """``meshes`` as a list (one mesh, a ``(vertices, faces)`` pair, or a sequence)."""
+    import trimesh
+
+    if isinstance(meshes, trimesh.Trimesh):
+        return [meshes]
+    if (
+        isinstance(meshes, tuple)
+        and len(meshes) == 2
+        and not isinstance(meshes[0], trimesh.Trimesh)
+        and np.ndim(meshes[0]) == 2
+    ):
+        return [meshes]
+    return list(meshes)  # type: ignore[arg-type]
 
 
 def _pose(pose: ArrayLike) -> NDArray[np.float64]:
