@@ -258,20 +258,17 @@ class DepthCamera:
         return float(d * math.hypot(1.0 / i.fx, 1.0 / i.fy))
 
 
-def _mesh_list(meshes: MeshLike | Sequence[MeshLike]) -> list[MeshLike]:
+def _mesh_list(meshes: object) -> list[MeshLike]:
     """``meshes`` as a list (one mesh, a ``(vertices, faces)`` pair, or a sequence)."""
     import trimesh
 
-    if isinstance(meshes, trimesh.Trimesh):
-        return [meshes]
-    if (
+    one = isinstance(meshes, trimesh.Trimesh) or (
         isinstance(meshes, tuple)
         and len(meshes) == 2
         and not isinstance(meshes[0], trimesh.Trimesh)
         and np.ndim(meshes[0]) == 2
-    ):
-        return [meshes]
-    return list(meshes)  # type: ignore[arg-type]
+    )
+    return [meshes] if one else list(meshes)  # type: ignore[list-item, call-overload]
 
 
 def _pose(pose: ArrayLike) -> NDArray[np.float64]:
