@@ -179,8 +179,11 @@ def _as_mesh(mesh: object, pose: ArrayLike | None, name: str) -> tuple[F64, NDAr
 
 
 def _edges(f: NDArray[np.int64]) -> NDArray[np.int64]:
-    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    return np.unique(e, axis=0)
+    """The unique edges ``(E, 2)`` of faces ``f`` (each once, smaller index first)."""
+    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    lo, hi = e.min(axis=1), e.max(axis=1)
+    key = np.unique(lo * (int(f.max()) + 1) + hi)  # one integer per edge: a fast unique
+    return np.column_stack([key // (int(f.max()) + 1), key % (int(f.max()) + 1)])
 
 
 def mesh_distance(

@@ -203,8 +203,11 @@ class DepthSensor:
         return cloud
 
     def start(self, scene: SceneLike, sight: Sight, qs: dict[str, F64]) -> None:
-        """Add the sensor's object to ``scene`` with frame 0 (the robots at ``qs``)."""
-        scene.add_object(self.name, self.cloud(self.render(0, sight, qs)))
+        """Add the sensor's object to ``scene`` with frame 0 (the robots at ``qs``),
+        stamped t = 0."""
+        cloud = self.cloud(self.render(0, sight, qs))
+        scene.add_object(self.name, cloud)
+        scene.replace_cloud(self.name, cloud, block=True, stamp=0.0)
 
     def step(self, scene: SceneLike, tick: int, sight: Sight, qs: dict[str, F64]) -> None:
         """Per tick, before the distance query: capture the frame due at ``tick`` (the

@@ -338,20 +338,20 @@ def _check_contact(
 
 def _check_truth(world: World, k: int, t: float, rec: _Recorder, events: list[Event]) -> None:
     """The true signed distance of every robot link to every object only the sensors
-    see (``world.truth``), measured on their surfaces when their bounding spheres come
+    see (``world.truth``), measured on their surfaces when their bounding boxes come
     within the largest margin plus the monitor range; the first overlap."""
     sight = world.sight
     if not world.truth or sight is None:
         return
     reach = float(world.margins.max(initial=0.0)) + world.scenario.spec.monitor
     fk = sight.frames({a.name: a.plant.q for a in world.agents})
+    placed = {name: sight.objects[name].pose_at(t) for name in {o for _, o in world.truth}}
     for j, (body_name, obj_name) in enumerate(world.truth):
         body = sight.bodies[body_name]
-        obj = sight.objects[obj_name]
         Pb = fk[body.robot][body.index]
-        Po = obj.pose_at(t)
-        (mesh, solid) = obj.shape_at(t)
-        gap = _sphere_gap(body.mesh[0], Pb, mesh[0], Po)
+        Po = placed[obj_name]
+        (mesh, solid) = sight.objects[obj_name].shape_at(t)
+        gap = _box_gap(body.mesh[0], Pb, mesh[0], Po)
         if gap > reach:
             continue
         d = true_clearance(body.mesh, body.solid, Pb, mesh, solid, Po)
@@ -367,15 +367,13 @@ def _check_truth(world: World, k: int, t: float, rec: _Recorder, events: list[Ev
 F64 = NDArray[np.float64]
 
 
-def _sphere_gap(va: F64, Pa: F64, vb: F64, Pb: F64) -> float:
+def _box_gap(va: F64, Pa: F64, vb: F64, Pb: F64) -> float:
     """A lower bound of the distance of two meshes (vertices in their frames, placed at
-    ``Pa``, ``Pb``): the gap between spheres about their vertices' centroids."""
-    ca, cb = va.mean(axis=0), vb.mean(axis=0)
-    ra = float(np.linalg.norm(va - ca, axis=1).max())
-    rb = float(np.linalg.norm(vb - cb, axis=1).max())
-    wa = Pa[:3, :3] @ ca + Pa[:3, 3]
-    wb = Pb[:3, :3] @ cb + Pb[:3, 3]
-    return float(np.linalg.norm(wa - wb)) - ra - rb
+    ``Pa``, ``Pb``): the gap between the boxes about their world vertices."""
+    wa = va @ Pa[:3, :3].T + Pa[:3, 3]
+    wb = vb @ Pb[:3, :3].T + Pb[:3, 3]
+    lo = np.maximum(wa.min(axis=0) - wb.max(axis=0), wb.min(axis=0) - wa.max(axis=0))
+    return float(np.linalg.norm(np.maximum(0.0, lo)))
 
 
 def _act(
