@@ -78,12 +78,14 @@ def test_the_margin_covers_the_cameras_lag_resolution_and_noise() -> None:
     spec = world.scenario.spec
     ctrl = spec.robots[0].controller
     assert ctrl.v_max is not None
+    person = next(m for m in world.movers if m.spec.name == "person")
+    assert person.trajectory is not None
     depth = 2.0  # the farthest working depth from the camera
     resolution = cam.camera.pixel_spacing(depth) + 3.0 * cam.spec.noise * depth**2
     needed = protective_separation(
         robot_speed=ctrl.v_max,
         reaction_time=cam.max_age() + spec.dt,
-        obstacle_speed=0.5,
+        obstacle_speed=person.trajectory.max_speed,
         cloud_resolution=resolution,
     )
     assert needed == pytest.approx(0.108, abs=1e-3)

@@ -17,8 +17,10 @@ cloud in world coordinates that the controllers avoid like any other.
   capture time and with the shape scheduled by then; clouds from files and scans have
   no surface and are not seen. With ``self_filter`` the robots' links (their collision
   meshes at the joint state of the capture tick) are rendered too and the pixels that
-  see them first return nothing — the robot-body filter of real pipelines: the robot
-  neither avoids itself nor sees through itself.
+  see them first return nothing — the robot-body filter of real pipelines: a robot
+  neither avoids itself nor sees through itself. Every robot of the scenario is
+  filtered (their poses are known from their joints; robot–robot pairs are watched on
+  their own link clouds).
 - **Randomness.** Frame ``k``'s noise and dropout come from
   ``numpy.random.default_rng([seed, k])``, so any frame can be rendered again from the
   state at its capture (:meth:`DepthSensor.render`; the viewer does, in playback).
@@ -161,9 +163,10 @@ class DepthSensor:
         return math.ceil((self.capture_tick(k) * self.dt + self.spec.latency) / self.dt - 1e-9)
 
     def max_age(self) -> float:
-        """The oldest a frame gets in the scene (s): until the next one replaces it,
-        ``1/rate`` (rounded up to ticks) plus the latency (rounded up to ticks)."""
-        gaps = [self.delivery_tick(k + 1) - self.capture_tick(k) for k in range(1, 64)]
+        """The oldest a frame is (s) at the tick the next one replaces it: its capture
+        to the next frame's delivery, about ``1/rate + latency`` rounded up to ticks
+        (the largest over the first 1000 frames of the schedule)."""
+        gaps = [self.delivery_tick(k + 1) - self.capture_tick(k) for k in range(1, 1000)]
         return max(gaps) * self.dt
 
     # ------------------------------------------------------------------ frames
@@ -194,9 +197,8 @@ class DepthSensor:
         one point at the far limit on the optical axis when it returned none."""
         pts = frame.points
         if len(pts) == 0:
-            pts = (frame.pose[:3, :3] @ np.array([0.0, 0.0, self.spec.far]) + frame.pose[:3, 3])[
-                None
-            ]
+            far = frame.pose[:3, 3] + self.spec.far * frame.pose[:3, 2]
+            pts = far[None]
         cloud = PointCloud(np.array(pts, dtype=np.float64), name=self.name)
         if self.spec.voxel is not None and len(pts) > 1:
             cloud = voxel_downsample(cloud, self.spec.voxel)
@@ -212,7 +214,7 @@ class DepthSensor:
     def step(self, scene: SceneLike, tick: int, sight: Sight, qs: dict[str, F64]) -> None:
         """Per tick, before the distance query: capture the frame due at ``tick`` (the
         robots at ``qs``) and hand over the frames whose latency has passed."""
-        if tick == self.capture_tick(self._next):
+        while self.capture_tick(self._next) <= tick:
             k = self._next
             self._next += 1
             cloud = self.cloud(self.render(k, sight, qs))
