@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from reachwise.errors import InputError, RobotFileError, UnknownName
+from reachwise.kinematics.chain import Chain
 from reachwise.kinematics.link_geometry import LinkGeometry, shapes_by_link
 from reachwise.kinematics.transforms import Pose, check_pose
 
@@ -125,18 +126,6 @@ def _check_bounds(where: str, lo: float, hi: float) -> None:
         raise InputError("design", where, f"lower bound {lo} > upper bound {hi}")
 
 
-@dataclass(frozen=True)
-class ChainArrays:
-    """The chain packed as arrays for the compiled kernels (see ``_kernels``)."""
-
-    kind: NDArray[np.int64]  # (N,) 0 revolute, 1 prismatic, 2 fixed
-    qidx: NDArray[np.int64]  # (N,) index into q, -1 for fixed joints
-    dh: NDArray[np.float64]  # (N, 4) a, alpha, d, theta
-    classic: bool
-    base: NDArray[np.float64]  # (4, 4)
-    tool: NDArray[np.float64]  # (4, 4)
-
-
 @dataclass(frozen=True, eq=False)
 class Robot:
     """A serial chain with base and tool frames, limits, geometry and design bounds.
@@ -228,13 +217,13 @@ class Robot:
         return _ro(np.array([[j.a, j.alpha, j.d, j.theta] for j in self.joints], float))
 
     @cached_property
-    def arrays(self) -> ChainArrays:
+    def arrays(self) -> Chain:
         qidx = np.full(len(self.joints), -1, dtype=np.int64)
         for k, i in enumerate(self.movable_joints):
             qidx[i] = k
-        return ChainArrays(
-            kind=np.array([_KIND[j.type] for j in self.joints], dtype=np.int64),
-            qidx=qidx,
+        return Chain(
+            kind=_ro(np.array([_KIND[j.type] for j in self.joints], dtype=np.int64)),
+            qidx=_ro(qidx),
             dh=np.ascontiguousarray(self.dh),
             classic=self.convention == "classic",
             base=np.ascontiguousarray(self.base),

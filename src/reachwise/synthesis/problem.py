@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from reachwise.errors import InputError
 from reachwise.kinematics.jacobian import jacobians
+from reachwise.kinematics.orientation import axis_error, rotation_error
 from reachwise.kinematics.robot import BASE_PARAMS, DH_PARAMS, Robot
 from reachwise.kinematics.transforms import pose_from_xyz_rpy, xyz_rpy_from_pose
 from reachwise.tasks.task import Task
@@ -211,11 +212,7 @@ class SynthesisProblem:
         dims = task.dims
         six = np.flatnonzero(dims == 6)
         if six.size:
-            from scipy.spatial.transform import Rotation
-
-            Rd = task.poses[six, :3, :3]
-            E = Rd @ np.swapaxes(T[six, :3, :3], 1, 2)
-            rv = Rotation.from_matrix(E).as_rotvec()
+            rv = rotation_error(T[six, :3, :3], task.poses[six, :3, :3])
             e[six, 3:] = rv
             D[six, 3:] = Pd[six, 3:]
             J[six, 3:] = Jq[six, 3:]
@@ -223,19 +220,12 @@ class SynthesisProblem:
         five = np.flatnonzero(dims == 5)
         if five.size:
             R = T[five, :3, :3]
-            z = R[:, :, 2]
-            zd = task.axes[five]
-            c = np.cross(z, zd)
-            s = np.linalg.norm(c, axis=1)
-            ang = np.arctan2(s, np.sum(z * zd, axis=1))
-            safe = np.where(s > 1e-15, s, 1.0)
-            u = np.where((s > 1e-15)[:, None], c / safe[:, None], R[:, :, 0])
-            ev = u * ang[:, None]
+            ev = axis_error(R, task.axes[five])
             basis = R[:, :, :2]  # tool x and y axes, normal to the tool axis
             e[five, 3:5] = np.einsum("kib,ki->kb", basis, ev)
             D[five, 3:5] = np.einsum("kib,kic->kbc", basis, Pd[five, 3:])
             J[five, 3:5] = np.einsum("kib,kic->kbc", basis, Jq[five, 3:])
-            eo[five] = ang
+            eo[five] = np.linalg.norm(ev, axis=1)
         return Evaluation(
             e=e,
             active=self.active_rows,

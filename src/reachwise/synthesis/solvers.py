@@ -30,6 +30,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from reachwise.kinematics.dls import EPSILON_SOLVER, LAMBDA_MAX, damping_squared
 from reachwise.synthesis.linalg import (
     BlockSystem,
     dls_step,
@@ -53,11 +54,12 @@ class Workspace(Protocol):
 
 @dataclass(frozen=True)
 class SolverOptions:
-    """Tuning of the ``dls`` solver (lengths in m, angles in rad)."""
+    """Tuning of the ``dls`` solver (lengths in m, angles in rad); ``lambda_max`` and
+    ``epsilon``: the damping schedule (``reachwise.kinematics.dls``)."""
 
     max_iter: int = 1000
-    lam_max: float = 0.05
-    eps: float = 0.02
+    lambda_max: float = LAMBDA_MAX
+    epsilon: float = EPSILON_SOLVER
     err_ref: float = 0.05
     max_step_angle: float = 0.3
     max_step_length: float = 0.5
@@ -143,7 +145,7 @@ def solve_dls(
         Dw, Jw = weighted(D, J, wd, wq)
         sys0 = BlockSystem.build(Dw, Jw, active, 1e-12)
         smin = smallest_singular_value(sys0, active, 1e-12)
-        lam2 = (1.0 - (smin / opt.eps) ** 2) * opt.lam_max**2 if smin < opt.eps else 0.0
+        lam2 = damping_squared(smin, opt.epsilon, opt.lambda_max)
         lam2 *= min(1.0, np.sqrt(2 * cost) / opt.err_ref) ** 2
         lam2 += boost
         for _ in range(4):
