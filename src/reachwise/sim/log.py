@@ -58,6 +58,11 @@ class SimulationLog:
     when the solids overlap, ``margins`` (P,) the collision margins ρ_O. ``events``,
     ``goals``; ``first_collision`` (s) and its pair, or ``None``. ``object_poses``:
     per moving object (``motion``), its world pose at each tick (T, 4, 4), for replay.
+    ``true_pairs`` (``"robot/link|object"``) and ``true_distance`` (T, Q): the signed
+    distance of each robot link's true surface to each object outside the scene
+    (``scene: false``: seen only by sensors), exact (:mod:`reachwise.sim.contact`),
+    ``inf`` beyond margin + monitor range. ``frames``: per sensor, the index of the
+    frame in the scene at each tick (T,), for replay (:mod:`reachwise.sim.sensors`).
     """
 
     scenario: str
@@ -84,6 +89,16 @@ class SimulationLog:
     first_collision_pair: str | None = None
     extras: dict[str, Any] = field(default_factory=dict)
     object_poses: dict[str, NDArray[np.float64]] = field(default_factory=dict)
+    true_pairs: tuple[str, ...] = ()
+    true_distance: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
+    frames: dict[str, NDArray[np.int64]] = field(default_factory=dict)
+
+    @property
+    def min_true_distance(self) -> NDArray[np.float64]:
+        """Smallest true signed distance over ``true_pairs`` at each tick (inf without)."""
+        if self.true_distance.ndim != 2 or self.true_distance.shape[1] == 0:
+            return np.full(self.t.shape, np.inf)
+        return np.asarray(self.true_distance.min(axis=1))
 
     @property
     def min_distance(self) -> NDArray[np.float64]:
@@ -192,6 +207,7 @@ class SimulationLog:
             },
             "first_collision": self.first_collision,
             "first_collision_pair": self.first_collision_pair,
+            **self._true_summary(),
             "limits_held": self.limits_held(),
             "speeds_held": self.speeds_held(),
             "stalls": [{"t": e.t, "robot": e.robot, "text": e.text} for e in stalls],
@@ -199,6 +215,22 @@ class SimulationLog:
             "events": [
                 {"t": e.t, "robot": e.robot, "kind": e.kind, "text": e.text} for e in self.events
             ],
+        }
+
+    def _true_summary(self) -> dict[str, Any]:
+        """The true clearances of the summary (only for a run that has them)."""
+        if not self.true_pairs:
+            return {}
+        md = self.min_true_distance
+        finite = md[np.isfinite(md)]
+        return {
+            "min_true_distance": float(finite.min()) if finite.size else None,
+            "min_true_distance_by_pair": {
+                p: (float(v) if math.isfinite(v) else None)
+                for p, v in zip(self.true_pairs, self.true_distance.min(axis=0), strict=True)
+            }
+            if self.t.size
+            else {},
         }
 
     def save(self, folder: str | Path) -> Path:
@@ -223,6 +255,11 @@ class SimulationLog:
             arrays[f"{r}.goal_index"] = self.goal_index[r]
         for name, poses in self.object_poses.items():
             arrays[f"object.{name}.pose"] = poses
+        if self.true_pairs:
+            arrays["true_pairs"] = np.array(self.true_pairs, dtype=str)
+            arrays["true_distance"] = self.true_distance
+        for name, frames in self.frames.items():
+            arrays[f"sensor.{name}.frame"] = frames
         with atomic_open(out / "log.npz", "wb") as npz:
             np.savez_compressed(npz, **arrays)
         with atomic_open(out / "log.csv", "w", newline="") as fh:
@@ -291,6 +328,13 @@ def load_log(folder: str | Path, scenario: Scenario | str | Path | None = None) 
         for k in arrays
         if k.startswith("object.") and k.endswith(".pose")
     }
+    frames = {
+        k[len("sensor.") : -len(".frame")]: arrays[k]
+        for k in arrays
+        if k.startswith("sensor.") and k.endswith(".frame")
+    }
+    true_pairs = tuple(str(p) for p in arrays.get("true_pairs", ()))
+    true_distance = arrays.get("true_distance", np.zeros((arrays["t"].size, 0)))
     extras: dict[str, Any] = dict(meta.get("extras") or {})
     lower: dict[str, NDArray[np.float64]] = {}
     upper: dict[str, NDArray[np.float64]] = {}
@@ -360,4 +404,7 @@ def load_log(folder: str | Path, scenario: Scenario | str | Path | None = None) 
         first_collision_pair=meta.get("first_collision_pair"),
         extras=extras,
         object_poses=objects,
+        true_pairs=true_pairs,
+        true_distance=true_distance,
+        frames=frames,
     )
