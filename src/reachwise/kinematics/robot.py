@@ -89,12 +89,26 @@ class DesignSpace:
 
     ``joints`` maps a 0-based joint index to ``{param: (lo, hi)}`` with params among
     ``a, alpha, d, theta``; ``base`` maps ``x, y, z, roll, pitch, yaw`` to bounds.
+    What a designer asks beyond reach (``synthesis.objectives``): ``min_length`` (m)
+    every free ``a`` and ``d`` keeps in magnitude (a link that can be built),
+    ``margin`` the fraction of each range the ``bounds`` objective keeps free, and
+    ``objective`` the weights of the named objectives (``{"gci": 1.0, "size": 0.2}``).
     """
 
     joints: Mapping[int, Mapping[str, tuple[float, float]]] = field(default_factory=dict)
     base: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    min_length: float = 0.0
+    margin: float = 0.05
+    objective: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        if not (np.isfinite(self.min_length) and self.min_length >= 0):
+            raise InputError("design", "min_length", f"must be >= 0, got {self.min_length}")
+        if not (np.isfinite(self.margin) and 0 < self.margin < 0.5):
+            raise InputError("design", "margin", f"must lie in (0, 0.5), got {self.margin}")
+        for name, w in self.objective.items():
+            if not (np.isfinite(w) and w >= 0):
+                raise InputError("design", f"objective.{name}", f"weight must be >= 0, got {w}")
         for j, params in self.joints.items():
             for p, (lo, hi) in params.items():
                 if p not in DH_PARAMS:

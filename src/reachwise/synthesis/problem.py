@@ -136,14 +136,49 @@ class SynthesisProblem:
         return act
 
     @cached_property
-    def bounds(self) -> tuple[Array, Array]:
-        """Lower and upper bounds of every decision variable."""
+    def declared_bounds(self) -> tuple[Array, Array]:
+        """The design section's bounds of the design variables, ``(p,)`` each (the scale
+        of P-I Table 3's normalized values)."""
         d = self.template.design
         lo_d, hi_d = [], []
         for kind, j, p in d.free:
             lo, hi = d.joints[j][p] if kind == "joint" else d.base[p]
             lo_d.append(lo)
             hi_d.append(hi)
+        return np.array(lo_d, dtype=np.float64), np.array(hi_d, dtype=np.float64)
+
+    @cached_property
+    def design_bounds(self) -> tuple[Array, Array]:
+        """Bounds of the design variables the solver keeps: the declared ones, with every
+        free ``a`` and ``d`` kept at least ``design.min_length`` from 0 (a link that can
+        be built). A range that spans 0 keeps the side of the template's value
+        (positive when that is 0); a range narrower than the minimum is an error."""
+        lo, hi = (b.copy() for b in self.declared_bounds)
+        m = self.template.design.min_length
+        if m <= 0:
+            return lo, hi
+        nominal = self.design_vector()
+        for i, (kind, _, p) in enumerate(self.template.design.free):
+            if kind != "joint" or p not in ("a", "d"):
+                continue
+            if lo[i] >= 0 or (hi[i] > 0 and nominal[i] >= 0):
+                lo[i] = max(lo[i], m)
+            else:
+                hi[i] = min(hi[i], -m)
+            if lo[i] > hi[i]:
+                raise InputError(
+                    self.template.name,
+                    f"design.{self.design_names[i]}",
+                    f"min_length {m} m does not fit the bounds {self.declared_bounds[0][i]}"
+                    f"..{self.declared_bounds[1][i]}",
+                )
+        return lo, hi
+
+    @cached_property
+    def bounds(self) -> tuple[Array, Array]:
+        """Lower and upper bounds of every decision variable (``design_bounds``, then
+        the joint limits of every task point)."""
+        lo_d, hi_d = self.design_bounds
         fj = self.free_joints
         lo_q = np.tile(self.template.lower[fj], self.K)
         hi_q = np.tile(self.template.upper[fj], self.K)
