@@ -383,7 +383,7 @@ def _server(rep: BenchReport, quick: bool) -> None:
         value, limit = float(t["value"]), float(t["limit"])
         at_least = bool(t["met"]) != (value <= limit)  # a "≥" target
         rep.targets[f"server.{k}"] = Target(value, limit, at_least)
-    rep.notes.extend(f"server: {n}" for n in got.get("notes", []))
+    rep.notes.extend(n if n.startswith("server") else f"server: {n}" for n in got.get("notes", []))
 
 
 def run(quick: bool = False) -> BenchReport:
