@@ -24,21 +24,19 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator, Mapping, Sequence
-from typing import TYPE_CHECKING, overload
+from typing import overload
 
 import numpy as np
 from numpy.typing import NDArray
 
 from reachwise.distance._batch import ROW_COLUMNS
 from reachwise.distance._common import NO_RISK, DistanceResult
-
-if TYPE_CHECKING:
-    from reachwise.distance.scene import PairResult, WatchedPair
+from reachwise.distance.pairs import PairResult, WatchedPair
 
 __all__ = ["ROW_COLUMNS", "PairAnswers", "pair_row", "rows_of"]
 
 
-class PairAnswers(Sequence["PairResult"]):
+class PairAnswers(Sequence[PairResult]):
     """The answers of one query (see the module docstring): ``layout`` the watched
     pairs in order, ``rows`` their numbers, ``versions`` the cloud version per object.
     Behaves as the tuple of :class:`PairResult` it stands for (equal to it, too)."""
@@ -102,8 +100,6 @@ class PairAnswers(Sequence["PairResult"]):
         return f"PairAnswers({list(self)!r})"
 
     def _make(self, k: int) -> PairResult:
-        from reachwise.distance.scene import PairResult
-
         w = self._layout[k]
         v = self._versions
         return PairResult(

@@ -31,7 +31,7 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from reachwise.distance import _kernels as K
+import reachwise.distance._kernels as K
 from reachwise.distance._build import build_tree_in, summary
 from reachwise.errors import InputError
 from reachwise.geometry.boxes import AABB

@@ -33,15 +33,14 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from types import MappingProxyType
-from typing import Literal, Protocol, get_args, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+import reachwise.distance._batch as B
 import reachwise.distance._kernels as K
-from reachwise.distance import _batch as B
 from reachwise.distance._common import (
-    DistanceResult,
     as_cloud,
     check_margin,
     check_pose,
@@ -50,6 +49,7 @@ from reachwise.distance.answers import ROW_COLUMNS, PairAnswers, rows_of
 from reachwise.distance.engine import STRATEGIES, PairQuery, StrategyName
 from reachwise.distance.index import INDICES, cloud_index
 from reachwise.distance.ingest import CloudIngest, Ready, ready_cloud
+from reachwise.distance.pairs import PAIR_KINDS, PairKind, PairResult, WatchedPair
 from reachwise.distance.scene_arrays import SceneArrays
 from reachwise.errors import InputError, UnknownName, check_choice
 from reachwise.geometry.cloud import PointCloud
@@ -111,37 +111,6 @@ class SceneObject:
     name: str
     cloud: PointCloud
     source: PoseSource
-
-
-#: Why a pair is watched: links of one robot (``self``), a robot and its environment,
-#: two robots, or a rule given by hand (``custom``).
-PairKind = Literal["self", "robot-environment", "robot-robot", "custom"]
-PAIR_KINDS: tuple[PairKind, ...] = get_args(PairKind)
-
-
-@dataclass(frozen=True)
-class WatchedPair:
-    """A pair of objects to watch: ``kind`` (:data:`PairKind`), ``margin`` in metres."""
-
-    a: str
-    b: str
-    margin: float
-    kind: PairKind
-
-
-@dataclass(frozen=True)
-class PairResult:
-    """One watched pair's answer: object names, margin, kind and the distance result
-    (``point_a`` on ``a``; ``direction`` from ``b`` to ``a``), and ``versions``, the
-    versions of the two objects' clouds it was computed on (0: the cloud the object was
-    added with; see :meth:`Scene.replace_cloud`)."""
-
-    a: str
-    b: str
-    margin: float
-    kind: PairKind
-    result: DistanceResult
-    versions: tuple[int, int] = (0, 0)
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise.distance import _batch as B
+import reachwise.distance._batch as B
 from reachwise.distance.index import CloudIndex
 
 __all__ = ["SceneArrays"]
