@@ -37,6 +37,8 @@ INT = "<i8"
 BOOL = "|b1"
 
 Body = dict[str, Any]
+#: One ZeroMQ frame's memory: bytes, or a view of a frame or an array (no copy).
+Buffer = bytes | memoryview
 
 
 class ErrorCode(StrEnum):
@@ -57,6 +59,7 @@ class ErrorCode(StrEnum):
     EXISTS = "exists"  # a robot or object of that name is already registered
     INVALID = "invalid"  # well-formed but rejected by the scene (bad robot file, pose …)
     NOT_READY = "not_ready"  # the server is still restoring its state
+    STALE_LAYOUT = "stale_layout"  # a binary tick names a layout the server no longer has
     INTERNAL = "internal"  # a server fault; the server keeps serving
 
 
