@@ -41,6 +41,7 @@ skip, never repeat).
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import secrets
@@ -351,10 +352,20 @@ class SceneService:
             layout = self._current_layout()
             clouds = self._cloud_table(res.versions, res.cloud_stamps, layout)
             if wanted is None:
-                if req.layout == layout.name:
-                    return P.QueryReply(
-                        seq, measured, compute, layout.name, None, _rows(pairs), clouds=clouds
+                if req.layout == layout.name:  # the per-tick answer: every field made here
+                    reply: P.QueryReply = P.unchecked(
+                        P.QueryReply,
+                        sequence=seq,
+                        measured_at=measured,
+                        compute_time=compute,
+                        layout=layout.name,
+                        pairs=None,
+                        rows=_rows(pairs),
+                        objects=None,
+                        robots=None,
+                        clouds=clouds,
                     )
+                    return reply
                 name, infos = layout.name, layout.pairs
             else:
                 name, infos = "", tuple(P.PairInfo(p.a, p.b, p.margin, p.kind) for p in pairs)
@@ -894,13 +905,13 @@ def _pairs_reply(pairs: tuple[Any, ...]) -> P.PairsReply:
 
 
 def _rows(pairs: tuple[Any, ...]) -> NDArray[np.float64]:
-    """The pairs' answers as the rows of :class:`~reachwise.server.protocol.QueryReply`."""
-    out = np.empty((len(pairs), P.ROW_COLUMNS))
+    """The pairs' answers as the rows of :class:`~reachwise.server.protocol.QueryReply`:
+    every row starts as the no-risk row (one copy), the pairs within their margins are
+    written over it."""
+    out = _no_risk_rows(len(pairs)).copy()
     for k, p in enumerate(pairs):
         r = p.result
-        if r.no_risk:
-            out[k] = _NO_RISK_ROW
-        else:
+        if not r.no_risk:
             row = out[k]
             row[0] = r.distance
             row[1:4] = r.point_a
@@ -924,6 +935,14 @@ _NO_RISK_ROW = np.array(
         1.0,
     ]
 )
+
+
+@functools.lru_cache(maxsize=64)
+def _no_risk_rows(n: int) -> NDArray[np.float64]:
+    """``n`` no-risk rows (read-only; an answer copies them)."""
+    rows = np.tile(_NO_RISK_ROW, (n, 1))
+    rows.setflags(write=False)
+    return rows
 
 
 def answer(service: SceneService, rid: int, req: P.Request) -> tuple[bytes, P.Reply | None]:

@@ -105,6 +105,7 @@ from reachwise.server.protocol.fields import (
     check_array,
     check_name,
     encode_array,
+    unchecked,
 )
 from reachwise.server.protocol.layout import Layout, layout_key
 from reachwise.server.protocol.replies import (
@@ -232,4 +233,5 @@ __all__ = [
     "is_tick",
     "is_tick_reply",
     "layout_key",
+    "unchecked",
 ]

@@ -47,7 +47,7 @@ class Layout:
     objects: tuple[str, ...]
     robots: tuple[str, ...]
 
-    @property
+    @cached_property
     def name(self) -> str:
         """The layout's name in the full protocol (empty for key 0)."""
         return str(self.key) if self.key else ""

@@ -49,6 +49,7 @@ from reachwise.server.protocol.fields import (
     ErrorCode,
     Limits,
     ProtocolError,
+    unchecked,
 )
 from reachwise.server.protocol.layout import Layout
 from reachwise.server.protocol.replies import CLOUD_COLUMNS, ROW_COLUMNS, QueryReply
@@ -156,6 +157,36 @@ def decode_tick(raw: Buffer, layout: Layout, limits: Limits) -> tuple[int, Query
             f"layout {key} is not the current one; send the query in full",
             rid,
         )
+    if math.isinf(stamp):
+        raise _error(ErrorCode.NON_FINITE, "body.stamp", f"must be finite, got {stamp!r}", rid)
+    joints: dict[str, NDArray[np.float64]] | None = None
+    poses: dict[str, NDArray[np.float64]] | None = None
+    if nj or npose:
+        joints, poses = _entries(raw, n, rid, nj, npose, layout)
+    elif n != _REQUEST.size:
+        raise _error(ErrorCode.WRONG_SHAPE, "values", "a tick without entries has no values", rid)
+    query: Query = unchecked(
+        Query,
+        stamp=None if stamp != stamp else stamp,
+        joints=joints,
+        poses=poses,
+        pairs=None,
+        layout=layout.name,
+    )
+    return rid, query
+
+
+#: ``struct`` readers of the entries of a tick, by entry count.
+_ENTRY_READERS: dict[int, struct.Struct] = {}
+#: Up to this many values are checked for finiteness in Python (numpy below its
+#: per-call cost for small arrays).
+_SMALL = 64
+
+
+def _entries(
+    raw: Buffer, n: int, rid: int, nj: int, npose: int, layout: Layout
+) -> tuple[dict[str, NDArray[np.float64]] | None, dict[str, NDArray[np.float64]] | None]:
+    """The joint states and poses of a tick's entries (see :func:`decode_tick`)."""
     if nj > len(layout.robots) or npose > len(layout.objects):
         raise _error(
             ErrorCode.WRONG_SHAPE,
@@ -168,19 +199,25 @@ def decode_tick(raw: Buffer, layout: Layout, limits: Limits) -> tuple[int, Query
     start = _REQUEST.size + 8 * ne
     if n < start:
         raise _error(ErrorCode.WRONG_SHAPE, "entries", f"{ne} entries need {start} bytes", rid)
-    ent: list[int] = (
-        np.frombuffer(raw, dtype=_I4, count=2 * ne, offset=_REQUEST.size).tolist() if ne else []
-    )
+    reader = _ENTRY_READERS.get(ne)
+    if reader is None:
+        reader = _ENTRY_READERS[ne] = struct.Struct(f"<{2 * ne}i")
+    ent = reader.unpack_from(raw, _REQUEST.size)
     counts = ent[1::2]
     total = sum(counts)
-    if min(counts, default=0) < 0 or n != start + 8 * total:
+    if min(counts) < 0 or n != start + 8 * total:
         raise _error(
             ErrorCode.WRONG_SHAPE,
             "values",
             f"the frame holds {n - start} value bytes; the entries need {8 * total}",
             rid,
         )
-    values = np.frombuffer(raw, dtype=_F8, count=total, offset=start) if total else None
+    values = np.frombuffer(raw, dtype=_F8, offset=start)
+    finite = (
+        all(map(math.isfinite, values.tolist()))
+        if total <= _SMALL
+        else bool(np.isfinite(values).all())
+    )
     joints: dict[str, NDArray[np.float64]] | None = None
     poses: dict[str, NDArray[np.float64]] | None = None
     off = 0
@@ -196,18 +233,25 @@ def decode_tick(raw: Buffer, layout: Layout, limits: Limits) -> tuple[int, Query
                 rid,
             )
         name = names[i]
-        where = f"body.{'poses' if pose else 'joints'}.{name}"
-        v = values[off : off + c] if values is not None else np.empty(0, dtype=_F8)
+        v = values[off : off + c]
         off += c
-        if not np.isfinite(v).all():
+        if not finite:
             bad = c - int(np.count_nonzero(np.isfinite(v)))
-            raise _error(
-                ErrorCode.NON_FINITE, where, f"{bad} of {c} values are not finite (NaN or inf)", rid
-            )
+            if bad:
+                where = f"body.{'poses' if pose else 'joints'}.{name}"
+                raise _error(
+                    ErrorCode.NON_FINITE,
+                    where,
+                    f"{bad} of {c} values are not finite (NaN or inf)",
+                    rid,
+                )
         if pose:
             if c != POSE_VALUES:
                 raise _error(
-                    ErrorCode.WRONG_SHAPE, where, f"expected shape (4, 4), got {c} values", rid
+                    ErrorCode.WRONG_SHAPE,
+                    f"body.poses.{name}",
+                    f"expected shape (4, 4), got {c} values",
+                    rid,
                 )
             if poses is None:
                 poses = {}
@@ -220,9 +264,7 @@ def decode_tick(raw: Buffer, layout: Layout, limits: Limits) -> tuple[int, Query
         if name in target:
             raise _error(ErrorCode.BAD_MESSAGE, f"entries[{k}]", f"{name!r} given twice", rid)
         target[name] = v
-    if math.isinf(stamp):
-        raise _error(ErrorCode.NON_FINITE, "body.stamp", f"must be finite, got {stamp!r}", rid)
-    return rid, Query(None if math.isnan(stamp) else stamp, joints, poses, None, layout.name)
+    return joints, poses
 
 
 # --------------------------------------------------------------------------- reply
@@ -274,16 +316,17 @@ def decode_tick_reply(raw: Buffer, layout: Layout) -> tuple[int, QueryReply]:
         raise _error(ErrorCode.WRONG_SHAPE, "message", f"{n} bytes do not match the counts", rid)
     if not math.isfinite(measured) or not (math.isfinite(compute) and compute >= 0.0):
         raise _error(ErrorCode.WRONG_TYPE, "message", "bad measured_at or compute_time", rid)
-    rows = np.frombuffer(raw, dtype=_F8, count=n_rows, offset=_REPLY.size)
-    clouds = np.frombuffer(
-        raw, dtype=_F8, count=CLOUD_COLUMNS * nobj, offset=_REPLY.size + 8 * n_rows
+    values = np.frombuffer(raw, dtype=_F8, offset=_REPLY.size)
+    reply: QueryReply = unchecked(
+        QueryReply,
+        sequence=seq,
+        measured_at=measured,
+        compute_time=compute,
+        layout=layout.name,
+        pairs=None,
+        rows=values[:n_rows].reshape(npairs, ROW_COLUMNS),
+        objects=None,
+        robots=None,
+        clouds=values[n_rows:].reshape(nobj, CLOUD_COLUMNS),
     )
-    return rid, QueryReply(
-        seq,
-        measured,
-        compute,
-        layout.name,
-        None,
-        rows.reshape(npairs, ROW_COLUMNS),
-        clouds=clouds.reshape(nobj, CLOUD_COLUMNS),
-    )
+    return rid, reply
