@@ -1,13 +1,14 @@
 """reachwise: design serial robotic manipulators from their task, move them without collisions.
 
-Public API (stable names, see DESIGN.md): ``load_robot``, ``Robot``, ``Joint``,
-``PointCloud``; ``reachwise.distance.closest_points``.
+Public API (stable names, see DESIGN.md): ``load_robot``, ``link_clouds``, ``Robot``,
+``Joint``, ``PointCloud``; ``reachwise.distance.closest_points``.
 """
 
 from __future__ import annotations
 
 from reachwise._version import __version__
 from reachwise.geometry.cloud import PointCloud
+from reachwise.io.robot_clouds import link_clouds
 from reachwise.io.robot_file import load_robot, save_robot
 from reachwise.io.task_file import load_task
 from reachwise.kinematics.ik import IKResult
@@ -27,6 +28,7 @@ __all__ = [
     "Task",
     "TaskPoint",
     "__version__",
+    "link_clouds",
     "load_robot",
     "load_task",
     "save_robot",

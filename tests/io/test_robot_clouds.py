@@ -17,16 +17,16 @@ def test_link_clouds_are_seeded_on_the_surface_in_link_frames() -> None:
     assert list(a) == [n for n in r.link_names if n in r.geometry]
     for k in a:
         np.testing.assert_array_equal(a[k].points, b[k].points)
-        assert len(a[k]) == r.geometry[k].points and a[k].frame == k
+        assert len(a[k]) == r.geometry[k][0].points and a[k].frame == k
     # box of the grabber: every point on its surface (one coordinate at a face)
-    g = r.geometry["link_6"]
+    (g,) = r.geometry["link_6"]
     half = np.asarray(g.size) / 2
     x = a["link_6"].points - g.origin_matrix[:3, 3]
     on_face = np.isclose(np.abs(x), half, atol=1e-9).any(axis=1)
     assert on_face.all() and np.all(np.abs(x) <= half + 1e-9)
     # cylinder column: radius or caps
     c = link_cloud(r, "link_1", points=500)
-    x = c.points - r.geometry["link_1"].origin_matrix[:3, 3]
+    x = c.points - r.geometry["link_1"][0].origin_matrix[:3, 3]
     rad = np.hypot(x[:, 0], x[:, 1])
     assert np.all(rad <= 0.15 + 1e-9)
     assert link_cloud(r, "link_6", points=50, seed=1).points.shape == (50, 3)

@@ -50,7 +50,7 @@ def test_load_and_round_trip(tmp_path: Path, rng: np.random.Generator) -> None:
     np.testing.assert_allclose(again.base, robot.base, atol=1e-15)
     np.testing.assert_allclose(again.tool, robot.tool, atol=1e-15)
     assert again.geometry.keys() == robot.geometry.keys()
-    g, h = again.geometry["link_2"], robot.geometry["link_2"]
+    (g,), (h,) = again.geometry["link_2"], robot.geometry["link_2"]
     assert (g.shape, g.size, g.points) == (h.shape, h.size, h.points)
     np.testing.assert_allclose(g.origin_matrix, h.origin_matrix, atol=1e-15)
     assert again.design == robot.design

@@ -191,17 +191,19 @@ def test_round_trip_keeps_geometry_in_place(tmp_path: Path, rng: np.random.Gener
     F, B = robot.fk_all(q), back.fk_all(q)
     placed = sorted(
         tuple(np.round((F[robot.link_index(k)] @ g.origin_matrix)[:3].ravel(), 9))
-        for k, g in robot.geometry.items()
+        for k, gs in robot.geometry.items()
+        for g in gs
     )
     placed_back = sorted(
         tuple(np.round((B[back.link_index(k)] @ g.origin_matrix)[:3].ravel(), 9))
-        for k, g in back.geometry.items()
+        for k, gs in back.geometry.items()
+        for g in gs
     )
     assert placed == placed_back
 
     def shapes(r: Robot) -> list[tuple[object, ...]]:  # boxes and cylinders (the feed)
         return sorted((g.shape, g.size or (), g.radius or 0.0, g.length or 0.0)
-                      for g in r.geometry.values())  # fmt: skip
+                      for gs in r.geometry.values() for g in gs)  # fmt: skip
 
     assert shapes(robot) == shapes(back)
 
@@ -253,12 +255,22 @@ TILTED = """<?xml version="1.0"?>
 """
 
 
+def _tilted(tmp_path: Path) -> Path:
+    """TILTED in ``tmp_path``, with its package ``demo`` (the mesh of link g) beside it."""
+    import trimesh
+
+    (tmp_path / "demo" / "meshes").mkdir(parents=True)
+    trimesh.creation.box(extents=(0.1, 0.1, 0.1)).export(tmp_path / "demo/meshes/g.stl")
+    path = tmp_path / "tilted.urdf"
+    path.write_text(TILTED)
+    return path
+
+
 def test_tilted_axes_and_rpy_origins_match_yourdfpy(
     tmp_path: Path, rng: np.random.Generator
 ) -> None:
-    path = tmp_path / "tilted.urdf"
-    path.write_text(TILTED)
-    robot = load_urdf(path)
+    path = _tilted(tmp_path)
+    robot = load_urdf(path, package_dirs=[tmp_path])
     model = urdf_model(path)
     assert robot.name == "tilted" and robot.n == 5
     assert [robot.joints[i].name for i in robot.movable_joints] == ["j1", "j2", "j3", "j4", "j5"]
@@ -273,13 +285,13 @@ def test_tilted_axes_and_rpy_origins_match_yourdfpy(
 def test_imported_geometry_sits_where_yourdfpy_puts_it(
     tmp_path: Path, rng: np.random.Generator
 ) -> None:
-    path = tmp_path / "tilted.urdf"
-    path.write_text(TILTED)
-    robot = load_urdf(path)
+    path = _tilted(tmp_path)
+    robot = load_urdf(path, package_dirs=[tmp_path])
     model = urdf_model(path)
-    shapes = {g.shape: (k, g) for k, g in robot.geometry.items()}
+    shapes = {g.shape: (k, g) for k, gs in robot.geometry.items() for g in gs}
     assert set(shapes) == {"box", "cylinder", "mesh"}
     assert shapes["mesh"][1].mesh == "package://demo/meshes/g.stl"
+    assert shapes["mesh"][1].path == str(tmp_path / "demo/meshes/g.stl")
     urdf_side = {
         "box": ("a", model.link_map["a"].collisions[0].origin),
         "cylinder": ("c", model.link_map["c"].collisions[0].origin),
@@ -364,32 +376,32 @@ def _two_link(joint: str) -> str:
 BAD = {
     "floating": (
         _two_link('<joint name="j" type="floating"><parent link="w"/><child link="l"/></joint>'),
-        r"joint 'j'\.type: unsupported joint type 'floating'",
+        r"joint 'j' type=\"floating\" \(line 1\): unsupported joint type",
     ),
     "planar": (
         _two_link('<joint name="j" type="planar"><parent link="w"/><child link="l"/></joint>'),
-        r"joint 'j'\.type: unsupported joint type 'planar'",
+        r"joint 'j' type=\"planar\" \(line 1\): unsupported joint type",
     ),
     "missing limit": (
         _two_link(
             '<joint name="j" type="revolute"><axis xyz="0 0 1"/>'
             '<parent link="w"/><child link="l"/></joint>'
         ),
-        r"joint 'j'\.limit: a revolute joint needs <limit",
+        r"joint 'j' \(line 1\): a revolute joint needs <limit",
     ),
     "lower > upper": (
         _two_link(
             '<joint name="j" type="prismatic"><limit lower="1" upper="0" effort="0" '
             'velocity="1"/><parent link="w"/><child link="l"/></joint>'
         ),
-        r"joint 'j'\.limit: lower 1\.0 > upper 0\.0",
+        r"joint 'j' <limit lower=\"1\"> \(line 1\): lower 1\.0 > upper 0\.0",
     ),
     "zero axis": (
         _two_link(
             '<joint name="j" type="revolute"><axis xyz="0 0 0"/><limit lower="-1" upper="1" '
             'effort="0" velocity="1"/><parent link="w"/><child link="l"/></joint>'
         ),
-        r"joint 'j'\.axis: invalid axis",
+        r"joint 'j' <axis xyz=\"0 0 0\"> \(line 1\): the axis must not be zero",
     ),
     "only fixed": (
         _two_link('<joint name="j" type="fixed"><parent link="w"/><child link="l"/></joint>'),
@@ -402,7 +414,7 @@ BAD = {
     ),
     "unknown link": (
         _two_link('<joint name="j" type="fixed"><parent link="w"/><child link="zz"/></joint>'),
-        r"joint 'j': no such link 'zz'",
+        r"joint 'j' \(line 1\): no such link 'zz'",
     ),
     "mimic": (
         '<robot name="bad"><link name="w"/><link name="l"/><link name="m"/>'
@@ -410,9 +422,9 @@ BAD = {
         '<parent link="w"/><child link="l"/></joint>'
         '<joint name="k" type="revolute"><limit lower="-1" upper="1" effort="0" velocity="1"/>'
         '<mimic joint="j"/><parent link="l"/><child link="m"/></joint></robot>',
-        r"joint 'k': mimic joints are not supported",
+        r"joint 'k' <mimic> \(line 1\): mimic joints on the chain are not supported",
     ),
-    "not xml": ("this is <not a urdf", r"cannot read URDF"),
+    "not xml": ("this is <not a urdf", r"not valid XML: syntax error at line 1"),
 }
 
 

@@ -114,8 +114,8 @@ def test_sb60_and_hiab_have_geometry_and_velocity_limits() -> None:
     for name in ("sb60", "hiab-xs033"):
         robot = load_robot(name)
         assert set(robot.geometry) == {f"link_{i}" for i in range(len(robot.joints) + 1)}
-        for g in robot.geometry.values():
-            assert g.shape in ("box", "cylinder")
+        for shapes in robot.geometry.values():
+            assert [g.shape in ("box", "cylinder") for g in shapes] == [True]
         assert np.isfinite(robot.vmax[robot.actuated]).all()
 
 

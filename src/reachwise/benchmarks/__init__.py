@@ -13,5 +13,6 @@ REGISTRY: dict[str, str] = {
     "synthesis": "reachwise.benchmarks.synthesis",
     "sweep": "reachwise.benchmarks.sweep",
     "control": "reachwise.benchmarks.control",
+    "pairs": "reachwise.benchmarks.pairs",
     "server": "reachwise.benchmarks.server",
 }

@@ -1,4 +1,5 @@
-"""``reachwise robot show|check|export``: inspect, validate and export robot models."""
+"""``reachwise robot show|check|export|pairs``: inspect, validate and export robot models,
+and pick their self-collision pairs."""
 
 from __future__ import annotations
 
@@ -10,6 +11,8 @@ from typing import Any
 import typer
 from rich.console import Console
 from rich.table import Table
+
+from reachwise.cli._robot_options import LENIENT, PACKAGE_DIRS, TIP, load_with_options
 
 app = typer.Typer(help="Inspect, validate and export robot models.", no_args_is_help=True)
 
@@ -43,11 +46,12 @@ def summary(robot: Any) -> dict[str, Any]:
 def show(
     robot: str = typer.Argument(..., help="Built-in name (panda, sb60, …) or YAML/URDF file."),
     json_out: bool = typer.Option(False, "--json", help="Print JSON."),
+    tip: str | None = TIP,
+    package_dir: list[Path] = PACKAGE_DIRS,
+    lenient: bool = LENIENT,
 ) -> None:
     """Print the DH table, limits and sampled reach/conditioning of a robot."""
-    from reachwise.io.robot_file import load_robot
-
-    r = load_robot(robot)
+    r = load_with_options(robot, tip, package_dir, lenient)
     data = summary(r)
     if json_out:
         typer.echo(json.dumps(data, indent=2))
@@ -80,33 +84,118 @@ def show(
 def check(
     path: Path = typer.Argument(..., help="Robot file (YAML or URDF)."),
     json_out: bool = typer.Option(False, "--json", help="Print JSON."),
+    tip: str | None = TIP,
+    package_dir: list[Path] = PACKAGE_DIRS,
+    lenient: bool = LENIENT,
 ) -> None:
-    """Validate a robot file; exit 2 with the file, field and reason if it is wrong."""
+    """Validate a robot file; exit 2 with the file, element and reason if it is wrong.
+
+    Every number reachwise takes from the file is checked, every mesh URI resolved."""
     from reachwise.errors import ReachwiseError
     from reachwise.io.robot_file import load_robot_file
 
     try:
-        r = load_robot_file(path)
+        r = load_robot_file(path, tip=tip, package_dirs=package_dir or None, lenient=lenient)
     except ReachwiseError as exc:
         if json_out:
             typer.echo(json.dumps({"ok": False, "error": str(exc)}))
         else:
             typer.secho(f"invalid: {exc}", err=True, fg=typer.colors.RED)
         raise typer.Exit(2) from None
+    shapes = sum(len(g) for g in r.geometry.values())
     if json_out:
-        typer.echo(json.dumps({"ok": True, "name": r.name, "dof": r.n, "joints": len(r.joints)}))
+        typer.echo(
+            json.dumps(
+                {"ok": True, "name": r.name, "dof": r.n, "joints": len(r.joints), "shapes": shapes}
+            )
+        )
     else:
-        typer.echo(f"ok: {path} defines {r.name!r}: {len(r.joints)} joints, {r.n} joint variables")
+        typer.echo(
+            f"ok: {path} defines {r.name!r}: {len(r.joints)} joints, {r.n} joint variables, "
+            f"{shapes} collision shapes on {len(r.geometry)} links"
+        )
 
 
 @app.command("export")
 def export(
     robot: str = typer.Argument(..., help="Built-in name or robot file."),
     urdf: Path = typer.Option(..., "--urdf", help="Write a URDF file here."),
+    tip: str | None = TIP,
+    package_dir: list[Path] = PACKAGE_DIRS,
+    lenient: bool = LENIENT,
 ) -> None:
     """Export a robot to URDF."""
-    from reachwise.io.robot_file import load_robot
     from reachwise.io.urdf import export_urdf
 
-    export_urdf(load_robot(robot), urdf)
+    export_urdf(load_with_options(robot, tip, package_dir, lenient), urdf)
     typer.echo(f"wrote {urdf}")
+
+
+@app.command("pairs")
+def pairs(
+    robot: str = typer.Argument(..., help="Built-in name or robot file (YAML or URDF)."),
+    out: Path = typer.Option(..., "--out", help="Write the pair file (YAML) here."),
+    samples: int = typer.Option(
+        10_000, "--samples", min=1, help="Random joint vectors inside the limits."
+    ),
+    margin: float = typer.Option(
+        0.05, "--margin", min=0.0, help="m: a pair closer than this counts as close."
+    ),
+    points: int | None = typer.Option(
+        None, "--points", min=1, help="Points per link cloud (default: the link's, 1000)."
+    ),
+    seed: int = typer.Option(0, "--seed", help="Seed of the random configurations."),
+    json_out: bool = typer.Option(False, "--json", help="Print JSON."),
+    tip: str | None = TIP,
+    package_dir: list[Path] = PACKAGE_DIRS,
+    lenient: bool = LENIENT,
+) -> None:
+    """Pick a robot's self-collision pairs (MoveIt Setup Assistant method, exact distances).
+
+    Adjacent links are excluded; pairs within the margin at the home configuration (0,
+    moved into the limits) are kept and listed for review; pairs never within the
+    margin in any of the random configurations are excluded; the rest are watched. The
+    file lists the rule behind each exclusion. Use it in a scenario with
+    ``watch: [{self: {robot: NAME, pairs: auto}, margin: …}]``."""
+    import time
+
+    from reachwise.distance.self_pairs import self_collision_pairs
+    from reachwise.io.pairs_file import save_pairs
+    from reachwise.io.robot_clouds import link_clouds
+
+    r = load_with_options(robot, tip, package_dir, lenient)
+    clouds = link_clouds(r, points)
+    if len(clouds) < 2:
+        raise typer.BadParameter(f"{robot} has {len(clouds)} link(s) with shapes; pairs need two")
+    t0 = time.perf_counter()
+    found = self_collision_pairs(r, clouds, margin, samples=samples, seed=seed)
+    took = time.perf_counter() - t0
+    save_pairs(found, out, source=r.source or robot)
+    rules: dict[str, int] = {}
+    for p in found.excluded:
+        rules[p.rule] = rules.get(p.rule, 0) + 1
+    data = {
+        "robot": r.name,
+        "out": str(out),
+        "links": len(clouds),
+        "pairs": len(found.pairs),
+        "watched": len(found.watched),
+        "excluded": rules,
+        "review": [[p.a, p.b, p.home_distance] for p in found.review],
+        "samples": found.samples,
+        "seconds": round(took, 3),
+    }
+    if json_out:
+        typer.echo(json.dumps(data, indent=2))
+        return
+    excl = ", ".join(f"{n} {rule}" for rule, n in rules.items()) or "none"
+    typer.echo(
+        f"{r.name}: {len(clouds)} links with shapes, {len(found.pairs)} pairs: "
+        f"{len(found.watched)} watched, excluded {excl} "
+        f"({found.samples} random configurations, {took:.1f} s); wrote {out}"
+    )
+    for p in found.review:
+        typer.echo(
+            f"  review: {p.a} - {p.b} is {p.home_distance * 100:.1f} cm apart at home "
+            f"(margin {margin * 100:.1f} cm): watched; check whether they touch by design"
+        )

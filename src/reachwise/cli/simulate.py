@@ -81,6 +81,8 @@ def simulate(
 
         require_mujoco()  # a clear error naming the missing extra, before any work
     sc = load_scenario(scenario)
+    if out is not None:  # computed helpers (automatic self-collision pairs) cached there
+        sc.cache_dir = out
     link = None
     if server is not None:
         from reachwise.server.client import ServerOptions

@@ -10,6 +10,8 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
+from reachwise.cli._robot_options import LENIENT, PACKAGE_DIRS, TIP, load_with_options
+
 
 def synth(
     task: str = typer.Option(..., "--task", help="Task file or built-in task (tunnel-87)."),
@@ -24,13 +26,15 @@ def synth(
     ),
     figures: bool = typer.Option(True, "--figures/--no-figures", help="Write PNG figures."),
     json_out: bool = typer.Option(False, "--json", help="Print the summary as JSON."),
+    tip: str | None = TIP,
+    package_dir: list[Path] = PACKAGE_DIRS,
+    lenient: bool = LENIENT,
 ) -> None:
     """Find design parameters, base frame and joints reaching every task pose (P-I).
 
     Ctrl-C stops after the current run and writes the runs finished so far.
     """
     from reachwise.errors import check_choice
-    from reachwise.io.robot_file import load_robot
     from reachwise.io.synthesis_out import summary, write_synthesis
     from reachwise.io.task_file import load_task
     from reachwise.report.synthesis import save_synthesis_figures, write_synthesis_report
@@ -39,7 +43,7 @@ def synth(
 
     solver_name = check_choice(solver, SOLVERS, source="--solver", kind="solver")
     t = load_task(task)
-    template = load_robot(robot)
+    template = load_with_options(robot, tip, package_dir, lenient)
     workspace = t.envelope if tunnel else None
     problem = SynthesisProblem(template, t, locked_from_spec(template, lock or None))
     console = Console(stderr=True)

@@ -3,8 +3,14 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
+
+from reachwise.cli._robot_options import LENIENT, PACKAGE_DIRS, TIP, load_with_options
+
+if TYPE_CHECKING:
+    from reachwise.kinematics.robot import Robot
 
 
 def view(
@@ -34,6 +40,9 @@ def view(
     speed: float = typer.Option(
         1.0, "--speed", min=0.0, help="With --live: times real time (0: as fast as it runs)."
     ),
+    tip: str | None = TIP,
+    package_dir: list[Path] = PACKAGE_DIRS,
+    lenient: bool = LENIENT,
 ) -> None:
     """Open the viewer in the browser; Ctrl-C stops it.
 
@@ -44,9 +53,29 @@ def view(
     if live:
         _live(path, host, port, not baseline, duration, speed)
         return
+    if tip is not None or package_dir or lenient:  # a robot file loaded with options
+        _robot(path, host, port, load_with_options(path, tip, package_dir, lenient))
+        return
     from reachwise.viz.viewer import serve_results
 
     serve_results(path, host=host, port=port, block=True, scenario=scenario, echo=typer.echo)
+
+
+def _robot(path: str, host: str, port: int, robot: Robot) -> None:
+    from reachwise.viz.modes import show_robot
+    from reachwise.viz.viewer import Viewer
+
+    def show(v: Viewer) -> None:
+        show_robot(v, robot)
+
+    viewer = Viewer(host, port)
+    try:
+        viewer.show_entries({Path(path).name: show})
+    except BaseException:
+        viewer.stop()
+        raise
+    typer.echo(f"viewer at {viewer.url} (Ctrl-C to stop)")
+    viewer.wait()
 
 
 def _live(

@@ -45,6 +45,7 @@ from numpy.typing import NDArray
 from reachwise.errors import CloudError
 from reachwise.geometry.cloud import DEFAULT_MESH_POINTS, PointCloud, sample_mesh_surface
 from reachwise.io.atomic import atomic_open
+from reachwise.io.meshes import MESH_FORMATS, load_mesh
 
 __all__ = [
     "CLOUD_FORMATS",
@@ -64,8 +65,6 @@ CLOUD_FORMATS: dict[str, str] = {
     ".csv": "csv",
     ".npy": "npy",
 }
-#: Mesh file suffixes :func:`load_mesh_cloud` accepts (read by trimesh).
-MESH_FORMATS: tuple[str, ...] = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf")
 
 _XYZ = ("x", "y", "z")
 
@@ -341,81 +340,29 @@ def _write_pcd(pts: NDArray[np.float64], fh: IO[bytes], ascii: bool) -> None:
 # ---------------------------------------------------------------------------- meshes
 
 
-def _check_binary_stl(path: Path, source: str) -> None:
-    """Reject a binary STL whose size disagrees with its triangle count (truncated)."""
-    size = path.stat().st_size
-    with open(path, "rb") as fh:
-        head = fh.read(84)
-    if head[:5].lower() == b"solid" and b"\0" not in head:
-        return  # ASCII STL
-    if len(head) < 84:
-        raise CloudError(source, "file", f"{size} bytes is too short for an STL file")
-    (count,) = struct.unpack("<I", head[80:84])
-    expected = 84 + 50 * count
-    if size < expected:
-        raise CloudError(
-            source,
-            "file",
-            f"binary STL header declares {count} triangles ({expected} bytes), "
-            f"the file has {size} bytes: truncated",
-        )
-
-
 def load_mesh_cloud(
     path: str | os.PathLike[str],
     n: int = DEFAULT_MESH_POINTS,
     seed: int | np.random.Generator = 0,
     *,
-    scale: float = 1.0,
+    scale: float | tuple[float, float, float] = 1.0,
     frame: str = "world",
     name: str | None = None,
 ) -> PointCloud:
-    """Read a triangle mesh (STL, OBJ, PLY, OFF, glTF via trimesh), sample ``n`` points.
+    """Read a triangle mesh (:func:`reachwise.io.meshes.load_mesh`: STL, OBJ, PLY, OFF,
+    glTF, COLLADA), sample ``n`` points.
 
     The thesis converts each CAD part into a 1000-point cloud (P-III §5, P-V §V); this is
     that step: area-weighted uniform surface samples, reproducible with ``seed`` (see
     :func:`reachwise.geometry.cloud.sample_mesh_surface`). ``scale`` multiplies the
-    mesh coordinates first (``0.001`` for a CAD part drawn in millimetres). A file
-    with several bodies is sampled as their union.
+    mesh coordinates first (``0.001`` for a CAD part drawn in millimetres; three
+    factors scale x, y, z). A file with several bodies is sampled as their union.
+    Errors are those of :func:`~reachwise.io.meshes.load_mesh`.
     """
-    import trimesh
-
     source = str(path)
-    p = Path(path)
-    if not p.exists():
-        raise CloudError(source, "file", "no such file")
-    if not p.is_file():
-        raise CloudError(source, "file", "not a regular file")
-    if p.suffix.lower() not in MESH_FORMATS:
-        raise CloudError(
-            source,
-            "format",
-            f"unknown mesh suffix {p.suffix or '(none)'!r}; use one of {', '.join(MESH_FORMATS)}",
-        )
-    if isinstance(scale, bool) or not isinstance(scale, int | float) or not scale > 0:
-        raise CloudError(source, "scale", f"must be a number > 0, got {scale!r}")
-    if not np.isfinite(scale):
-        raise CloudError(source, "scale", f"must be finite, got {scale!r}")
-    try:
-        if p.suffix.lower() == ".stl":
-            _check_binary_stl(p, source)
-        mesh = trimesh.load(str(p), force="mesh", process=False)
-    except CloudError:
-        raise
-    except OSError as exc:
-        raise CloudError(source, "file", f"cannot read: {exc.strerror or exc}") from None
-    except Exception as exc:  # trimesh raises ValueError, IndexError, KeyError, ...
-        raise CloudError(source, "file", f"not a readable mesh: {exc}") from None
-    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise CloudError(
-            source,
-            "faces",
-            "no triangles could be read (an empty, truncated or point-only file; "
-            "use load_cloud for point clouds)",
-        )
-    vertices = np.asarray(mesh.vertices, dtype=np.float64) * float(scale)
+    mesh = load_mesh(path, scale=scale)
     return sample_mesh_surface(
-        vertices,
+        np.asarray(mesh.vertices, dtype=np.float64),
         np.asarray(mesh.faces),
         n,
         seed,

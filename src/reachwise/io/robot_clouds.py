@@ -1,42 +1,63 @@
-"""Point clouds of a robot's links from its collision geometry (P-III §5, P-V §V).
+"""Point clouds of a robot's links from its collision shapes (P-III §5, P-V §V).
 
 The thesis turns every CAD part that could collide into a cloud of 1000 surface points
-(P-III §5: "each containing 1000 points"; P-V §V: the grabber, 1000 points). Here each
-link's :class:`~reachwise.kinematics.robot.LinkGeometry` — a box, a cylinder (axis z,
-centred) or a mesh file — is turned into a closed triangle mesh (``trimesh.creation``
-or the file), placed by the geometry's ``origin`` and sampled uniformly over its
-surface (area-weighted, :func:`reachwise.geometry.cloud.sample_mesh_surface`).
+(P-III §5: "each containing 1000 points"; P-V §V: the grabber, 1000 points). Here a
+link's part is the union of all its collision shapes
+(:class:`~reachwise.kinematics.link_geometry.LinkGeometry`: boxes, cylinders, capsules,
+spheres, meshes), each placed by its own ``origin``; the link's cloud samples that
+union uniformly over its surface, so each shape gets points in proportion to its area
+(:func:`reachwise.geometry.cloud.sample_mesh_surface`). The number of points is
+``points`` when given, else ``density × area`` (points per m²) when a density is
+given, else the link's own count (the largest ``points`` among its shapes: 1000 by
+default).
 
 Clouds are expressed in the link's own frame (``frame="link_k"``), so a
 :class:`~reachwise.distance.scene.Scene` attaches them with ``robot=..., link=...``.
-Mesh paths are relative to the robot file's folder (built-in robots: the package's
-``data/robots`` folder). Sampling is reproducible: link ``k`` draws from
+Mesh files are read by the one mesh reader, :func:`reachwise.io.meshes.load_mesh`:
+a robot loaded from a URDF carries each mesh's resolved file; otherwise a mesh name is
+resolved like a URDF's (:func:`reachwise.io.mesh_uri.resolve_uri`), relative to the
+robot file's folder (built-in robots: the package's ``data/robots`` folder). A mesh
+that cannot be read is a :class:`~reachwise.errors.RobotFileError` naming the robot
+file, the link, the shape and the URI. Sampling is reproducible: link ``k`` draws from
 ``numpy.random.default_rng([seed, k])``.
 """
 
 from __future__ import annotations
 
+import math
 from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from reachwise.errors import InputError
+from reachwise.errors import CloudError, InputError, RobotFileError
 from reachwise.geometry.cloud import PointCloud, sample_mesh_surface
+from reachwise.io.mesh_uri import resolve_uri
+from reachwise.io.meshes import load_mesh
 
 if TYPE_CHECKING:
     import trimesh
 
     from reachwise.kinematics.robot import LinkGeometry, Robot
 
-__all__ = ["geometry_folder", "link_cloud", "link_clouds", "link_mesh"]
+__all__ = [
+    "geometry_folder",
+    "link_cloud",
+    "link_clouds",
+    "link_mesh",
+    "shape_mesh",
+    "shape_meshes",
+]
 
 _BUILTIN = "built-in robot "
+#: Facets of the round shapes' surface meshes (the sampled surface lies within
+#: ``r (1 - cos(π / 64))`` = 0.12 % of the radius inside the true one).
+_SECTIONS = 64
 
 
 def geometry_folder(robot: Robot, base_dir: str | Path | None = None) -> Path:
-    """Folder that mesh paths of ``robot``'s geometry are relative to.
+    """Folder that relative mesh paths of ``robot``'s geometry start from.
 
     ``base_dir`` wins when given; else the folder of the robot file (``robot.source``),
     the package's built-in robot folder for built-in robots, or the working directory.
@@ -52,37 +73,71 @@ def geometry_folder(robot: Robot, base_dir: str | Path | None = None) -> Path:
     return Path.cwd()
 
 
-def link_mesh(robot: Robot, link: str, base_dir: str | Path | None = None) -> trimesh.Trimesh:
-    """The closed surface of ``link``'s geometry as a trimesh, in the link frame."""
+def _describe(link: str, i: int, g: LinkGeometry) -> str:
+    what = f"link {link!r} shape {i + 1} ({g.shape}"
+    what += f", {g.label})" if g.label else ")"
+    if g.shape == "mesh":
+        what += f" mesh {g.mesh!r}"
+    return what
+
+
+def shape_mesh(
+    robot: Robot, link: str, i: int, g: LinkGeometry, base_dir: str | Path | None = None
+) -> trimesh.Trimesh:
+    """Shape ``i`` (``g``) of ``link`` as a closed triangle surface, placed in the link
+    frame. Errors name the robot file, the link, the shape and its URI."""
     import trimesh
 
-    g = _geometry(robot, link)
     if g.shape == "box":
-        if g.size is None:
-            raise InputError(robot.name, f"geometry.{link}", "box without size")
         mesh = trimesh.creation.box(extents=np.asarray(g.size, dtype=float))
     elif g.shape == "cylinder":
-        if g.radius is None or g.length is None:
-            raise InputError(robot.name, f"geometry.{link}", "cylinder without radius/length")
-        mesh = trimesh.creation.cylinder(radius=g.radius, height=g.length, sections=48)
+        mesh = trimesh.creation.cylinder(
+            radius=float(g.radius or 0.0), height=float(g.length or 0.0), sections=_SECTIONS
+        )
+    elif g.shape == "capsule":
+        mesh = trimesh.creation.capsule(
+            height=float(g.length or 0.0), radius=float(g.radius or 0.0),
+            count=[_SECTIONS, _SECTIONS],
+        )  # fmt: skip
+    elif g.shape == "sphere":
+        mesh = trimesh.creation.icosphere(subdivisions=4, radius=float(g.radius or 0.0))
     else:
-        if g.mesh is None:
-            raise InputError(robot.name, f"geometry.{link}", "mesh without a file")
-        path = geometry_folder(robot, base_dir) / g.mesh
-        if not path.is_file():
-            raise InputError(
-                robot.source or robot.name, f"geometry.{link}.mesh", f"no such file {path}"
+        source = robot.source or robot.name
+        field = _describe(link, i, g)
+        path = g.path
+        if path is None:
+            folder = geometry_folder(robot, base_dir)
+            rf = robot.source if robot.source and Path(robot.source).is_file() else None
+            path = str(
+                resolve_uri(str(g.mesh), robot_file=rf, source=source, field=field, folder=folder)
             )
         try:
-            loaded = trimesh.load(str(path), force="mesh", process=True)
-        except Exception as exc:  # trimesh raises many kinds
-            raise InputError(str(path), f"geometry.{link}.mesh", f"unreadable: {exc}") from None
-        if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
-            raise InputError(str(path), f"geometry.{link}.mesh", "no triangles")
-        mesh = loaded
-    mesh = mesh.copy()
+            mesh = load_mesh(path, scale=g.scale)
+        except CloudError as exc:
+            reason = exc.reason if exc.field in ("file", "format") else f"{exc.field}: {exc.reason}"
+            raise RobotFileError(source, field, f"{path}: {reason}") from None
     mesh.apply_transform(g.origin_matrix)
     return mesh
+
+
+def shape_meshes(
+    robot: Robot, link: str, base_dir: str | Path | None = None
+) -> list[trimesh.Trimesh]:
+    """Every collision shape of ``link`` as a surface mesh in the link frame."""
+    return [shape_mesh(robot, link, i, g, base_dir) for i, g in enumerate(_shapes(robot, link))]
+
+
+def link_mesh(robot: Robot, link: str, base_dir: str | Path | None = None) -> trimesh.Trimesh:
+    """The union (one mesh, not merged) of ``link``'s collision shapes, in the link frame."""
+    import trimesh
+
+    parts = shape_meshes(robot, link, base_dir)
+    if len(parts) == 1:
+        return parts[0]
+    joined = trimesh.util.concatenate(parts)
+    if not isinstance(joined, trimesh.Trimesh):  # pragma: no cover - meshes join to a mesh
+        raise RobotFileError(robot.source or robot.name, f"link {link!r}", "shapes do not join")
+    return joined
 
 
 def link_cloud(
@@ -91,14 +146,26 @@ def link_cloud(
     points: int | None = None,
     seed: int = 0,
     base_dir: str | Path | None = None,
+    *,
+    density: float | None = None,
 ) -> PointCloud:
-    """``points`` surface samples (default: the geometry's ``points``, 1000 in the
-    thesis) of ``link``'s geometry, in the link frame, named ``"<robot>/<link>"``."""
-    g = _geometry(robot, link)
-    n = g.points if points is None else int(points)
-    if n <= 0:
-        raise InputError(robot.name, f"geometry.{link}.points", f"must be > 0, got {n}")
+    """Surface samples of all of ``link``'s collision shapes, by area, in the link
+    frame, named ``"<robot>/<link>"``: ``points`` of them, or ``density`` per m² of
+    surface, or the link's own count (the largest ``points`` of its shapes, 1000 by
+    default)."""
+    shapes = _shapes(robot, link)
+    where = f"geometry.{link}"
+    if points is not None and density is not None:
+        raise InputError(robot.name, where, "give points or density, not both")
     mesh = link_mesh(robot, link, base_dir)
+    if density is not None:
+        if isinstance(density, bool) or not math.isfinite(density) or not density > 0:
+            raise InputError(robot.name, "density", f"must be finite and > 0, got {density!r}")
+        n = max(1, math.ceil(float(mesh.area) * float(density)))
+    else:
+        n = max(g.points for g in shapes) if points is None else int(points)
+    if n <= 0:
+        raise InputError(robot.name, f"{where}.points", f"must be > 0, got {n}")
     k = robot.link_index(link)
     rng = np.random.default_rng([int(seed), k])
     return sample_mesh_surface(mesh, n=n, seed=rng, frame=link, name=f"{robot.name}/{link}")
@@ -109,15 +176,20 @@ def link_clouds(
     points: int | None = None,
     seed: int = 0,
     base_dir: str | Path | None = None,
+    *,
+    density: float | None = None,
 ) -> dict[str, PointCloud]:
-    """A cloud for every link that has geometry, base to tool (see :func:`link_cloud`)."""
+    """A cloud for every link that has collision shapes, base to tool, keyed by link
+    name (``link_0`` … ``tool``), each in its link's frame (see :func:`link_cloud`)."""
     order = [name for name in robot.link_names if name in robot.geometry]
-    return {name: link_cloud(robot, name, points, seed, base_dir) for name in order}
+    return {
+        name: link_cloud(robot, name, points, seed, base_dir, density=density) for name in order
+    }
 
 
-def _geometry(robot: Robot, link: str) -> LinkGeometry:
+def _shapes(robot: Robot, link: str) -> tuple[LinkGeometry, ...]:
     g = robot.geometry.get(link)
-    if g is None:
+    if not g:
         raise InputError(
             robot.name, f"geometry.{link}", f"no geometry; links with one: {list(robot.geometry)}"
         )

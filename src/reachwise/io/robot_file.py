@@ -8,6 +8,8 @@ says so (``alpha_deg``, ``theta_deg``, ``limits_deg``, ``vmax_deg``, ``rpy_deg``
 from __future__ import annotations
 
 import math
+import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -16,8 +18,9 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from reachwise.errors import InputError, RobotFileError
-from reachwise.io._builtin import builtin_names, load_named
+from reachwise.io._builtin import Builtin, builtin_names, load_named
 from reachwise.io.atomic import atomic_write
+from reachwise.io.robot_geometry import GeometryModel, geometry_to_dict, resolve_meshes
 from reachwise.io.validation import input_error
 from reachwise.kinematics.robot import (
     BASE_PARAMS,
@@ -108,40 +111,6 @@ class JointModel(BaseModel):
         )
 
 
-class GeometryModel(BaseModel):
-    model_config = _STRICT
-    mesh: str | None = None
-    box: tuple[float, float, float] | None = None
-    cylinder: tuple[float, float] | None = None  # radius, length (along z)
-    points: int = Field(default=1000, gt=0)
-    xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
-
-    @model_validator(mode="after")
-    def _one_shape(self) -> GeometryModel:
-        given = [k for k in ("mesh", "box", "cylinder") if getattr(self, k) is not None]
-        if len(given) != 1:
-            raise ValueError("give exactly one of mesh, box, cylinder")
-        if self.box is not None and min(self.box) <= 0:
-            raise ValueError("box sizes must be > 0")
-        if self.cylinder is not None and min(self.cylinder) <= 0:
-            raise ValueError("cylinder radius and length must be > 0")
-        return self
-
-    def geometry(self) -> LinkGeometry:
-        origin = tuple(
-            tuple(float(x) for x in row) for row in pose_from_xyz_rpy(self.xyz, self.rpy)
-        )
-        if self.mesh is not None:
-            return LinkGeometry("mesh", mesh=self.mesh, points=self.points, origin=origin)
-        if self.box is not None:
-            return LinkGeometry("box", size=self.box, points=self.points, origin=origin)
-        if self.cylinder is None:
-            raise ValueError("give exactly one of mesh, box, cylinder")
-        r, length = self.cylinder
-        return LinkGeometry("cylinder", radius=r, length=length, points=self.points, origin=origin)
-
-
 class DesignModel(BaseModel):
     model_config = _STRICT
     joints: dict[int, dict[Literal["a", "alpha", "d", "theta"], Pair]] = {}
@@ -156,7 +125,7 @@ class RobotModel(BaseModel):
     joints: list[JointModel] = Field(min_length=1)
     base: FrameModel = FrameModel()
     tool: FrameModel = FrameModel()
-    geometry: dict[str, GeometryModel] = {}
+    geometry: dict[str, GeometryModel | list[GeometryModel]] = {}
     design: DesignModel = DesignModel()
 
 
@@ -185,12 +154,16 @@ def robot_from_dict(data: Any, source: str = "robot") -> Robot:
             convention=m.convention,
             base=m.base.matrix(),
             tool=m.tool.matrix(),
-            geometry={k: g.geometry() for k, g in m.geometry.items()},
+            geometry={k: _shapes(g) for k, g in m.geometry.items()},
             design=design,
             source=source,
         )
     except InputError as exc:
         raise RobotFileError(source, exc.field, exc.reason) from None
+
+
+def _shapes(g: GeometryModel | list[GeometryModel]) -> tuple[LinkGeometry, ...]:
+    return (g.geometry(),) if isinstance(g, GeometryModel) else tuple(x.geometry() for x in g)
 
 
 def robot_to_dict(robot: Robot) -> dict[str, Any]:
@@ -226,18 +199,7 @@ def robot_to_dict(robot: Robot) -> dict[str, Any]:
         "tool": frame(robot.tool),
     }
     if robot.geometry:
-        geo: dict[str, Any] = {}
-        for link, g in robot.geometry.items():
-            xyz, rpy = xyz_rpy_from_pose(g.origin_matrix)
-            entry: dict[str, Any] = {"points": g.points, "xyz": xyz.tolist(), "rpy": rpy.tolist()}
-            if g.shape == "mesh":
-                entry["mesh"] = g.mesh
-            elif g.shape == "box":
-                entry["box"] = list(g.size or ())
-            else:
-                entry["cylinder"] = [g.radius, g.length]
-            geo[link] = entry
-        out["geometry"] = geo
+        out["geometry"] = {link: geometry_to_dict(g) for link, g in robot.geometry.items()}
     if robot.design.size:
         out["design"] = {
             "joints": {
@@ -253,20 +215,32 @@ def save_robot(robot: Robot, path: str | Path) -> None:
     atomic_write(path, yaml.safe_dump(robot_to_dict(robot), sort_keys=False))
 
 
-def load_robot_file(path: str | Path) -> Robot:
-    """Load a YAML robot file (or a URDF, by extension)."""
+def load_robot_file(
+    path: str | Path,
+    *,
+    tip: str | None = None,
+    package_dirs: Sequence[str | os.PathLike[str]] | None = None,
+    lenient: bool = False,
+) -> Robot:
+    """Load a YAML robot file or a URDF (by extension); ``tip``, ``package_dirs`` and
+    ``lenient`` as in :func:`load_robot`."""
     p = Path(path)
     if not p.is_file():
         raise RobotFileError(str(p), "", "no such file")
     if p.suffix.lower() == ".urdf":
         from reachwise.io.urdf import load_urdf
 
-        return load_urdf(p)
+        return load_urdf(p, tip, package_dirs=package_dirs, lenient=lenient)
+    if tip is not None:
+        raise RobotFileError(
+            str(p), "tip", "tip selects the chain of a URDF; a YAML robot is one chain"
+        )
     try:
         data = yaml.safe_load(p.read_text())
     except yaml.YAMLError as exc:
         raise RobotFileError(str(p), "", f"not valid YAML: {exc}") from None
-    return robot_from_dict(data, str(p))
+    robot = robot_from_dict(data, str(p))
+    return resolve_meshes(robot, p.parent, package_dirs or (), lenient)
 
 
 def builtin_robots() -> list[str]:
@@ -274,13 +248,31 @@ def builtin_robots() -> list[str]:
     return builtin_names("robots")
 
 
-def load_robot(name_or_path: str | Path) -> Robot:
-    """A built-in robot by name (``panda``, ``sb60`` …) or a YAML/URDF robot file."""
+def load_robot(
+    name_or_path: str | Path,
+    *,
+    tip: str | None = None,
+    package_dirs: Sequence[str | os.PathLike[str]] | None = None,
+    lenient: bool = False,
+) -> Robot:
+    """A built-in robot by name (``panda``, ``sb60`` …) or a YAML/URDF robot file.
+
+    ``tip`` takes the chain of a branched URDF from its root link to that link (the
+    tool frame). ``package_dirs`` are searched first for ``package://`` mesh URIs (then
+    ``ROS_PACKAGE_PATH``, ``AMENT_PREFIX_PATH``, the Python environment and the file's
+    own folders: :mod:`reachwise.io.mesh_uri`). ``lenient=True`` leaves out (and logs)
+    shapes that are invalid or whose mesh cannot be found instead of raising."""
+
+    def builtin(b: Builtin) -> Robot:
+        if tip is not None:
+            raise RobotFileError(b.label, "tip", "tip is for URDF files")
+        return robot_from_dict(yaml.safe_load(b.text()), b.label)
+
     return load_named(
         "robots",
         name_or_path,
-        from_builtin=lambda b: robot_from_dict(yaml.safe_load(b.text()), b.label),
-        from_file=load_robot_file,
+        from_builtin=builtin,
+        from_file=lambda p: load_robot_file(p, tip=tip, package_dirs=package_dirs, lenient=lenient),
         suffixes=(".yaml", ".yml", ".urdf"),
     )
 

@@ -23,10 +23,11 @@ and passive → ``revolute`` marked by the comment ``<!-- reachwise: passive -->
 inside the ``<joint>`` element (the grabber of P-V hangs on two such joints).
 ``<limit lower upper velocity effort>``: ``velocity`` is ``vmax``; reachwise has no
 force model, so ``effort="0"`` means "not specified", and an unbounded ``vmax`` is
-written as ``velocity="0"`` (read back as unbounded). Collision geometry is written as
-``<collision>`` and an identical ``<visual>`` (box, cylinder, or mesh by filename).
-Design bounds and point-cloud sample counts have no URDF counterpart and are not
-written.
+written as ``velocity="0"`` (read back as unbounded). Every collision shape of a link is
+written as a ``<collision>`` element (box, cylinder, sphere, capsule, or mesh by filename
+with its ``scale``), its visual shapes as ``<visual>`` elements (the collision shapes
+again when it has none). Design bounds and point-cloud sample counts have no URDF
+counterpart and are not written.
 
 Import (``load_urdf``)
 ----------------------
@@ -46,16 +47,18 @@ ill-conditioned (axes parallel but not coincident up to rounding, common normal 
 away) the exact fallback ``G = Rz(φ) Tz(p_z) · [fixed row Tx(ρ) Rz(θa)] ·
 [Rx(α) Rz(θb)]`` is used (polar translation, then ZXZ Euler angles), which adds one
 fixed row. Fixed URDF joints before the first and after the last moving joint go into
-``Robot.base`` and ``Robot.tool``. Geometry is re-expressed in the reachwise link
-frame it is rigidly attached to. ``continuous`` joints become revolute joints limited
-to ``[-π, π]`` (every orientation; no wrap-around motion).
+``Robot.base`` and ``Robot.tool``. Every shape is re-expressed in the reachwise link
+frame it is rigidly attached to (:mod:`reachwise.io.urdf_shapes`); the file is read
+and checked first by :mod:`reachwise.io.urdf_model`. ``continuous`` joints become
+revolute joints limited to ``[-π, π]`` (every orientation; no wrap-around motion).
 """
 
 from __future__ import annotations
 
 import math
-import warnings
+import os
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -65,13 +68,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from reachwise.errors import RobotFileError
 from reachwise.io.atomic import atomic_write
+from reachwise.io.urdf_model import PASSIVE_MARK, UrdfJoint, UrdfModel, read_urdf
 from reachwise.kinematics.robot import Joint, JointType, LinkGeometry, Robot
 from reachwise.kinematics.transforms import matrix_from_rpy, rpy_from_matrix
 from reachwise.kinematics.transforms import rot_x as _rx
 from reachwise.kinematics.transforms import rot_z as _rz
 from reachwise.kinematics.transforms import translation as _tr
 
-PASSIVE_MARK = "reachwise: passive"
 _SUPPORTED = ("revolute", "continuous", "prismatic", "fixed")
 _EPS_LEN = 1e-12  # m: a translation this small is dropped (error far below 1e-10)
 
@@ -202,17 +205,32 @@ def _unique(name: str, used: set[str]) -> str:
     return out
 
 
-def _geometry_elements(link: ET.Element, g: LinkGeometry) -> None:
-    for tag in ("visual", "collision"):
-        el = ET.SubElement(link, tag)
-        _origin(el, g.origin_matrix)
-        geo = ET.SubElement(el, "geometry")
-        if g.shape == "box":
-            ET.SubElement(geo, "box", size=" ".join(_f(v) for v in (g.size or ())))
-        elif g.shape == "cylinder":
-            ET.SubElement(geo, "cylinder", radius=_f(g.radius or 0.0), length=_f(g.length or 0.0))
-        else:
-            ET.SubElement(geo, "mesh", filename=str(g.mesh))
+def _shape_element(parent: ET.Element, tag: str, g: LinkGeometry) -> None:
+    el = ET.SubElement(parent, tag)
+    _origin(el, g.origin_matrix)
+    geo = ET.SubElement(el, "geometry")
+    if g.shape == "box":
+        ET.SubElement(geo, "box", size=" ".join(_f(v) for v in (g.size or ())))
+    elif g.shape in ("cylinder", "capsule"):
+        ET.SubElement(geo, g.shape, radius=_f(g.radius or 0.0), length=_f(g.length or 0.0))
+    elif g.shape == "sphere":
+        ET.SubElement(geo, "sphere", radius=_f(g.radius or 0.0))
+    else:
+        attrs = {"filename": str(g.mesh)}
+        if tuple(g.scale) != (1.0, 1.0, 1.0):
+            attrs["scale"] = " ".join(_f(v) for v in g.scale)
+        ET.SubElement(geo, "mesh", attrs)
+
+
+def _geometry_elements(link: ET.Element, robot: Robot, name: str) -> None:
+    """A link's ``<collision>`` elements and its ``<visual>`` ones (the collision shapes
+    again when the robot has no visual shapes for the link)."""
+    collisions = robot.geometry.get(name, ())
+    visuals = robot.visual.get(name) or collisions
+    for g in visuals:
+        _shape_element(link, "visual", g)
+    for g in collisions:
+        _shape_element(link, "collision", g)
 
 
 def export_urdf(robot: Robot, path: str | Path | None = None) -> str:
@@ -287,8 +305,8 @@ def export_urdf(robot: Robot, path: str | Path | None = None) -> str:
     add_joint(
         tool_name, "fixed", f"link_{len(robot.joints)}", "tool", np.asarray(robot.tool, dtype=float)
     )
-    for link, g in robot.geometry.items():
-        _geometry_elements(links[link], g)
+    for link in robot.link_names:
+        _geometry_elements(links[link], robot, link)
     ET.indent(root, space="  ")
     xml = '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
     if path is not None:
@@ -297,41 +315,19 @@ def export_urdf(robot: Robot, path: str | Path | None = None) -> str:
 
 
 # ---- import ------------------------------------------------------------------------
-def _passive_joints(path: Path) -> set[str]:
-    """Names of joints carrying the ``<!-- reachwise: passive -->`` marker."""
-    parser = ET.XMLParser(target=ET.TreeBuilder(insert_comments=True))
-    tree = ET.parse(path, parser=parser)
-    out: set[str] = set()
-    for el in tree.getroot().iter("joint"):
-        for child in el:
-            if child.tag is ET.Comment and PASSIVE_MARK in (child.text or ""):
-                out.add(str(el.get("name")))
-    return out
-
-
-def _chain(source: str, joints: list[Any], links: list[str], tip: str | None) -> list[Any]:
+def _chain(model: UrdfModel, tip: str | None) -> list[UrdfJoint]:
     """The joints from the root link to ``tip`` (or to the single leaf), in order."""
-    by_parent: dict[str, list[Any]] = {}
-    parent_of: dict[str, Any] = {}
-    names = set(links)
-    for j in joints:
-        for end in (j.parent, j.child):
-            if end not in names:
-                raise RobotFileError(source, f"joint {j.name!r}", f"no such link {end!r}")
-        if j.child in parent_of:
-            raise RobotFileError(
-                source, f"link {j.child!r}", "has several parent joints (not a tree)"
-            )
-        parent_of[j.child] = j
+    source = model.source
+    parent_of = {j.child: j for j in model.joints.values()}
+    by_parent: dict[str, list[UrdfJoint]] = {}
+    for j in model.joints.values():
         by_parent.setdefault(j.parent, []).append(j)
-    roots = [lk for lk in links if lk not in parent_of]
-    if len(roots) != 1:
-        raise RobotFileError(
-            source, "links", f"expected one root link, found {len(roots)}: {roots[:5]}"
-        )
     if tip is not None:
-        if tip not in names:
-            raise RobotFileError(source, "tip", f"no such link {tip!r}")
+        if tip not in model.links:
+            leaves = [lk for lk in model.links if lk not in by_parent]
+            raise RobotFileError(
+                source, "tip", f"no such link {tip!r}; the leaf links are {leaves[:20]}"
+            )
         out = []
         link = tip
         while link in parent_of:
@@ -339,7 +335,7 @@ def _chain(source: str, joints: list[Any], links: list[str], tip: str | None) ->
             link = parent_of[link].parent
         return out[::-1]
     out = []
-    link = roots[0]
+    link = model.root
     while link in by_parent:
         kids = by_parent[link]
         if len(kids) > 1:
@@ -347,139 +343,84 @@ def _chain(source: str, joints: list[Any], links: list[str], tip: str | None) ->
                 source,
                 f"link {link!r}",
                 f"branches into joints {[k.name for k in kids]}; reachwise handles serial "
-                "chains only (pass tip=LINK to take the chain from the root to LINK)",
+                "chains only (pass tip=LINK, or --tip LINK, for the chain from the root to LINK)",
             )
         out.append(kids[0])
         link = kids[0].child
     return out
 
 
-def _joint_row(source: str, uj: Any, passive: bool) -> Joint:
+def _joint_row(source: str, uj: UrdfJoint) -> Joint:
     """Type, limits and vmax of one moving URDF joint (DH parameters set later)."""
-    field = f"joint {uj.name!r}"
+    where = f"joint {uj.name!r}"
+    if uj.type not in _SUPPORTED:
+        raise RobotFileError(
+            source,
+            f'{where} type="{uj.type}" (line {uj.line})',
+            "unsupported joint type on the chain (revolute, continuous, prismatic, fixed)",
+        )
     if uj.mimic is not None:
-        raise RobotFileError(source, field, "mimic joints are not supported")
+        raise RobotFileError(
+            source,
+            f"{where} <mimic> (line {uj.line})",
+            "mimic joints on the chain are not supported",
+        )
     if uj.type == "continuous":
         limits = (-math.pi, math.pi)
+    elif uj.lower is None or uj.upper is None:  # read_urdf requires them; kept for safety
+        raise RobotFileError(
+            source, f"{where} <limit> (line {uj.line})", f"a {uj.type} joint needs lower and upper"
+        )
     else:
-        lim = uj.limit
-        if lim is None or lim.lower is None or lim.upper is None:
-            raise RobotFileError(
-                source, f"{field}.limit", f"a {uj.type} joint needs <limit lower=… upper=…>"
-            )
-        limits = (float(lim.lower), float(lim.upper))
-        if not (math.isfinite(limits[0]) and math.isfinite(limits[1])):
-            raise RobotFileError(source, f"{field}.limit", f"limits must be finite: {limits}")
-        if limits[0] > limits[1]:
-            raise RobotFileError(source, f"{field}.limit", f"lower {limits[0]} > upper {limits[1]}")
-    vel = None if uj.limit is None else uj.limit.velocity
-    vmax = float(vel) if vel is not None and math.isfinite(vel) and vel > 0 else math.inf
+        limits = (uj.lower, uj.upper)
     kind: JointType = "prismatic" if uj.type == "prismatic" else "revolute"
-    return Joint(kind, limits=limits, vmax=vmax, passive=passive, name=str(uj.name))
+    return Joint(kind, limits=limits, vmax=uj.velocity, passive=uj.passive, name=uj.name)
 
 
-def _link_geometry(source: str, lname: str, ulink: Any, C: Mat) -> list[LinkGeometry]:
-    """The URDF link's shapes (collision, else visual) in the reachwise frame ``C``."""
-    out: list[LinkGeometry] = []
-    items = list(ulink.collisions) or list(ulink.visuals)
-    for item in items:
-        geo = item.geometry
-        if geo is None:
-            continue
-        O = C @ (np.eye(4) if item.origin is None else np.asarray(item.origin, float))
-        origin = tuple(tuple(float(x) for x in row) for row in O)
-        if geo.box is not None:
-            size = np.asarray(geo.box.size, dtype=float).ravel()
-            if size.shape != (3,):
-                raise RobotFileError(source, f"link {lname!r}.box", f"size needs 3 values: {size}")
-            sx, sy, sz = (float(v) for v in size)
-            out.append(LinkGeometry("box", size=(sx, sy, sz), origin=origin))
-        elif geo.cylinder is not None:
-            out.append(
-                LinkGeometry(
-                    "cylinder",
-                    radius=float(geo.cylinder.radius),
-                    length=float(geo.cylinder.length),
-                    origin=origin,
-                )
-            )
-        elif geo.mesh is not None:
-            scale = geo.mesh.scale
-            if scale is not None and not np.allclose(scale, 1.0):
-                warnings.warn(
-                    f"{source}: link {lname!r}: scaled mesh {geo.mesh.filename!r} skipped "
-                    "(robot geometry has no mesh scale)",
-                    stacklevel=3,
-                )
-                continue
-            out.append(LinkGeometry("mesh", mesh=str(geo.mesh.filename), origin=origin))
-        else:
-            warnings.warn(
-                f"{source}: link {lname!r}: sphere geometry skipped (not supported)",
-                stacklevel=3,
-            )
-    return out
+def load_urdf(
+    path: str | Path,
+    tip: str | None = None,
+    *,
+    package_dirs: Sequence[str | os.PathLike[str]] | None = None,
+    lenient: bool = False,
+) -> Robot:
+    """A ``Robot`` (modified DH) from a URDF serial chain, with all its shapes.
 
-
-def load_urdf(path: str | Path, tip: str | None = None) -> Robot:
-    """A ``Robot`` (modified DH) from a URDF serial chain, read with yourdfpy.
-
-    ``tip``: take the chain from the root link to this link and ignore other branches;
-    by default the URDF must be a single unbranched chain. The tool frame is the last
-    link of the chain. The forward kinematics of the result equals yourdfpy's for that
-    link (to rounding) at every ``q``; ``q`` follows the chain's moving joints, root
-    to tip. Joints marked ``<!-- reachwise: passive -->`` become passive. Raises
-    ``RobotFileError`` for unreadable files, trees, floating/planar/mimic joints and
-    missing or impossible limits. See the module docstring for the decomposition.
+    The file is read and checked by :func:`reachwise.io.urdf_model.read_urdf` (every
+    error names the file, the element and the reason). ``tip``: take the chain from the
+    root link to this link; by default the URDF must be a single unbranched chain. The
+    tool frame is the tip link. The forward kinematics equals the URDF's for that link
+    (to rounding) at every ``q``; ``q`` follows the chain's moving joints, root to tip.
+    Joints marked ``<!-- reachwise: passive -->`` become passive. Unsupported joint
+    types and mimic joints on the chain are errors. Every collision and visual shape of
+    every link is kept, placed on the reachwise frame it rides on, mesh URIs resolved
+    with ``package_dirs`` (:mod:`reachwise.io.urdf_shapes`, :mod:`reachwise.io.mesh_uri`).
+    ``lenient=True`` leaves out (and logs) shapes that are invalid or whose mesh cannot
+    be found instead of raising. See the module docstring for the DH decomposition.
     """
-    import yourdfpy
+    from reachwise.io.urdf_shapes import place_shapes
 
     p = Path(path)
     source = str(p)
-    if not p.is_file():
-        raise RobotFileError(source, "", "no such file")
-    try:
-        model = yourdfpy.URDF.load(
-            str(p), build_scene_graph=False, load_meshes=False, load_collision_meshes=False
-        )
-        passive = _passive_joints(p)
-    except Exception as exc:  # yourdfpy/lxml raise many kinds; report them uniformly
-        raise RobotFileError(source, "", f"cannot read URDF: {exc}") from None
-    urobot = model.robot
-    link_map = {lk.name: lk for lk in urobot.links}
-    chain = _chain(source, list(urobot.joints), list(link_map), tip)
-    for uj in chain:
-        if uj.type not in _SUPPORTED:
-            raise RobotFileError(
-                source,
-                f"joint {uj.name!r}.type",
-                f"unsupported joint type {uj.type!r} (revolute, continuous, prismatic, fixed)",
-            )
-    if not any(uj.type != "fixed" for uj in chain):
+    model = read_urdf(p, lenient=lenient, source=source)
+    chain = _chain(model, tip)
+    rows_in = [(uj, _joint_row(source, uj)) for uj in chain if uj.type != "fixed"]
+    if not rows_in:
         raise RobotFileError(source, "joints", "the chain has no revolute or prismatic joint")
+    template = {uj.name: j for uj, j in rows_in}
 
     rows: list[dict[str, Any]] = []  # DH rows: joint template + a, alpha, d, theta
     base = np.eye(4)
     acc = np.eye(4)  # constant transform from the last reachwise frame (or the root)
     first = True
     for uj in chain:
-        O = np.eye(4) if uj.origin is None else np.asarray(uj.origin, dtype=float)
-        acc = acc @ O
+        acc = acc @ uj.origin
         if uj.type == "fixed":
             continue
-        u = np.asarray(uj.axis if uj.axis is not None else (1.0, 0.0, 0.0), dtype=float)
-        nu = float(np.linalg.norm(u))
-        if not nu > 0 or not math.isfinite(nu):
-            raise RobotFileError(source, f"joint {uj.name!r}.axis", f"invalid axis {u}")
-        A = rotation_z_to(u / nu)
+        A = rotation_z_to(uj.axis)
         G = acc @ A
-        row: dict[str, Any] = {
-            "joint": _joint_row(source, uj, str(uj.name) in passive),
-            "a": 0.0,
-            "alpha": 0.0,
-            "d": 0.0,
-            "theta": 0.0,
-        }
+        row: dict[str, Any] = {"joint": template[uj.name], "a": 0.0, "alpha": 0.0, "d": 0.0,
+                               "theta": 0.0}  # fmt: skip
         if first:
             base = G
             first = False
@@ -512,38 +453,11 @@ def load_urdf(path: str | Path, tip: str | None = None) -> Robot:
         )
         for r in rows
     )
-    name = str(urobot.name or p.stem)
-    robot = Robot(name, joints, base=base, tool=acc, source=source)
-
-    # geometry: every chain link rigidly follows one reachwise frame; express it there
-    F = robot.fk_all(np.zeros(robot.n))
-    root = chain[0].parent
-    P = {root: np.eye(4)}  # URDF link poses at q = 0
-    frame_of = {root: 0}
-    k = 0
-    for uj in chain:
-        O = np.eye(4) if uj.origin is None else np.asarray(uj.origin, dtype=float)
-        P[uj.child] = P[uj.parent] @ O
-        if uj.type != "fixed":
-            k += 1
-        frame_of[uj.child] = 0 if k == 0 else robot.movable_joints[k - 1] + 1
-    geometry: dict[str, LinkGeometry] = {}
-    tip_link = chain[-1].child
-    for lname, fi in frame_of.items():
-        target = "tool" if lname == tip_link else f"link_{fi}"
-        C = _inv(F[-1] if target == "tool" else F[fi]) @ P[lname]
-        for g in _link_geometry(source, lname, link_map[lname], C):
-            if target in geometry:
-                warnings.warn(
-                    f"{source}: link {lname!r}: more than one shape on reachwise frame "
-                    f"{target!r}; only the first is kept",
-                    stacklevel=2,
-                )
-                continue
-            geometry[target] = g
-    if geometry:
-        robot = replace(robot, geometry=geometry)
-    return robot
+    robot = Robot(model.name, joints, base=base, tool=acc, source=source)
+    geometry, visual = place_shapes(
+        model, chain, robot, package_dirs=package_dirs or (), lenient=lenient
+    )
+    return replace(robot, geometry=geometry, visual=visual)
 
 
 __all__ = [

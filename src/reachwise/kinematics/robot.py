@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from reachwise.errors import InputError, RobotFileError, UnknownName
+from reachwise.kinematics.link_geometry import LinkGeometry, shapes_by_link
 from reachwise.kinematics.transforms import Pose, check_pose
 
 if TYPE_CHECKING:
@@ -79,28 +80,6 @@ class Joint:
     @property
     def movable(self) -> bool:
         return self.type != "fixed"
-
-
-@dataclass(frozen=True)
-class LinkGeometry:
-    """Collision geometry of one link, in the link frame: a mesh, a box or a cylinder.
-
-    ``mesh`` paths are as written in the robot file, relative to its folder. ``points``
-    is the number of surface samples for the link's point cloud (1000 in the thesis).
-    ``origin`` places the shape in the link frame.
-    """
-
-    shape: Literal["mesh", "box", "cylinder"]
-    mesh: str | None = None
-    size: tuple[float, float, float] | None = None
-    radius: float | None = None
-    length: float | None = None
-    points: int = 1000
-    origin: tuple[tuple[float, ...], ...] = ((1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1))
-
-    @property
-    def origin_matrix(self) -> Pose:
-        return np.array(self.origin, dtype=float)
 
 
 @dataclass(frozen=True)
@@ -165,6 +144,11 @@ class Robot:
     Immutable: ``with_parameters`` returns a new robot. Methods take ``q`` of shape
     ``(n,)`` or a batch ``(m, n)`` and return poses ``(4, 4)`` / ``(m, 4, 4)`` and
     geometric Jacobians in the world frame, linear rows first.
+
+    ``geometry`` maps a link name (``link_names``) to its collision shapes, ``visual``
+    to the shapes a viewer draws (a URDF's ``<visual>`` elements); each value is a
+    tuple of :class:`~reachwise.kinematics.link_geometry.LinkGeometry` in the link
+    frame (one shape alone is accepted and stored as a one-shape tuple).
     """
 
     name: str
@@ -172,9 +156,10 @@ class Robot:
     convention: Convention = "modified"
     base: Pose = field(default_factory=lambda: np.eye(4))
     tool: Pose = field(default_factory=lambda: np.eye(4))
-    geometry: Mapping[str, LinkGeometry] = field(default_factory=dict)
+    geometry: Mapping[str, tuple[LinkGeometry, ...]] = field(default_factory=dict)
     design: DesignSpace = field(default_factory=DesignSpace)
     source: str | None = None
+    visual: Mapping[str, tuple[LinkGeometry, ...]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not self.joints:
@@ -188,9 +173,12 @@ class Robot:
             M.setflags(write=False)
             object.__setattr__(self, f, M)
         names = set(self.link_names)
-        for link in self.geometry:
-            if link not in names:
-                raise RobotFileError(self.source or self.name, f"geometry.{link}", "no such link")
+        for f in ("geometry", "visual"):
+            shapes = shapes_by_link(self.source or self.name, getattr(self, f), f)
+            for link in shapes:
+                if link not in names:
+                    raise RobotFileError(self.source or self.name, f"{f}.{link}", "no such link")
+            object.__setattr__(self, f, shapes)
         for j in self.design.joints:
             if not 0 <= j < len(self.joints):
                 raise RobotFileError(

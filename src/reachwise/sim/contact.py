@@ -4,7 +4,8 @@ Point clouds sample surfaces, so two clouds whose solids interpenetrate can stil
 few centimetres apart point to point (1000 points on a 6 m feed beam are about 9 cm
 apart). To decide whether a simulated run collides, the simulator also tests the
 *solid* of each robot part: a pair collides when a point of the other object's cloud
-lies inside the part's solid (box, cylinder or closed mesh). Its signed distance is
+lies inside the part's solid (box, cylinder, capsule, sphere, closed mesh, or the union
+of a link's several shapes). Its signed distance is
 then ``−depth`` (how deep the deepest point lies), else the cloud distance. Objects
 without a solid (a scan) are tested only as points against the robot's solids.
 """
@@ -22,15 +23,17 @@ if TYPE_CHECKING:
 
     from reachwise.kinematics.robot import LinkGeometry
 
-__all__ = ["Solid", "solid_of_geometry", "solid_of_mesh"]
+__all__ = ["Solid", "solid_of_geometry", "solid_of_link", "solid_of_mesh"]
 
 
 @dataclass(frozen=True, eq=False)
 class Solid:
     """A closed solid in its part's frame: ``kind`` box (``half`` extents), cylinder
-    (``radius``, ``half[2]`` half length, axis z) or convex mesh (``planes`` rows
-    ``n, d`` with ``n·x ≤ d`` inside); ``origin`` places it in the part frame;
-    ``mesh`` for a non-convex closed mesh (``trimesh`` containment, depth 0)."""
+    (``radius``, ``half[2]`` half length, axis z), capsule (``radius``, ``half[2]`` half
+    the length of its axis segment, along z), sphere (``radius``) or convex mesh
+    (``planes`` rows ``n, d`` with ``n·x ≤ d`` inside); ``origin`` places it in the part
+    frame; ``mesh`` for a non-convex closed mesh (``trimesh`` containment, depth 0);
+    ``union`` of ``parts`` (a link with several shapes: the deepest of them)."""
 
     kind: str
     origin: NDArray[np.float64]
@@ -38,10 +41,13 @@ class Solid:
     radius: float = 0.0
     planes: NDArray[np.float64] | None = None
     mesh: trimesh.Trimesh | None = None
+    parts: tuple[Solid, ...] = ()
 
     def depth(self, points_world: NDArray[np.float64], pose: NDArray[np.float64]) -> float:
         """Deepest penetration (m, ≥ 0) of ``points_world`` into the solid placed at
         ``pose`` (part frame → world); ``-inf`` when no point is inside."""
+        if self.kind == "union":
+            return max((p.depth(points_world, pose) for p in self.parts), default=-np.inf)
         T = pose @ self.origin
         R = T[:3, :3]
         x = (points_world - T[:3, 3]) @ R  # into the solid's frame
@@ -51,6 +57,11 @@ class Solid:
         elif self.kind == "cylinder":
             radial = self.radius - np.hypot(x[:, 0], x[:, 1])
             d = np.minimum(radial, self.half[2] - np.abs(x[:, 2]))
+        elif self.kind == "capsule":
+            z = np.clip(x[:, 2], -self.half[2], self.half[2])
+            d = self.radius - np.hypot(np.hypot(x[:, 0], x[:, 1]), x[:, 2] - z)
+        elif self.kind == "sphere":
+            d = self.radius - np.linalg.norm(x, axis=1)
         elif self.planes is not None:
             d = (self.planes[:, 3][None, :] - x @ self.planes[:, :3].T).min(axis=1)
         elif self.mesh is not None:
@@ -79,8 +90,23 @@ def solid_of_geometry(g: LinkGeometry, mesh: trimesh.Trimesh | None = None) -> S
     o = g.origin_matrix
     if g.shape == "box" and g.size is not None:
         return Solid("box", o, 0.5 * np.asarray(g.size, dtype=float))
-    if g.shape == "cylinder" and g.radius is not None and g.length is not None:
-        return Solid("cylinder", o, np.array([0.0, 0.0, 0.5 * g.length]), radius=g.radius)
+    if g.shape in ("cylinder", "capsule") and g.radius is not None and g.length is not None:
+        return Solid(g.shape, o, np.array([0.0, 0.0, 0.5 * g.length]), radius=g.radius)
+    if g.shape == "sphere" and g.radius is not None:
+        return Solid("sphere", o, np.zeros(3), radius=g.radius)
     if mesh is None:
         raise ValueError("a mesh geometry needs its loaded mesh")
     return solid_of_mesh(mesh)
+
+
+def solid_of_link(
+    shapes: tuple[LinkGeometry, ...], meshes: list[trimesh.Trimesh] | None = None
+) -> Solid:
+    """The solid of a link's shapes (their union when there are several); ``meshes``
+    are the shapes' surfaces in the link frame (needed for mesh shapes)."""
+    solids = [
+        solid_of_geometry(g, None if meshes is None else meshes[i]) for i, g in enumerate(shapes)
+    ]
+    if len(solids) == 1:
+        return solids[0]
+    return Solid("union", np.eye(4), np.zeros(3), parts=tuple(solids))

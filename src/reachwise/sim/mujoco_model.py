@@ -209,30 +209,12 @@ def mujoco_model(
     T_tool = np.asarray(robot.tool)
     bodies[-1].add_site(name="tool", pos=T_tool[:3, 3], quat=_quat(mujoco, T_tool))
 
-    for link, g in robot.geometry.items():
+    for link, shapes in robot.geometry.items():
         idx = robot.link_index(link)
         body = bodies[min(idx, len(bodies) - 1)]
-        G = (T_tool if link == "tool" else np.eye(4)) @ g.origin_matrix
-        if g.shape in ("box", "cylinder"):
-            if g.shape == "box":
-                if g.size is None:
-                    raise InputError(src, f"geometry.{link}", "box without size")
-                gtype, size = mujoco.mjtGeom.mjGEOM_BOX, [s / 2 for s in g.size]
-            else:
-                if g.radius is None or g.length is None:
-                    raise InputError(src, f"geometry.{link}", "cylinder without radius/length")
-                gtype, size = mujoco.mjtGeom.mjGEOM_CYLINDER, [g.radius, g.length / 2, 0.0]
-            body.add_geom(
-                name=f"{link}_geom",
-                type=gtype,
-                size=size,
-                pos=G[:3, 3],
-                quat=_quat(mujoco, G),
-                density=density,
-                contype=0,
-                conaffinity=0,
-            )
-        else:  # mesh: the convex hull's mass properties, as the body's explicit inertia
+        if any(g.shape == "mesh" for g in shapes):
+            # a mesh among the shapes: the convex hull of all of them gives the mass
+            # properties, as the body's explicit inertia
             if link == "tool":
                 raise InputError(src, "geometry.tool", "a mesh on the tool frame is not supported")
             mass, com, inertia = _mesh_inertia(robot, link, density, base_dir)
@@ -247,6 +229,27 @@ def mujoco_model(
                 inertia[0, 2],
                 inertia[1, 2],
             ]
+            continue
+        for i, g in enumerate(shapes):
+            G = (T_tool if link == "tool" else np.eye(4)) @ g.origin_matrix
+            if g.shape == "box":
+                gtype, size = mujoco.mjtGeom.mjGEOM_BOX, [s / 2 for s in (g.size or (0, 0, 0))]
+            elif g.shape == "sphere":
+                gtype, size = mujoco.mjtGeom.mjGEOM_SPHERE, [g.radius or 0.0, 0.0, 0.0]
+            else:
+                kind = mujoco.mjtGeom.mjGEOM_CAPSULE if g.shape == "capsule" else None
+                gtype = kind if kind is not None else mujoco.mjtGeom.mjGEOM_CYLINDER
+                size = [g.radius or 0.0, (g.length or 0.0) / 2, 0.0]
+            body.add_geom(
+                name=f"{link}_geom" if len(shapes) == 1 else f"{link}_geom_{i}",
+                type=gtype,
+                size=size,
+                pos=G[:3, 3],
+                quat=_quat(mujoco, G),
+                density=density,
+                contype=0,
+                conaffinity=0,
+            )
 
     a = 0
     for k, name in enumerate(joint_names):

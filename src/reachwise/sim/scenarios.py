@@ -12,13 +12,17 @@ description: free text
 dt: 0.01                    # control and simulation sample time
 duration: 30.0              # longest simulated time (stops earlier when all work is done)
 monitor: 0.3                # pairs are also measured this far beyond their margin (logs)
+requires: {example-robot-data: robots}   # optional: packages (and the extra) it needs
 robots:
   - name: boom              # name in the scene (clouds are "boom/link_k")
-    robot: sb60             # built-in robot or robot file
+    robot: sb60             # built-in robot or robot file, or a file with options:
+    # robot: {file: package://example-robot-data/robots/ur_description/urdf/ur5_robot.urdf,
+    #         tip: tool0, package_dirs: [], lenient: false}
     base: {xyz: [0, 0, 1.5], rpy_deg: [0, 0, 0]}   # optional: replaces the robot's base
     q0: [0, 0.2, 0.5, 0, 0, 0, 0, 0.5]             # start, one value per joint variable
     links: [link_2, link_8] # links that get clouds (default: every link with geometry)
     points: 1000            # points per link cloud (default: the geometry's, 1000)
+    density: 20000          # or: points per m² of the link's shapes
     seed: 0
     link_clouds: {link_6: {mesh: meshes/grabber.obj, points: 1000}}  # replace a link's shape
     tool_links: [link_8, tool]                      # parts avoided in task space (P-V Eq. 6)
@@ -28,6 +32,10 @@ robots:
       - {q: [...], mirror_y: true, dims: 6}       #  (x, y, z, w) or rpy_deg); work: s locked
 objects:                    # clouds not on a robot: scanner, mesh, box or file
   - {name: scan, scanner: p5-floor-obstacle, seed: 0}
+  - name: shelf             # the scanner on meshes of our own (ScanSpec)
+    scanner: {meshes: [{mesh: meshes/shelf.obj, pose: {xyz: [0.6, 0, 0]}}], floor: 0.0,
+              pose: {xyz: [-0.6, 0, 1.6]}, azimuth_deg: [-30, 30], tilt_deg: [15, 60],
+              crop: [[0.3, -0.6, 0.02], [1.0, 0.6, 1.2]], voxel: 0.02}
   - {name: scan2, scanner: p5-floor-obstacle, noise: 0.01,  # range noise (m)
      occlusion: {fill: true, depth: 1.0},   # unseen space behind returns is occupied
      rescan: {every: 1.0}}                  # re-scanned every 1 s (new seed)
@@ -41,6 +49,7 @@ objects:                    # clouds not on a robot: scanner, mesh, box or file
   - {name: heap, file: heap0.ply, clouds: [{t: 5, file: heap1.ply}]}  # deforming
 watch:                      # pairs and their collision margins rho_O
   - {self: boom, margin: 0.3, pairs: [[link_8, link_2]]}
+  - {self: {robot: arm, pairs: auto, samples: 10000}, margin: 0.05}   # picked for you
   - {robot: crane, environment: [scan], links: [link_6], margin: 0.3}
   - {robots: [a, b], links: [link_7, link_8], margin: 0.3}
 jobs:                       # shared work list (P-IV): each idle robot takes the first
@@ -88,7 +97,10 @@ __all__ = [
     "OcclusionSpec",
     "PlantSpec",
     "RescanSpec",
+    "RobotFileSpec",
     "RobotSpec",
+    "ScanMeshSpec",
+    "ScanSpec",
     "Scenario",
     "ScenarioSpec",
     "WatchSpec",
@@ -194,20 +206,40 @@ class LinkCloudSpec(BaseModel):
     pose: FrameSpec = FrameSpec()
 
 
+class RobotFileSpec(BaseModel):
+    """A robot file with options: ``file`` (YAML or URDF; a path relative to the
+    scenario, ``file://`` or ``package://PKG/…``), ``tip`` (the link that ends the
+    chain of a branched URDF), ``package_dirs`` (searched first for ``package://``
+    URIs, relative to the scenario), ``lenient`` (leave out, and log, invalid shapes)."""
+
+    model_config = _STRICT
+    file: str = Field(min_length=1)
+    tip: str | None = None
+    package_dirs: list[str] = []
+    lenient: bool = False
+
+
 class RobotSpec(BaseModel):
     model_config = _STRICT
     name: str = Field(min_length=1)
-    robot: str
+    robot: RobotFileSpec | str  # RobotFileSpec first: its errors are the ones shown
     base: FrameSpec | None = None
     q0: list[float]
     links: list[str] | None = None
     points: int | None = Field(default=None, gt=0)
+    density: float | None = Field(default=None, gt=0.0)
     seed: int = 0
     link_clouds: dict[str, LinkCloudSpec] = {}
     tool_links: list[str] | None = None
     controller: ControllerSpec = ControllerSpec()
     plant: PlantSpec = PlantSpec()
     goals: list[GoalSpec] = []
+
+    @model_validator(mode="after")
+    def _count(self) -> RobotSpec:
+        if self.points is not None and self.density is not None:
+            raise ValueError("give points or density, not both")
+        return self
 
 
 class WaypointSpec(FrameModel):
@@ -305,6 +337,47 @@ class OcclusionSpec(BaseModel):
     ground: float | None = None
 
 
+class ScanMeshSpec(BaseModel):
+    """A mesh in a scanned scene: ``mesh`` (a file, relative to the scenario) at
+    ``pose`` (world), its vertices times ``scale``."""
+
+    model_config = _STRICT
+    mesh: str
+    pose: FrameSpec = FrameSpec()
+    scale: float | V3 = 1.0
+
+
+class ScanSpec(BaseModel):
+    """A scene of our own for the simulated scanner (:class:`reachwise.geometry.scanner.
+    LaserScanner`, the P-V resolutions by default): ``meshes`` in world, an optional
+    ``floor`` (a plane at that z), the scanner at ``pose`` (zero tilt; optical centre at
+    the origin of the frame, x forward, tilt about y, positive looks down), beams over
+    ``azimuth_deg``, tilt over ``tilt_deg``, ``resolution_deg`` between beams and
+    ``line_step_deg`` between lines (the tilt rate over the line rate); the cloud is
+    cropped to ``crop`` ([min xyz, max xyz]) and downsampled to ``voxel`` (m)."""
+
+    model_config = _STRICT
+    meshes: list[ScanMeshSpec] = Field(min_length=1)
+    floor: float | None = None
+    pose: FrameSpec
+    azimuth_deg: tuple[float, float] = (-45.0, 45.0)
+    tilt_deg: tuple[float, float] = (0.0, 60.0)
+    resolution_deg: float = Field(default=0.25, gt=0.0)
+    line_step_deg: float = Field(default=0.2, gt=0.0)
+    crop: tuple[V3, V3]
+    voxel: float = Field(default=0.03, gt=0.0)
+
+    @model_validator(mode="after")
+    def _ranges(self) -> ScanSpec:
+        for name in ("azimuth_deg", "tilt_deg"):
+            lo, hi = getattr(self, name)
+            if lo > hi:
+                raise ValueError(f"{name}: min {lo} > max {hi}")
+        if any(a >= b for a, b in zip(self.crop[0], self.crop[1], strict=True)):
+            raise ValueError("crop: each min must be below its max")
+        return self
+
+
 class ObjectSpec(BaseModel):
     """A cloud not on a robot: ``scanner`` (a built-in scan scene; ``noise`` m,
     ``occlusion`` fill, ``rescan``), ``mesh`` or ``box`` (``points`` surface samples,
@@ -313,7 +386,7 @@ class ObjectSpec(BaseModel):
 
     model_config = _STRICT
     name: str = Field(min_length=1)
-    scanner: str | None = None
+    scanner: ScanSpec | str | None = None  # ScanSpec first: its errors are the ones shown
     mesh: str | None = None
     file: str | None = None
     box: V3 | None = None
@@ -354,9 +427,12 @@ class ObjectSpec(BaseModel):
 
 
 class WatchSpec(BaseModel):
-    """``self: R`` (pairs among R's links; ``pairs`` lists link pairs, else every
-    non-adjacent pair of ``links``), ``robot: R, environment: [objects]`` or
-    ``robots: [A, B]``; ``links`` restricts the robots' links, ``margin`` is ρ_O."""
+    """``self: R`` (pairs among R's links; ``pairs`` lists link pairs, ``pairs: auto``
+    picks them (:mod:`reachwise.sim.self_pairs`: adjacent and never-close pairs
+    excluded over ``samples`` random configurations, ``seed``), else every
+    non-adjacent pair of ``links``; ``self: {robot: R, pairs: auto}`` is the same),
+    ``robot: R, environment: [objects]`` or ``robots: [A, B]``; ``links`` restricts
+    the robots' links, ``margin`` is ρ_O."""
 
     model_config = _STRICT
     self_: str | None = Field(default=None, alias="self")
@@ -364,8 +440,27 @@ class WatchSpec(BaseModel):
     environment: list[str] | None = None
     robots: tuple[str, str] | None = None
     links: list[str] | None = None
-    pairs: list[tuple[str, str]] | None = None
+    pairs: list[tuple[str, str]] | Literal["auto"] | None = None
+    samples: int = Field(default=10_000, ge=1)
+    seed: int = 0
     margin: float = Field(gt=0.0)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _nested_self(cls, data: Any) -> Any:
+        """``self: {robot: R, pairs: …, …}`` is ``self: R, pairs: …, …``."""
+        if isinstance(data, dict) and isinstance(data.get("self"), dict):
+            inner = dict(data["self"])
+            out = {k: v for k, v in data.items() if k != "self"}
+            if "robot" not in inner:
+                raise ValueError("self: {robot: NAME, …} needs robot")
+            out["self"] = inner.pop("robot")
+            for k, v in inner.items():
+                if k in out:
+                    raise ValueError(f"{k} given twice (inside self and beside it)")
+                out[k] = v
+            return out
+        return data
 
     @model_validator(mode="after")
     def _kind(self) -> WatchSpec:
@@ -423,6 +518,7 @@ class ScenarioSpec(BaseModel):
     watch: list[WatchSpec] = []
     jobs: JobsSpec | None = None
     escape: EscapeSpec | None = None
+    requires: dict[str, str] = {}
 
     @field_validator("escape", mode="before")
     @classmethod
@@ -458,6 +554,9 @@ class Scenario:
         self.spec = spec
         self.source = source
         self.folder = folder
+        #: Where results of this scenario go (``reachwise simulate --out``): computed
+        #: helpers such as automatic self-collision pairs are cached there.
+        self.cache_dir: Path | None = None
 
     @property
     def name(self) -> str:

@@ -20,10 +20,11 @@ from reachwise.distance.scene import OnLink, Scene, SceneLike, WatchedPair
 from reachwise.errors import InputError, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.kinematics.robot import Robot
-from reachwise.sim.contact import Solid, solid_of_geometry, solid_of_mesh
+from reachwise.sim.contact import Solid, solid_of_link, solid_of_mesh
 from reachwise.sim.motion import Trajectory
 from reachwise.sim.plant import PLANT_NAMES, Plant, PlantConfig, PlantName
 from reachwise.sim.robots import robot_of
+from reachwise.sim.scenario_inputs import check_requirements, scan_target, watched_self_pairs
 from reachwise.sim.scenarios import (
     GoalSpec,
     ObjectSpec,
@@ -105,6 +106,7 @@ def build_world(
     jobs (:func:`_shared_jobs`)."""
     plant = check_choice(plant, PLANT_NAMES, source="simulate", kind="plant")
     sc = load_scenario(scenario)
+    check_requirements(sc)
     scene = _make_scene(server, clock)
     robots, solids = _add_robots(scene, sc)
     movers = _add_objects(scene, sc, solids)
@@ -154,32 +156,28 @@ def _link_cloud(
 ) -> tuple[PointCloud, Solid]:
     """The cloud of ``link`` (the scenario's ``link_clouds`` mesh, or the robot's own
     geometry) and its solid."""
-    from reachwise.io.robot_clouds import link_cloud, link_mesh
+    from reachwise.io.robot_clouds import link_cloud, shape_meshes
 
     over = rs.link_clouds.get(link)
     if over is not None:
-        import trimesh
-
         from reachwise.geometry.cloud import sample_mesh_surface
+        from reachwise.io.meshes import load_mesh
 
-        path = sc.path(over.mesh)
         try:
-            mesh = trimesh.load(str(path), force="mesh", process=True)
-        except Exception as exc:
-            raise InputError(
-                sc.source, f"robots.{rs.name}.link_clouds.{link}.mesh", f"{exc}"
-            ) from None
-        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-            raise InputError(sc.source, f"robots.{rs.name}.link_clouds.{link}.mesh", "no triangles")
+            mesh = load_mesh(sc.path(over.mesh))
+        except InputError as exc:
+            where = f"robots.{rs.name}.link_clouds.{link}.mesh"
+            raise InputError(sc.source, where, str(exc)) from None
         mesh.apply_transform(over.pose.matrix())
         rng = np.random.default_rng([rs.seed, robot.link_index(link)])
         cloud = sample_mesh_surface(mesh, n=over.points, seed=rng, frame=link, name=obj)
         return cloud, solid_of_mesh(mesh)
     if link not in robot.geometry:
         raise InputError(sc.source, f"robots.{rs.name}.links", f"link {link!r} has no geometry")
-    cloud = link_cloud(robot, link, rs.points, rs.seed)
-    g = robot.geometry[link]
-    return cloud, solid_of_geometry(g, link_mesh(robot, link) if g.shape == "mesh" else None)
+    cloud = link_cloud(robot, link, rs.points, rs.seed, density=rs.density)
+    shapes = robot.geometry[link]
+    has_mesh = any(g.shape == "mesh" for g in shapes)
+    return cloud, solid_of_link(shapes, shape_meshes(robot, link) if has_mesh else None)
 
 
 def _add_objects(
@@ -223,8 +221,10 @@ def _watch_rule(
     made = []
     if w.self_ is not None:
         r = robots[w.self_]
-        if w.pairs is not None:
-            for la, lb in w.pairs:
+        rspec = next(x for x in sc.spec.robots if x.name == w.self_)
+        listed = watched_self_pairs(w, r, rspec, scene, sc, where)
+        if listed is not None:
+            for la, lb in listed:
                 a, b = f"{w.self_}/{la}", f"{w.self_}/{lb}"
                 for o in (a, b):
                     if o not in scene.objects:
@@ -370,7 +370,6 @@ def _object_cloud(
     if getattr(spec, "scanner", None) is not None:
         from reachwise.geometry.occlusion import OcclusionFill
         from reachwise.geometry.scan_scene import scan_scene
-        from reachwise.sim.p5_scenes import get_scene
 
         occ = spec.occlusion
         fill = (
@@ -379,7 +378,7 @@ def _object_cloud(
             else None
         )
         try:
-            target = get_scene(spec.scanner)
+            target = scan_target(spec.scanner, sc, name)
             _, cloud = scan_scene(target, rng=seed, noise=spec.noise, occlusion=fill)
         except InputError as exc:
             raise InputError(sc.source, f"{where}.scanner", str(exc)) from None

@@ -142,7 +142,11 @@ def show_robot(
     viewer.frame_camera(content)
     viewer.mode = "robot"
     text = f"**{title or robot.name}**: {robot.n} joint variables, {len(clouds)} link clouds"
-    viewer.set_info(text + (f"  \n{note}" if note else ""))
+    meshes = sum(len(v) for v in robot.visual.values())
+    if meshes:
+        text += f", {meshes} visual meshes"
+    notes = [n for n in (note, *view.mesh_notes[:3]) if n]
+    viewer.set_info(text + "".join(f"  \n{n}" for n in notes))
     viewer.activate(sliders)
     return sliders
 

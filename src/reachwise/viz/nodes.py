@@ -1,5 +1,6 @@
-"""A robot in the browser scene: link clouds on their link frames, the skeleton, the
-tool frame (thesis §3.1: the robot parts as clouds of surface points, P-III §5).
+"""A robot in the browser scene: link clouds on their link frames, the visual meshes of a
+robot loaded from a URDF, the skeleton, the tool frame (thesis §3.1: the robot parts as
+clouds of surface points, P-III §5).
 
 Scene-node names nest as ``/robots/<name>/<link>/cloud`` under the link frame
 ``/robots/<name>/<link>``: moving the robot only sets each link frame's pose (from
@@ -27,6 +28,8 @@ __all__ = ["CLOUD_RGB", "WATCHED_RGB", "RobotView", "robot_size"]
 CLOUD_RGB = (120, 150, 190)
 WATCHED_RGB = (240, 130, 30)
 SKELETON_RGB = (40, 40, 40)
+#: Visual meshes (a URDF's <visual> shapes), drawn half transparent over the clouds.
+MESH_RGB = (200, 200, 205)
 
 
 def robot_size(robot: Robot, q: ArrayLike) -> float:
@@ -58,10 +61,12 @@ class RobotView:
         scene = viewer.server.scene
         viewer.add_node(self.root, scene.add_frame(self.root, show_axes=False))
         clouds = dict(clouds or {})
+        visuals = dict(getattr(robot, "visual", {}) or {})
         self.links: list[tuple[int, str]] = []
         self.frames: dict[str, object] = {}
+        self.mesh_notes: list[str] = []
         for k, link in enumerate(robot.link_names):
-            if link not in clouds and link != "tool":
+            if link not in clouds and link not in visuals and link != "tool":
                 continue
             path = f"{self.root}/{link}"
             is_tool = link == "tool"
@@ -88,6 +93,8 @@ class RobotView:
                     ),
                     "robot clouds",
                 )
+            for i, g in enumerate(visuals.get(link, ())):
+                self._add_mesh(f"{path}/mesh_{i}", link, i, g)
         self.skeleton = viewer.add_node(
             f"{self.root}/skeleton",
             scene.add_line_segments(
@@ -101,6 +108,29 @@ class RobotView:
         )
         self.q = q0.copy()
         self.set_q(q0)
+
+    def _add_mesh(self, name: str, link: str, i: int, g: object) -> None:
+        """One visual shape as a mesh under its link frame; a shape that cannot be read
+        is noted (``mesh_notes``) and left out of the view."""
+        from reachwise.errors import ReachwiseError
+        from reachwise.io.robot_clouds import shape_mesh
+
+        try:
+            mesh = shape_mesh(self.robot, link, i, g)  # type: ignore[arg-type]
+        except ReachwiseError as exc:
+            self.mesh_notes.append(str(exc))
+            return
+        self.viewer.add_node(
+            name,
+            self.viewer.server.scene.add_mesh_simple(
+                name,
+                np.asarray(mesh.vertices, dtype=np.float32),
+                np.asarray(mesh.faces, dtype=np.uint32),
+                color=MESH_RGB,
+                opacity=0.6,
+            ),
+            "robot meshes",
+        )
 
     def set_q(self, q: ArrayLike) -> None:
         """Put the robot at joint vector ``q``: every link frame to its FK pose."""

@@ -51,6 +51,7 @@ __all__ = ["CATEGORIES", "Viewer", "serve_results"]
 #: Display categories, each with a checkbox in the "Display" folder.
 CATEGORIES = (
     "robot clouds",
+    "robot meshes",
     "skeleton",
     "frames",
     "task points",

@@ -1,0 +1,95 @@
+"""Automatic self-collision pairs for a scenario, computed once and cached.
+
+A scenario's ``watch: [{self: arm, pairs: auto, margin: 0.05}]`` (or ``self: {robot: arm,
+pairs: auto}``) watches the pairs :func:`reachwise.distance.self_pairs.
+self_collision_pairs` picks for the robot's link clouds in the scene, with the watch's
+margin, the robot's ``q0`` as the home configuration and ``samples`` random joint
+vectors. The result is kept in memory under a fingerprint of everything it depends on
+(the robot's joints, limits, base and tool, the clouds' points, margin, samples, seed,
+home), so a baseline run, an avoidance run, a report and a viewer of the same scenario
+compute it once; and, when the scenario has a results folder (``Scenario.cache_dir``,
+set by ``reachwise simulate --out DIR``), it is written there as
+``self-pairs-<robot>.yaml`` (:mod:`reachwise.io.pairs_file`) and read back by later runs
+with the same fingerprint.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from reachwise.distance.self_pairs import SelfPairs, self_collision_pairs
+from reachwise.errors import InputError
+from reachwise.geometry.cloud import PointCloud
+from reachwise.io.pairs_file import load_pairs, save_pairs
+from reachwise.kinematics.robot import Robot
+
+__all__ = ["auto_self_pairs", "pairs_key"]
+
+_MEMORY: dict[str, SelfPairs] = {}
+
+
+def pairs_key(
+    robot: Robot,
+    clouds: Mapping[str, PointCloud],
+    margin: float,
+    samples: int,
+    seed: int,
+    home: np.ndarray,
+) -> str:
+    """A fingerprint of everything the pairs depend on (hex SHA-256)."""
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(robot.dh).tobytes())
+    h.update(np.ascontiguousarray(robot.lower).tobytes())
+    h.update(np.ascontiguousarray(robot.upper).tobytes())
+    h.update(np.ascontiguousarray(robot.base).tobytes())
+    h.update(np.ascontiguousarray(robot.tool).tobytes())
+    h.update(repr([(j.type, j.passive) for j in robot.joints]).encode())
+    for link in sorted(clouds):
+        h.update(link.encode())
+        h.update(np.ascontiguousarray(clouds[link].points).tobytes())
+    h.update(repr((float(margin), int(samples), int(seed))).encode())
+    h.update(np.ascontiguousarray(home, dtype=float).tobytes())
+    return h.hexdigest()
+
+
+def auto_self_pairs(
+    robot: Robot,
+    clouds: Mapping[str, PointCloud],
+    margin: float,
+    *,
+    home: np.ndarray,
+    samples: int = 10_000,
+    seed: int = 0,
+    cache_dir: Path | None = None,
+    label: str | None = None,
+) -> SelfPairs:
+    """The self-collision pairs of ``robot`` with ``clouds`` (see the module docstring);
+    ``label`` names the cache file (default: the robot's name)."""
+    key = pairs_key(robot, clouds, margin, samples, seed, home)
+    hit = _MEMORY.get(key)
+    file = None if cache_dir is None else Path(cache_dir) / f"self-pairs-{label or robot.name}.yaml"
+    if hit is None and file is not None and file.is_file():
+        try:
+            pairs, stored = load_pairs(file)
+        except InputError:
+            pairs, stored = None, ""
+        if pairs is not None and stored == key:
+            hit = pairs
+    if hit is None:
+        hit = self_collision_pairs(robot, clouds, margin, samples=samples, seed=seed, home=home)
+    _MEMORY[key] = hit
+    if file is not None:
+        stored_key = ""
+        if file.is_file():
+            try:
+                stored_key = load_pairs(file)[1]
+            except InputError:
+                stored_key = ""
+        if stored_key != key:
+            file.parent.mkdir(parents=True, exist_ok=True)
+            save_pairs(hit, file, source=robot.source or "", key=key)
+    return hit

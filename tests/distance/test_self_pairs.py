@@ -1,0 +1,166 @@
+"""Automatic self-collision pairs (MoveIt Setup Assistant method, exact distances).
+
+The capsule bound against brute force, the hit test against k-d trees, and the
+Panda's pairs against a separate set of 10 000 random configurations: every pair that
+comes within the margin there is watched, adjacent pairs are not, the file lists the
+rule behind each exclusion.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from scipy.spatial import cKDTree
+
+import reachwise
+from reachwise.distance.self_pairs import (
+    adjacent_reason,
+    bounding_capsule,
+    capsule_distances,
+    pair_hits,
+    random_configurations,
+    self_collision_pairs,
+)
+from reachwise.errors import InputError
+from reachwise.geometry.cloud import PointCloud
+from reachwise.io.pairs_file import RULES, load_pairs, save_pairs
+from reachwise.kinematics.robot import Joint, LinkGeometry, Robot
+from tests._real_arms import arm_path, needs_erd
+
+MARGIN = 0.05
+
+
+def test_segment_distances_equal_brute_force(rng: np.random.Generator) -> None:
+    m = 400
+    a0, a1, b0, b1 = (rng.normal(size=(m, 3)) for _ in range(4))
+    a1[:40] = a0[:40]  # points
+    b1[40:80] = b0[40:80]
+    a1[80:90], b1[80:90] = a0[80:90], b0[80:90]
+    b1[100:150] = b0[100:150] + 0.7 * (a1[100:150] - a0[100:150])  # parallel
+    d = capsule_distances(a0, a1, b0, b1)
+    t = np.linspace(0.0, 1.0, 1001)
+    for i in range(m):
+        pa = a0[i] + t[:, None] * (a1[i] - a0[i])
+        pb = b0[i] + t[:, None] * (b1[i] - b0[i])
+        brute = cKDTree(pb).query(pa)[0].min()
+        assert d[i] <= brute + 1e-12 and brute - d[i] < 2e-3
+
+
+def test_bounding_capsule_holds_every_point(rng: np.random.Generator) -> None:
+    P = rng.normal(size=(500, 3)) * (0.3, 0.05, 0.08) + (1.0, 2.0, 3.0)
+    cap = bounding_capsule(P)
+    d = capsule_distances(np.broadcast_to(cap.p0, P.shape), np.broadcast_to(cap.p1, P.shape), P, P)
+    assert d.max() <= cap.radius + 1e-12
+    assert cap.radius < 0.35  # follows the long axis, far tighter than a sphere
+
+
+def _stick_robot() -> Robot:
+    """Five revolute joints about z/y with 0.3 m sticks; link_3 has no shape."""
+    joints = tuple(
+        Joint("revolute", a=0.3 if i else 0.0, alpha=(np.pi / 2 if i % 2 else 0.0),
+              limits=(-2.5, 2.5))
+        for i in range(5)
+    )  # fmt: skip
+    box = LinkGeometry("box", size=(0.3, 0.04, 0.04), origin=_at(0.15))
+    geometry = {f"link_{i}": box for i in (1, 2, 4, 5)}
+    return Robot("sticks", joints, geometry=geometry)
+
+
+def _at(x: float) -> tuple[tuple[float, ...], ...]:
+    T = np.eye(4)
+    T[0, 3] = x
+    return tuple(map(tuple, T))
+
+
+def test_adjacency_rules() -> None:
+    r = _stick_robot()
+    links = ["link_1", "link_2", "link_4", "link_5"]
+    assert adjacent_reason(r, links, "link_1", "link_2") == "joined by one joint"
+    assert "no link with shapes between" in str(adjacent_reason(r, links, "link_2", "link_4"))
+    assert adjacent_reason(r, links, "link_1", "link_4") is None
+    fixed = Robot("f", (Joint("revolute"), Joint("fixed", a=0.2), Joint("revolute")))
+    assert "rigidly" in str(adjacent_reason(fixed, ["link_1", "link_2"], "link_1", "link_2"))
+
+
+def test_pair_hits_equal_kd_tree_distances(rng: np.random.Generator) -> None:
+    r = _stick_robot()
+    clouds = reachwise.link_clouds(r, points=150)
+    pairs = [("link_1", "link_4"), ("link_1", "link_5"), ("link_2", "link_5")]
+    Q = random_configurations(r, 300, 5)
+    H = pair_hits(r, clouds, pairs, 0.08, Q)
+    F = r.fk_all(Q)
+    for k, (a, b) in enumerate(pairs):
+        ia, ib = r.link_index(a), r.link_index(b)
+        for s in range(len(Q)):
+            pa = clouds[a].points @ F[s, ia, :3, :3].T + F[s, ia, :3, 3]
+            pb = clouds[b].points @ F[s, ib, :3, :3].T + F[s, ib, :3, 3]
+            assert H[s, k] == (cKDTree(pb).query(pa)[0].min() <= 0.08)
+    assert H.any() and not H.all()  # both outcomes occur
+
+
+def test_bad_inputs_are_input_errors() -> None:
+    r = _stick_robot()
+    clouds = reachwise.link_clouds(r, points=50)
+    with pytest.raises(InputError, match="margin"):
+        self_collision_pairs(r, clouds, -1.0)
+    with pytest.raises(InputError, match="home"):
+        self_collision_pairs(r, clouds, 0.05, samples=10, home=[0.0])
+    with pytest.raises(InputError, match="no link"):
+        self_collision_pairs(r, {"hand": PointCloud(np.zeros((3, 3)))}, 0.05, samples=10)
+    unbounded = Robot("u", (Joint("prismatic"), Joint("revolute", a=1.0)))
+    with pytest.raises(InputError, match="finite joint limits"):
+        random_configurations(unbounded, 10, 0)
+
+
+@needs_erd
+def test_panda_pairs_recall_on_a_separate_set(tmp_path: Path) -> None:
+    robot = reachwise.load_robot(arm_path("panda"), tip="panda_hand")
+    clouds = reachwise.link_clouds(robot)
+    found = self_collision_pairs(robot, clouds, MARGIN, samples=10_000, seed=0)
+    adjacent = [(p.a, p.b) for p in found.pairs if p.rule == "adjacent"]
+    # 8 neighbours along link_0 … link_7, tool; and link_6 - tool (joint 7 between them)
+    assert len(adjacent) == 9 and ("link_6", "tool") in adjacent
+    assert not set(adjacent) & set(found.watched)
+    others = [(p.a, p.b) for p in found.pairs if p.rule != "adjacent"]
+    hits = pair_hits(robot, clouds, others, MARGIN, random_configurations(robot, 10_000, 777))
+    events = hits.sum(axis=0)
+    watched = set(found.watched)
+    caught = sum(int(e) for p, e in zip(others, events, strict=True) if p in watched)
+    assert caught / events.sum() >= 0.999  # recall over (configuration, pair) events
+    close = {p for p, e in zip(others, events, strict=True) if e > 0}
+    assert len(close & watched) / len(close) >= 0.999  # and over pairs: all of them
+    assert {p.rule for p in found.excluded} == {"adjacent", "never"}
+
+    path = save_pairs(found, tmp_path / "pairs.yaml", source=robot.source or "")
+    data = yaml.safe_load(path.read_text())
+    assert data["rules"] == RULES and data["margin"] == MARGIN and data["samples"] == 10_000
+    assert all(e["rule"] in ("adjacent", "never") and e["detail"] for e in data["excluded"])
+    assert {(e["a"], e["b"]) for e in data["watched"]} == watched
+    back, _ = load_pairs(path)
+    assert set(back.watched) == watched and len(back.excluded) == len(found.excluded)
+
+
+def test_scenario_pairs_are_cached_in_the_results_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import reachwise.sim.self_pairs as sp
+
+    r = _stick_robot()
+    clouds = reachwise.link_clouds(r, points=100)
+    home = np.zeros(r.n)
+    first = sp.auto_self_pairs(r, clouds, 0.05, home=home, samples=200, cache_dir=tmp_path)
+    file = tmp_path / "self-pairs-sticks.yaml"
+    assert file.is_file()
+    sp._MEMORY.clear()
+
+    def boom(*args: object, **kwargs: object) -> None:
+        raise AssertionError("computed again")
+
+    monkeypatch.setattr(sp, "self_collision_pairs", boom)
+    again = sp.auto_self_pairs(r, clouds, 0.05, home=home, samples=200, cache_dir=tmp_path)
+    assert again.watched == first.watched
+    with pytest.raises(AssertionError, match="computed again"):  # another margin: not cached
+        sp.auto_self_pairs(r, clouds, 0.06, home=home, samples=200, cache_dir=tmp_path)
