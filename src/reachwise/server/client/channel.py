@@ -48,6 +48,10 @@ class Channel:
         self._reconnects = 0
         #: The layout binary ticks are sent under (None: queries go in full).
         self.layout: P.Layout | None = None
+        #: Queries answered as binary ticks, and ticks the server refused for a stale
+        #: layout (each then sent in full).
+        self.ticks = 0
+        self.stale_ticks = 0
 
     @property
     def reconnects(self) -> int:
@@ -98,11 +102,13 @@ class Channel:
                             f"invalid reply to {request.OP}: {exc}", exc.code, exc.field
                         ) from None
                     self._check_id(got, rid)
+                    self.ticks += 1
                     return reply
                 decoded = self._decode(request, raw, rid)
                 if decoded.error is None or decoded.error.code != P.ErrorCode.STALE_LAYOUT:
                     return self._result(request, decoded)
                 self.layout = None  # the server moved on: the query again, in full
+                self.stale_ticks += 1
         rid = self._next_id = self._next_id + 1
         raw = self._exchange(request, P.encode_frames(rid, request), end, deadline)
         return self._result(request, self._decode(request, raw, rid))

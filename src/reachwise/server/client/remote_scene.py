@@ -179,6 +179,11 @@ class SceneClient:
         """How many times the socket was recreated after a lost reply."""
         return self._channel.reconnects
 
+    @property
+    def ticks(self) -> int:
+        """How many queries were answered through the binary tick path."""
+        return self._channel.ticks
+
     def call(self, request: P.Request, deadline: float | None = None) -> P.Reply:
         """Send one request and wait for its reply until ``deadline`` seconds (default
         ``setup_deadline``); see :meth:`Channel.call` for what it raises."""

@@ -99,10 +99,11 @@ class ServerSceneResult(SceneResult):
         if src is None or name not in _LAZY:
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
         layout, rows, clouds = src
-        versions, stamps = cloud_maps(layout, clouds)
-        self.__dict__.update(
-            pairs=pair_results(layout, rows, clouds), versions=versions, cloud_stamps=stamps
-        )
+        if name == "pairs":
+            self.__dict__["pairs"] = pair_results(layout, rows, clouds)
+        else:
+            versions, stamps = cloud_maps(layout, clouds)
+            self.__dict__.update(versions=versions, cloud_stamps=stamps)
         return self.__dict__[name]
 
 
