@@ -163,6 +163,7 @@ class SceneService:
         self._layout_tag = secrets.randbelow(2**31 - 1) + 1
         self._layout_count = 0
         self._layout: P.Layout | None = None
+        self._all_sources: tuple[tuple[str, str], ...] = ()  # of the layout's pairs
         # the cloud table of the answers, kept while neither the versions nor the
         # layout change (one per swap, not one per query)
         self._clouds: tuple[object, int, NDArray[np.float64]] | None = None
@@ -292,7 +293,9 @@ class SceneService:
     def _store_joints(self, robot: str, q: NDArray[np.float64], stamp: float) -> None:
         """Apply checked joint values (call under the lock)."""
         self.scene.set_joints(robot, q)
-        self._joints[robot] = (np.array(q, dtype=np.float64), stamp)
+        # a decoded array is a read-only view of its message: kept as it is
+        kept = q if not q.flags.writeable and q.dtype == np.float64 else q.copy()
+        self._joints[robot] = (kept, stamp)
         self._live_dirty = True
 
     def _store_pose(self, name: str, pose: NDArray[np.float64], stamp: float) -> None:
@@ -347,9 +350,11 @@ class SceneService:
             pairs = res.pairs
             if wanted is not None:
                 pairs = tuple(p for p in pairs if frozenset((p.a, p.b)) in wanted)
-            measured = self._measured_at(pairs, stamp)
-            seq = self.sequence.take()
             layout = self._current_layout()
+            measured = self._measured_at(
+                pairs if wanted is not None else None, stamp, self._all_sources
+            )
+            seq = self.sequence.take()
             clouds = self._cloud_table(res.versions, res.cloud_stamps, layout)
             if wanted is None:
                 if req.layout == layout.name:  # the per-tick answer: every field made here
@@ -407,6 +412,7 @@ class SceneService:
             infos = tuple(P.PairInfo(p.a, p.b, p.margin, p.kind) for p in self.scene.pairs)
             key = (self._layout_tag << 32) | (self._layout_count & 0xFFFFFFFF)
             self._layout = P.Layout(key, infos, tuple(self._meta), tuple(self._robots))
+            self._all_sources = self._sources(infos)
         return self._layout
 
     def _pairs_changed(self) -> None:
@@ -437,18 +443,32 @@ class SceneService:
         self._clouds = (versions, layout.key, table)
         return table
 
-    def _measured_at(self, pairs: tuple[Any, ...], stamp: float) -> float:
+    def _measured_at(
+        self,
+        pairs: tuple[Any, ...] | None,
+        stamp: float,
+        every: tuple[tuple[str, str], ...] = (),
+    ) -> float:
+        """The oldest of ``stamp`` and the stamps of the inputs the poses of ``pairs``'
+        objects come from (``pairs`` None: those of every watched pair, ``every``)."""
+        sources = every if pairs is None else self._sources(pairs)
         oldest = stamp
+        for kind, key in sources:
+            entry = self._joints.get(key) if kind == "robot" else self._runtime.get(key)
+            if entry is not None and entry[1] < oldest:
+                oldest = entry[1]
+        return oldest
+
+    def _sources(self, pairs: Iterable[Any]) -> tuple[tuple[str, str], ...]:
+        """The inputs (``("robot", name)`` or ``("object", name)``) the poses of the
+        pairs' objects come from, each once."""
+        out: dict[tuple[str, str], None] = {}
         for p in pairs:
             for name in (p.a, p.b):
                 src = self._meta[name].stamp_of
-                if src is None:
-                    continue
-                kind, key = src
-                entry = self._joints.get(key) if kind == "robot" else self._runtime.get(key)
-                if entry is not None and entry[1] < oldest:
-                    oldest = entry[1]
-        return oldest
+                if src is not None:
+                    out[src] = None
+        return tuple(out)
 
     def _describe(self, req: P.Describe) -> P.Reply:
         with self.lock:

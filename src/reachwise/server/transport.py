@@ -78,6 +78,8 @@ def split_frames(frames: list[_F]) -> tuple[list[_F], list[_F]]:
     """(routing envelope, body frames) of a ROUTER message: the envelope runs up to
     and including the first empty delimiter frame (REQ peers), else it is the peer
     identity alone (DEALER peers)."""
+    if len(frames) == 3 and len(frames[1]) == 0:  # a REQ peer's one-frame request
+        return frames[:2], frames[2:]
     for k in range(1, len(frames)):
         if len(frames[k]) == 0:
             return frames[: k + 1], frames[k + 1 :]

@@ -198,8 +198,10 @@ class SceneClient:
         return rep
 
     def close(self) -> None:
-        """Close the socket and the client's ZeroMQ context."""
+        """Close the socket and the client's ZeroMQ context (and the mirror's worker)."""
         self._channel.close()
+        if self._mirror is not None:
+            self._mirror.close()
 
     def __enter__(self) -> SceneClient:
         return self
@@ -279,6 +281,7 @@ class SceneClient:
         """Every object with its cloud and pose source (downloads the clouds; with
         ``mirror``: the local copy)."""
         if self._mirror is not None:
+            self._mirror.swap_in()
             return self._mirror.objects
         return {o.name: scene_object(o) for o in self.describe(clouds=True).objects}
 
@@ -425,8 +428,10 @@ class SceneClient:
         points = cloud.points if isinstance(cloud, PointCloud) else _cloud_array(cloud, name)
         t = self.clock() if stamp is None else float(stamp)
         rep = self._setup(P.ReplaceCloud(name, points, t, block), P.ObjectReply, deadline)
-        if self._mirror is not None:
-            self._mirror.replace_cloud(name, as_cloud(points, name), block=True, stamp=t)
+        if self._mirror is not None:  # a copy (the caller may reuse its array), indexed
+            # on the mirror's worker, not here: the local copy only serves ``objects``
+            copy = np.array(points, dtype=np.float64)
+            self._mirror.replace_cloud(name, copy, block=False, stamp=t)
         return rep.version
 
     def watch(
@@ -456,6 +461,7 @@ class SceneClient:
         self._last_pairs = ()
         self._pending_joints, self._pending_poses = {}, {}
         if self._mirror is not None:
+            self._mirror.close()
             self._mirror = Scene()
 
     def _watched(self, rep: P.PairsReply) -> tuple[WatchedPair, ...]:
@@ -506,6 +512,7 @@ class SceneClient:
     def robot_objects(self, robot: str) -> tuple[SceneObject, ...]:
         """Objects attached to ``robot``'s links, base to tool."""
         if self._mirror is not None:
+            self._mirror.swap_in()
             return self._mirror.robot_objects(robot)
         d = self.describe(clouds=True)
         model = d.robots.get(robot)
@@ -542,12 +549,13 @@ class SceneClient:
             if t < stamp:
                 stamp = t
         held = self._layout
-        req = P.Query(
-            stamp,
-            {k: q for k, (q, _) in joints.items()} if joints else None,
-            {k: p for k, (p, _) in poses.items()} if poses else None,
-            None if pairs is None else tuple((str(a), str(b)) for a, b in pairs),
-            None if held is None or pairs is not None else held.name,
+        req: P.Query = P.unchecked(  # every field made here, as Query would check it
+            P.Query,
+            stamp=stamp,
+            joints={k: q for k, (q, _) in joints.items()} if joints else None,
+            poses={k: p for k, (p, _) in poses.items()} if poses else None,
+            pairs=None if pairs is None else tuple((str(a), str(b)) for a, b in pairs),
+            layout=None if held is None or pairs is not None else held.name,
         )
         try:
             rep = self.call(req, self.deadline if deadline is None else deadline)
