@@ -39,6 +39,20 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(20171208)
 
 
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """Print pytest-randomly's seed even under ``-q`` (its own header line is hidden
+    there), so that a failing order can be replayed with ``pytest --randomly-seed=N``."""
+    config = session.config
+    if not config.pluginmanager.hasplugin("randomly"):
+        return
+    seed = config.getoption("randomly_seed", None)
+    reporter = config.pluginmanager.get_plugin("terminalreporter")
+    if reporter is not None and isinstance(seed, int):
+        reporter.write_line(
+            f"random test order, seed {seed} (replay: pytest --randomly-seed={seed})"
+        )
+
+
 def sigint_default() -> None:
     """``preexec_fn`` for a child the test will Ctrl-C: a shell that starts pytest in
     the background leaves SIGINT ignored, the child would inherit that and Python would

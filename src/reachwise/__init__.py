@@ -7,6 +7,7 @@ Public API (stable names, see DESIGN.md): ``load_robot``, ``link_clouds``, ``Rob
 from __future__ import annotations
 
 from reachwise._version import __version__
+from reachwise.api import synthesize
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_clouds import link_clouds
 from reachwise.io.robot_file import load_robot, save_robot
@@ -15,7 +16,7 @@ from reachwise.kinematics.ik import IKResult
 from reachwise.kinematics.robot import Joint, Robot
 from reachwise.sim.log import SimulationLog
 from reachwise.sim.simulate import simulate
-from reachwise.synthesis.synthesize import SynthesisResult, synthesize
+from reachwise.synthesis.synthesize import SynthesisResult
 from reachwise.tasks.task import Task, TaskPoint
 
 __all__ = [

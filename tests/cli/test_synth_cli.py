@@ -12,6 +12,7 @@ from typer.testing import CliRunner
 
 from reachwise import load_robot, load_task
 from reachwise.cli import app
+from reachwise.errors import InputError
 
 runner = CliRunner()
 
@@ -85,3 +86,73 @@ def test_bad_inputs_are_one_line_errors(tmp_path: Path) -> None:
                               "--out", str(tmp_path)])  # fmt: skip
     assert res.exit_code != 0
     assert "no free design parameter" in str(res.exception) + res.output
+
+
+def test_objective_improves_the_reaching_design_and_reports_it(tmp_path: Path) -> None:
+    out = tmp_path / "obj"
+    res = runner.invoke(
+        app,
+        ["synth", "--task", str(small_task(tmp_path)), "--robot", "sb60", "--runs", "1",
+         "--objective", "gci:1,size:0.2", "--min-length", "0.05", "--out", str(out),
+         "--json", "--no-figures"],
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.output)
+    b = data["best"]
+    assert data["objective"] == {"gci": 1.0, "size": 0.2}
+    assert b["all_reached"]
+    before, after = b["reach_only"], b["objective_values"]
+    # the weighted sum of relative changes improved (gci up counts, size down counts)
+    gain = (after["gci"] / before["gci"] - 1) - 0.2 * (after["size"] / before["size"] - 1)
+    assert gain > 0
+    # every flagged parameter really sits within 1 % of its range from a kept bound
+    robot = load_robot("sb60")
+    for h in data["bound_hits"]:
+        assert h["side"] in ("lower", "upper", "min_length")
+        assert h["parameter"] in robot.design_names
+        assert abs(h["value"] - h["bound"]) <= 0.01 * 5.0 + 1e-12
+    names = {h["parameter"] for h in data["bound_hits"]}
+    for r in data["table3"]:  # and no parameter clear of its bounds is flagged
+        if 0.011 < r["optimized"] < 0.989 and r["parameter"][0] not in "ad":
+            assert r["parameter"] not in names
+    html = (out / "report.html").read_text()
+    assert 'id="objectives"' in html and 'id="bound-hits"' in html
+    assert "bound flag" in html
+
+
+def test_pareto_writes_the_front_and_links_every_design(tmp_path: Path) -> None:
+    out = tmp_path / "front"
+    res = runner.invoke(
+        app,
+        ["synth", "--task", str(small_task(tmp_path)), "--robot", "sb60", "--runs", "1",
+         "--pareto", "gci,size", "--points", "3", "--out", str(out), "--json", "--no-figures"],
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    front = json.loads(res.output)["pareto"]
+    assert front["objectives"] == ["gci", "size"] and len(front["points"]) >= 3
+    assert front["front_size"] == sum(p["front"] for p in front["points"]) >= 1
+    html = (out / "report.html").read_text()
+    assert 'id="pareto-table"' in html
+    for p in front["points"]:
+        assert p["all_reached"]
+        for key in ("design_yaml", "design_urdf"):
+            assert (out / p[key]).is_file() and f'href="{p[key]}"' in html
+        load_robot(str(out / p["design_yaml"]))
+    assert (out / "pareto" / "front.csv").is_file()
+
+
+def test_bad_objectives_are_input_errors(tmp_path: Path) -> None:
+    task = str(small_task(tmp_path))
+    for args, words in (
+        (["--objective", "speed:1"], "speed"),
+        (["--objective", "gci:-1"], ">= 0"),
+        (["--pareto", "gci"], "two different objectives"),
+        (["--pareto", "gci,speed"], "speed"),
+    ):
+        res = runner.invoke(
+            app, ["synth", "--task", task, "--robot", "sb60", "--out", str(tmp_path / "x"), *args]
+        )
+        # a usage error exits 2 here; an InputError reaches ``main``, which exits 2
+        text = res.output + str(res.exception or "")
+        assert res.exit_code == 2 or isinstance(res.exception, InputError), (args, text)
+        assert words in text, (args, text)

@@ -9,7 +9,6 @@ import pytest
 
 import reachwise
 from reachwise.control import AvoidancePoints, Controller, ControllerConfig, Goal, SafetyConfig
-from reachwise.control import _kernel as K
 from reachwise.control.limits import limit_scale, velocity_bounds
 from reachwise.control.potential import approach_bound, repulsive_potential, repulsive_speed
 from reachwise.control.safety import protective_separation
@@ -55,14 +54,19 @@ def _task_velocity(robot: reachwise.Robot, q: np.ndarray, goal: Goal, cfg: Contr
     return np.concatenate([v, w])
 
 
-def test_quaternion_error_kernel_matches_eq_3_9(rng: np.random.Generator) -> None:
+def test_reported_orientation_error_is_the_rotation_angle(sb60: reachwise.Robot) -> None:
+    """The tick measures Eq. 3.9's error: a goal turned by φ about any axis reads φ."""
     from scipy.spatial.transform import Rotation
 
-    for _ in range(20):
-        R, Rd = Rotation.random(2, random_state=rng.integers(1 << 30)).as_matrix()
-        e = np.empty(3)
-        K.quaternion_error(R, Rd, e)
-        np.testing.assert_allclose(e, quaternion_error(R, Rd), atol=1e-12)
+    c = Controller(sb60, ControllerConfig(avoidance=False))
+    T = sb60.fk(Q_MID)
+    for k, phi in enumerate((0.0, 0.3, 1.2, np.pi - 1e-3)):
+        u = Rotation.random(random_state=k).as_rotvec()
+        G = T.copy()
+        G[:3, :3] = Rotation.from_rotvec(phi * u / np.linalg.norm(u)).as_matrix() @ T[:3, :3]
+        _, st = c.step(Q_MID, Goal(G), None, float(k))
+        assert st.orientation_error == pytest.approx(phi, abs=1e-9)
+        assert st.position_error == pytest.approx(0.0, abs=1e-12)
 
 
 def test_null_space_property_with_avoidance_active(sb60: reachwise.Robot) -> None:

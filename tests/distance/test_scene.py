@@ -254,12 +254,42 @@ def test_scene_errors() -> None:
     assert scene.query_all().pairs == ()
 
 
-def test_pair_query_used_by_the_scene_is_warm_started() -> None:
-    a = PointCloud(np.random.default_rng(2).normal(size=(200, 3)))
-    b = PointCloud(np.random.default_rng(3).normal(size=(300, 3)) + 4.0)
-    pq = PairQuery(a, b)
-    first = pq()
-    second = pq()
-    assert (first.index_a, first.index_b) == (second.index_a, second.index_b)
+@pytest.mark.parametrize("larger", ["a", "b"])
+def test_pair_query_used_by_the_scene_is_warm_started(larger: str) -> None:
+    """An exact tie shows the warm start: two points of one cloud at exactly the same
+    distance from the other cloud's point. The search only replaces its best pair by a
+    strictly closer one, so a warm query keeps the pair it brought from the previous
+    query, and which tied pair it reports depends on the history: the one it came from.
+    A cold query (after ``reset``, or a fresh ``PairQuery``) has no history and always
+    gives the same answer. The distance is exact either way."""
+    far = np.random.default_rng(0).uniform(-1, 1, (200, 3)) + np.array([0.0, 0.0, -5.0])
+    twins = PointCloud(np.vstack([[[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]], far]))
+    probe = PointCloud(np.array([[0.0, 0.0, 0.0]]))
+
+    def at(x: float) -> np.ndarray:
+        T = np.eye(4)
+        T[0, 3], T[2, 3] = x, 2.0
+        return T
+
+    def query(pq: PairQuery, x: float) -> tuple[int, float]:
+        """The twin reported with the probe at (x, 0, 2), and the distance."""
+        if larger == "a":
+            r = pq(np.eye(4), at(x))
+            return r.index_a, r.distance
+        r = pq(at(x), np.eye(4))
+        return r.index_b, r.distance
+
+    def make() -> PairQuery:
+        return PairQuery(twins, probe) if larger == "a" else PairQuery(probe, twins)
+
+    tie = math.sqrt(5.0)  # both twins are sqrt(1 + 4) from the probe at x = 0
+    cold, d = query(make(), 0.0)
+    assert d == tie
+    pq = make()
+    for came_from, twin in ((-0.5, 0), (0.5, 1), (-0.5, 0)):
+        assert query(pq, came_from)[0] == twin  # unique nearest twin
+        assert query(pq, 0.0) == (twin, tie)  # the tie resolved by the history
+    # the same query (probe at x = 0) answered with both twins: only a warm start can
+    # do that; a cold query gives one of them every time
     pq.reset()
-    assert pq().distance == first.distance
+    assert query(pq, 0.0) == (cold, tie)

@@ -120,3 +120,30 @@ def test_not_yaml_and_missing_file(tmp_path: Path) -> None:
         load_robot(str(tmp_path / "missing.yaml"))
     with pytest.raises(UnknownName, match=r"unknown built-in robot 'no-such-robot'; valid: .*sb60"):
         load_robot("no-such-robot")
+
+
+def test_design_objectives_in_the_robot_file() -> None:
+    """``design:`` holds min_length, margin and the objective weights; they round-trip,
+    and an unknown objective or a bad value names the field."""
+    from dataclasses import replace
+
+    from reachwise.io.robot_file import robot_from_dict
+
+    robot = load_robot("sb60")
+    design = replace(robot.design, min_length=0.1, margin=0.1, objective={"gci": 1.0, "size": 0.2})
+    data = robot_to_dict(replace(robot, design=design))
+    assert data["design"]["objective"] == {"gci": 1.0, "size": 0.2}
+    back = robot_from_dict(data, "boom.yaml")
+    assert back.design.min_length == 0.1 and back.design.margin == 0.1
+    assert dict(back.design.objective) == {"gci": 1.0, "size": 0.2}
+    for field, value, words in (
+        ("objective", {"speed": 1.0}, "unknown objective 'speed'"),
+        ("objective", {"gci": -1.0}, ">= 0"),
+        ("min_length", -0.1, "design.min_length"),
+        ("margin", 0.7, "design.margin"),
+    ):
+        bad = robot_to_dict(robot)
+        bad["design"][field] = value
+        with pytest.raises(RobotFileError, match=r"boom\.yaml") as err:
+            robot_from_dict(bad, "boom.yaml")
+        assert words in str(err.value), str(err.value)

@@ -9,6 +9,7 @@ import sqlite3
 import subprocess
 import sys
 import textwrap
+import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -156,8 +157,10 @@ def test_sigkill_during_writes_leaves_a_sound_database(tmp_path: Path) -> None:
     try:
         assert proc.stdout is not None and proc.stdout.readline().strip() == b"ready"
         reader = SweepStore(path)
-        while reader.count() < 50:
-            pass
+        give_up = time.monotonic() + 120.0  # a hang guard, not a pass/fail clock
+        while reader.count() < 50 and proc.poll() is None and time.monotonic() < give_up:
+            time.sleep(0.001)
+        assert reader.count() >= 50, f"the writer stopped early (exit {proc.poll()})"
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait(timeout=30)
         reader.close()
@@ -174,3 +177,37 @@ def test_sigkill_during_writes_leaves_a_sound_database(tmp_path: Path) -> None:
         for r in rows:
             assert r.same_outcome(_item(run=r.run))
         assert st.write("sid", _item(run=len(runs)))  # and the sweep can go on
+
+
+def test_a_schema_1_database_is_upgraded_in_place(tmp_path: Path) -> None:
+    """A store written before the design objectives (schema 1: no size/limits/bounds
+    columns) opens, keeps its rows (the new measures read NaN) and takes new ones."""
+    from reachwise.io import sweep_store
+
+    path = tmp_path / "v1.db"
+    v1 = sweep_store._SCHEMA
+    for c in ("size", "limits", "bounds"):
+        v1 = v1.replace(f"  {c} REAL,\n", "")
+    db = sqlite3.connect(path)
+    db.executescript(v1)
+    db.execute("INSERT INTO meta(key, value) VALUES ('schema', '1')")
+    db.commit()
+    db.close()
+    old = _item(run=0)
+    with SweepStore(path) as st:
+        st.open_sweep("sid", {"task": "demo"}, [("t", "R R", "h1")])
+        assert st.write("sid", old)
+    db = sqlite3.connect(path)
+    db.execute("UPDATE items SET size = NULL, limits = NULL, bounds = NULL")
+    db.commit()
+    db.close()
+    new = replace(
+        _item(run=1), measures=replace(_item().measures, size=3.5, limits=0.25, bounds=0.0)
+    )
+    with SweepStore(path) as st:
+        assert st.write("sid", new)
+        got = {r.run: r for r in st.results("sid")}
+    assert got[0].same_outcome(old) and math.isnan(got[0].measures.size)
+    assert got[1].measures.size == 3.5 and got[1].same_outcome(new)
+    with SweepStore(path) as st:  # opening again is a no-op
+        assert len(st.results("sid")) == 2

@@ -7,11 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reachwise import load_task
+from reachwise import load_task, synthesize
 from reachwise.errors import InputError
 from reachwise.io.synthesis_out import load_synthesis, write_synthesis
 from reachwise.io.task_file import save_task
-from reachwise.synthesis.synthesize import synthesize
 
 
 @pytest.fixture(scope="module")

@@ -30,7 +30,38 @@ def test_quaternion_error_is_half_angle_axis(rv, phi, r0, phi0) -> None:  # type
     e = quaternion_error(R, Rd)
     np.testing.assert_allclose(e, np.sin(phi / 2) * u, atol=1e-9)
     np.testing.assert_allclose(rotation_error(R, Rd), phi * u, atol=1e-8)
-    assert angle_between(R, Rd) == np.float64(angle_between(R, Rd))
+    assert abs(angle_between(R, Rd) - phi) < 1e-8  # R_d is R turned by φ
+
+
+def _rx(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[1.0, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def _rz(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+
+
+def test_angle_between_analytic_rotation_pairs() -> None:
+    """Pairs whose angle is known by construction, written out without scipy."""
+    eye = np.eye(3)
+    flip_x = np.diag([1.0, -1.0, -1.0])  # half turn about x
+    cases = [
+        (eye, eye, 0.0),
+        (eye, _rx(np.pi / 2), np.pi / 2),
+        (_rz(0.3), _rz(-0.4), 0.7),  # same axis: the angles subtract
+        (_rz(3.0), _rz(-3.0), 2 * np.pi - 6.0),  # and wrap the short way round
+        (eye, flip_x, np.pi),
+        (_rx(0.2), _rx(0.2) @ _rz(1e-7), 1e-7),  # tiny angles keep their precision
+        (_rz(1.0) @ _rx(0.5), _rx(0.5), 1.0),  # a world-frame turn of 1 rad about z
+    ]
+    for R, Rd, angle in cases:
+        got = angle_between(R, Rd)
+        assert abs(got - angle) < 1e-12 * max(1.0, angle) + 1e-15, (angle, got)
+        assert abs(angle_between(Rd, R) - angle) < 1e-12 * max(1.0, angle) + 1e-15
+    batch = angle_between(np.stack([eye, eye]), np.stack([_rx(0.25), _rz(-1.5)]))
+    np.testing.assert_allclose(batch, [0.25, 1.5], rtol=1e-13)
 
 
 def test_eq_3_9_written_out() -> None:

@@ -112,7 +112,7 @@ def small_task(name: str = "tunnel-6") -> Any:
 # ---- results, built once per module ---------------------------------------------------------
 @pytest.fixture(scope="module")
 def synthesis() -> Any:
-    from reachwise.synthesis.synthesize import synthesize
+    from reachwise import synthesize
 
     return synthesize(small_task(), "sb60", runs=2, seed=0)
 
@@ -122,7 +122,7 @@ def sweep() -> Any:
     from reachwise.synthesis.sweep import SweepConfig, run_sweep
     from reachwise.synthesis.topology import builtin_set
 
-    topos = [t for t in builtin_set("p2") if t.name in ("p2-man1", "p2-man3")]
+    topos = [t for t in builtin_set("p2", load_robot) if t.name in ("p2-man1", "p2-man3")]
     cfg = SweepConfig(subset=3, top=1, runs=1, seed=0)
     return run_sweep(small_task(), topos, cfg, workers=0)
 

@@ -22,6 +22,11 @@ MAX_MESSAGE_MB = 1.0
 #: No test server lives longer than this (s), whatever happens to the test.
 MAX_RUNTIME = 240.0
 LINKS = ("link_2", "link_3", "link_6")
+#: Reply deadline (s) of the clients that talk to a healthy test server: only a hang
+#: guard. A loopback reply takes about 50 µs; a loaded machine must not turn a slow one
+#: into "missing data" and a failed test. (Tests that expect no reply at all use short
+#: deadlines: no reply can come, so those never depend on the machine's speed.)
+HANG_GUARD = 60.0
 
 
 def box_points(size: tuple[float, float, float], n: int, seed: int) -> NDArray[np.float64]:

@@ -449,6 +449,92 @@ def test_fast_set_joints_parser_agrees_with_the_full_one(
         assert full is not None and _equal(fast, full)
 
 
+# ------------------------------------------------------------------ hot-path corpus
+#
+# The fast parsers may decline a message (the full parser then decides), so the
+# agreement tests above pass for a parser that always declines. The hot path exists
+# for the per-tick messages as clients send them: every one of these must be taken by
+# the fast parser and give exactly the full parser's request.
+
+_hot_names = st.text(
+    alphabet="abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789-_/.",
+    min_size=1,
+    max_size=40,
+)
+_finite = st.floats(allow_nan=False, allow_infinity=False, width=64)
+_joint_vectors = st.lists(_finite, min_size=1, max_size=12).map(np.array)
+_hot_stamps = st.one_of(st.none(), _finite)
+
+
+def _wire_body(request: P.Request) -> Any:
+    """The body as the server sees it: encoded by the client's encoder, unpacked."""
+    return msgpack.unpackb(P.encode_request(7, request), raw=False)["body"]
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    stamp=_hot_stamps,
+    joints=st.one_of(
+        st.none(), st.dictionaries(_hot_names, _joint_vectors, min_size=1, max_size=3)
+    ),
+    layout=st.one_of(st.none(), _hot_names),
+)
+def test_fast_query_parser_takes_every_valid_tick_query(
+    stamp: float | None, joints: dict[str, Any] | None, layout: str | None
+) -> None:
+    req = P.Query(stamp, joints, None, None, layout)
+    body = _wire_body(req)
+    fast = codec._fast_query(body)
+    assert fast is not None, body
+    full = _full_parse(P.Query, body)
+    assert full is not None and _equal(fast, full) and _equal(fast, req)
+    _, dec = P.decode_request(P.encode_request(7, req))
+    assert _equal(dec, req)
+
+
+@settings(max_examples=200, deadline=None)
+@given(robot=_hot_names, q=_joint_vectors, stamp=_hot_stamps)
+def test_fast_set_joints_parser_takes_every_valid_joint_state(
+    robot: str, q: np.ndarray, stamp: float | None
+) -> None:
+    req = P.SetJoints(robot, q, stamp)
+    body = _wire_body(req)
+    fast = codec._fast_set_joints(body)
+    assert fast is not None, body
+    full = _full_parse(P.SetJoints, body)
+    assert full is not None and _equal(fast, full) and _equal(fast, req)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    seq=st.integers(0, 2**40),
+    measured=_finite,
+    compute=st.floats(0.0, 10.0),
+    layout=_hot_names,
+    rows=st.lists(
+        st.tuples(
+            st.lists(_finite, min_size=10, max_size=10),
+            st.integers(-1, 10_000),
+            st.integers(-1, 10_000),
+            st.booleans(),
+        ),
+        max_size=5,
+    ),
+)
+def test_fast_query_reply_parser_takes_every_valid_reply(
+    seq: int, measured: float, compute: float, layout: str, rows: list[Any]
+) -> None:
+    arr = np.array([[*r, float(ia), float(ib), float(flag)] for r, ia, ib, flag in rows])
+    rep = P.QueryReply(seq, measured, compute, layout, None, arr.reshape(len(rows), 13))
+    body = msgpack.unpackb(P.encode_reply(7, rep), raw=False)["body"]
+    fast = codec._fast_query_reply(body)
+    assert fast is not None, body
+    r = P.Reader(body)
+    full = P.QueryReply.parse(r)
+    r.done()
+    assert _equal(fast, full) and _equal(fast, rep)
+
+
 def _index_row(r: list[float]) -> list[float]:
     """Mostly valid index and flag columns (sometimes not: NaN, inf stay as drawn)."""
     ia = float(round(r[10] % 5)) if math.isfinite(r[10]) else r[10]

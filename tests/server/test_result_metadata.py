@@ -19,7 +19,7 @@ from reachwise.errors import InputError
 from reachwise.kinematics.robot import Robot
 from reachwise.server.client import SceneClient, ServerSceneResult
 
-from .conftest import crane_q
+from .conftest import HANG_GUARD, crane_q
 
 
 class Clock:
@@ -98,7 +98,7 @@ def test_server_results_carry_the_same_fields(
     assert names <= {f.name for f in dataclasses.fields(ServerSceneResult)}
     assert {"sequence", "measured_at", "computed_at", "valid", "reason"} <= names
     clock = Clock(100.0)
-    with SceneClient(server.endpoint, deadline=5.0, clock=clock, mirror=True) as c:
+    with SceneClient(server.endpoint, deadline=HANG_GUARD, clock=clock, mirror=True) as c:
         c.wait_ready(30.0)
         c.clear()
         _crane_scene(c, crane, clouds)

@@ -28,7 +28,7 @@ from reachwise.server.security import (
     plan_bind,
 )
 
-from .conftest import build_scene, crane_q, start_server
+from .conftest import HANG_GUARD, build_scene, crane_q, start_server
 
 NON_LOCAL = [
     "tcp://0.0.0.0:0",
@@ -107,7 +107,7 @@ def test_curve_server_accepts_only_authorized_clients(
     keygen(stranger)
     proc = start_server(tmp_path / "srv", extra=("--keys", str(keys)))  # CURVE forced on loopback
     try:
-        with SceneClient(proc.endpoint, keys=keys, deadline=2.0) as client:
+        with SceneClient(proc.endpoint, keys=keys, deadline=HANG_GUARD) as client:
             assert client.wait_ready(30.0).ready
             build_scene(client, crane, clouds)
             client.set_joints(crane.name, crane_q(crane, 10))

@@ -19,6 +19,8 @@ from reachwise.server.client import SceneClient, ServerOptions, owned_scene
 from reachwise.sim.log import SimulationLog
 from reachwise.sim.simulate import simulate
 
+from .conftest import HANG_GUARD
+
 SCENARIO = "p5-crane-obstacle"
 DURATION = 2.5  # s: the grabber comes within its margin of the scan before this
 
@@ -39,13 +41,13 @@ def test_simulation_on_a_server_equals_the_one_in_process(server: ServerProcess)
     # the avoidance is active in this window: the comparison covers the repulsion
     assert np.nanmin(local.distance) < local.margins.max()
     assert not any(e.kind == "protective_stop" for e in local.events)
-    link = ServerOptions(server.endpoint, deadline=2.0)
+    link = ServerOptions(server.endpoint, deadline=HANG_GUARD)
     first = simulate(SCENARIO, duration=DURATION, server=link)
     _assert_identical(first, local)
     # a second run clears the server's scene and registers its own again
     second = simulate(SCENARIO, duration=DURATION, server=link)
     _assert_identical(second, local)
-    with SceneClient(server.endpoint, setup_deadline=10.0) as c:
+    with SceneClient(server.endpoint, setup_deadline=HANG_GUARD) as c:
         d = c.describe()
     assert [f"{p.a}|{p.b}" for p in d.pairs] == list(local.pairs)
     assert sorted(d.robots) == ["crane"]
@@ -55,7 +57,9 @@ def test_simulate_command_takes_server(server: ServerProcess, tmp_path: Path) ->
     app = typer.Typer()
     app.command()(simulate_cli)
     args = [SCENARIO, "--duration", "0.5", "--no-figures", "--json"]
-    res = CliRunner().invoke(app, [*args, "--server", server.endpoint, "--server-deadline", "2"])
+    res = CliRunner().invoke(
+        app, [*args, "--server", server.endpoint, "--server-deadline", str(HANG_GUARD)]
+    )
     assert res.exit_code == 0, res.output
     remote = json.loads(res.stdout)["avoidance"]
     local = json.loads(CliRunner().invoke(app, args).stdout)["avoidance"]
@@ -69,7 +73,7 @@ def test_owner_reports_a_server_whose_pairs_differ_as_missing_data(
 ) -> None:
     crane = load_robot("hiab-xs033")
     box = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.1, 0.0]])
-    owner = owned_scene(ServerOptions(server.endpoint, deadline=2.0))
+    owner = owned_scene(ServerOptions(server.endpoint, deadline=HANG_GUARD))
     try:
         owner.add_robot(crane, np.zeros(crane.n))
         owner.add_object("grabber", box, robot=crane.name, link="link_6")
@@ -82,7 +86,7 @@ def test_owner_reports_a_server_whose_pairs_differ_as_missing_data(
         assert set(owner.objects) == {"grabber", "rock", "post"}
         assert [o.name for o in owner.robot_objects(crane.name)] == ["grabber"]
         np.testing.assert_array_equal(owner.poses()["rock"][:3, 3], [0.0, 0.0, 0.0])
-        with SceneClient(server.endpoint, setup_deadline=10.0) as other:
+        with SceneClient(server.endpoint, setup_deadline=HANG_GUARD) as other:
             other.unwatch("grabber", "post")  # behind the owner's back
         lost = owner.query_all()
         assert not lost.valid and "differ" in lost.reason
@@ -92,7 +96,7 @@ def test_owner_reports_a_server_whose_pairs_differ_as_missing_data(
         assert owner.query_all().valid
         owner.clear()  # the server's scene and its saved state are empty again
         assert owner.objects == {} and owner.pairs == ()
-        with SceneClient(server.endpoint, setup_deadline=10.0) as other:
+        with SceneClient(server.endpoint, setup_deadline=HANG_GUARD) as other:
             d = other.describe()
             h = other.health()
         assert (d.robots, d.objects, d.pairs) == ({}, (), ())

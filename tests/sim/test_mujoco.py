@@ -10,15 +10,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-pytest.importorskip("mujoco")
-
-import mujoco
 import typer
 from typer.testing import CliRunner
 
 import reachwise
-from reachwise.errors import InputError
+from reachwise.errors import InputError, MissingDependency
 from reachwise.kinematics.robot import Joint, LinkGeometry, Robot
 from reachwise.sim.mujoco_model import mujoco_model, require_mujoco
 from reachwise.sim.mujoco_plant import (
@@ -30,7 +26,17 @@ from reachwise.sim.plant import PlantConfig, hanging_joints
 from reachwise.sim.simulate import simulate
 from tests.conftest import random_chain
 
+try:
+    import mujoco
+except ImportError:  # the optional "sim" extra: the tests that need it are skipped
+    mujoco = None
+
 G = 9.81
+#: MuJoCo itself is needed (per test: the missing-extra error and the pure checks run
+#: without it).
+needs_mujoco = pytest.mark.skipif(
+    mujoco is None, reason='needs MuJoCo: pip install "reachwise[sim]"'
+)
 
 
 def _random_q(robot: Robot, rng: np.random.Generator, m: int) -> np.ndarray:
@@ -53,6 +59,7 @@ def _fk_error(robot: Robot, rng: np.random.Generator, m: int = 100) -> float:
 # ------------------------------------------------------------------ model = reachwise FK
 
 
+@needs_mujoco
 @pytest.mark.parametrize("name", ["panda", "puma560", "stanford", "sb60", "hiab-xs033"])
 def test_model_fk_equals_reachwise_fk(name: str, rng: np.random.Generator) -> None:
     """Body poses and the tool site after ``mj_kinematics`` equal ``Robot.fk_all`` /
@@ -61,6 +68,7 @@ def test_model_fk_equals_reachwise_fk(name: str, rng: np.random.Generator) -> No
     assert _fk_error(reachwise.load_robot(name), rng) < 1e-9
 
 
+@needs_mujoco
 @pytest.mark.parametrize("classic", [False, True])
 def test_model_fk_of_random_chains(classic: bool, rng: np.random.Generator) -> None:
     """Random chains of both conventions with revolute, prismatic and fixed rows and
@@ -69,6 +77,7 @@ def test_model_fk_of_random_chains(classic: bool, rng: np.random.Generator) -> N
         assert _fk_error(random_chain(rng, 7, classic=classic), rng, 20) < 1e-9
 
 
+@needs_mujoco
 def test_model_structure_follows_the_robot() -> None:
     """Ranges in radians/metres, a velocity servo (ctrlrange ±v_max, force kv(u − q̇))
     per actuated joint, none on the passive ones, contacts off, inertia from geometry."""
@@ -97,6 +106,7 @@ def test_model_structure_follows_the_robot() -> None:
     np.testing.assert_allclose(m.body_ipos[mj.body[6]], [0.6, 0.0, 0.0], atol=1e-12)
 
 
+@needs_mujoco
 def test_mesh_link_inertia_from_its_convex_hull(tmp_path: Path) -> None:
     """A mesh link's mass and inertia: a 0.6 x 0.3 x 0.2 m box written as an OBJ file
     must weigh density x volume with the box's inertia, by hand."""
@@ -137,6 +147,7 @@ def _at(x: float, y: float, z: float) -> tuple[tuple[float, ...], ...]:
     return ((1, 0, 0, x), (0, 1, 0, y), (0, 0, 1, z), (0, 0, 0, 1))
 
 
+@needs_mujoco
 def test_servo_tracks_a_constant_velocity_as_a_first_order_lag() -> None:
     """``kv (u − q̇) = I q̈`` has ``q̇ = u (1 − e^{−t/τ})``, ``τ = I/kv``; the plant sets
     ``kv = I/τ`` from the model's inertia, which must be the box's inertia by hand.
@@ -166,6 +177,7 @@ def test_servo_tracks_a_constant_velocity_as_a_first_order_lag() -> None:
     assert tr["position_lag_max"] <= tr["position_lag_bound"] * 1.02
 
 
+@needs_mujoco
 def test_commands_beyond_vmax_are_saturated() -> None:
     robot, _ = _turntable(vmax=0.5)
     plant = MujocoPlant(robot, [0.0], MujocoPlantConfig(servo_time_constant=0.02))
@@ -177,6 +189,7 @@ def test_commands_beyond_vmax_are_saturated() -> None:
     assert tr["velocity_error_max"] <= 1.0 + 1e-9  # against u = ±v_max, not the command
 
 
+@needs_mujoco
 def test_rate_limit_bounds_the_acceleration() -> None:
     """A hydraulic rate limit a_max slews the setpoint: the joint's acceleration stays
     ≤ a_max and it reaches u no sooner than u / a_max."""
@@ -209,6 +222,7 @@ def _pendulum_arm(passive: bool) -> tuple[Robot, float, float, float]:
     return robot, mass, c, mass * (lx**2 + ly**2) / 12.0 + mass * c**2
 
 
+@needs_mujoco
 def test_bias_feedforward_holds_against_gravity_and_its_absence_sags() -> None:
     """With the arm horizontal and u = 0, the feed-forward holds it still; without it
     the servo sags at the steady rate G/kv = m g c τ / I (q̇ = −G/kv at balance)."""
@@ -229,6 +243,7 @@ def test_bias_feedforward_holds_against_gravity_and_its_absence_sags() -> None:
     assert sag.q[1] * sag.qdot[1] > 0  # it keeps sagging the same way
 
 
+@needs_mujoco
 def test_passive_joint_hangs_at_rest_and_swings_with_the_chosen_damping() -> None:
     """A passive joint starts at its hanging rest (no motion under u = 0); pushed aside
     it swings back with the damping ratio ζ: first overshoot ``e^{−πζ/√(1−ζ²)}`` of the
@@ -281,6 +296,7 @@ def _check_mujoco_run(name: str) -> dict:  # type: ignore[type-arg]
     return {"log": log, "ref": ref, "comparison": comp}
 
 
+@needs_mujoco
 def test_p5_on_mujoco_reaches_goals_without_collision() -> None:
     run = _check_mujoco_run("p5-crane-obstacle")
     tr = run["log"].extras["tracking"]["crane"]
@@ -291,6 +307,7 @@ def test_p5_on_mujoco_reaches_goals_without_collision() -> None:
     assert np.ptp(q[:, 4] - (q[:, 1] + q[:, 2])) > 1e-3
 
 
+@needs_mujoco
 def test_p3_on_mujoco_reaches_goals_without_collision() -> None:
     _check_mujoco_run("p3-self-collision")
 
@@ -299,18 +316,23 @@ def test_p3_on_mujoco_reaches_goals_without_collision() -> None:
 
 
 def test_missing_extra_is_named(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Runs whether or not MuJoCo is installed: the import is blocked."""
     from reachwise.cli.simulate import simulate as sim_cli
 
     monkeypatch.setitem(sys.modules, "mujoco", None)  # import mujoco -> ImportError
-    with pytest.raises(InputError, match=r'pip install -e "\.\[sim\]"'):
+    hint = r"the MuJoCo plant needs the optional package 'mujoco': pip install \"reachwise\[sim\]\""
+    with pytest.raises(MissingDependency, match=hint) as info:
         require_mujoco()
-    with pytest.raises(InputError, match="sim"):
+    assert isinstance(info.value, ImportError)
+    assert (info.value.package, info.value.extra) == ("mujoco", "sim")
+    with pytest.raises(MissingDependency, match=hint):
         simulate("p5-crane-obstacle", plant="mujoco", duration=0.1)
     app = typer.Typer()
     app.command()(sim_cli)
     res = CliRunner().invoke(app, ["p5-crane-obstacle", "--plant", "mujoco"])
     assert res.exit_code != 0
-    assert isinstance(res.exception, InputError) and ".[sim]" in str(res.exception)
+    assert isinstance(res.exception, MissingDependency)
+    assert 'pip install "reachwise[sim]"' in str(res.exception)
 
 
 def test_bad_plant_and_config_are_input_errors() -> None:
@@ -318,6 +340,10 @@ def test_bad_plant_and_config_are_input_errors() -> None:
         simulate("p5-crane-obstacle", plant="bogus", duration=0.1)
     with pytest.raises(InputError, match="servo_time_constant"):
         MujocoPlantConfig(servo_time_constant=0.0)
+
+
+@needs_mujoco
+def test_bad_plant_input_is_an_input_error() -> None:
     robot, _ = _turntable()
     with pytest.raises(InputError, match="q0"):
         MujocoPlant(robot, [0.0, 1.0])
@@ -332,6 +358,7 @@ def test_plant_config_follows_the_scenario_plant() -> None:
     assert kin.servo_time_constant == 0.02 and math.isinf(kin.rate_limit)
 
 
+@needs_mujoco
 def test_cli_reports_tracking_and_comparison() -> None:
     import json
 

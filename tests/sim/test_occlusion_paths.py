@@ -7,7 +7,11 @@ import copy
 
 import numpy as np
 import pytest
+import trimesh
+from scipy.optimize import linprog
+from scipy.spatial import ConvexHull
 
+from reachwise.io.robot_file import load_robot
 from reachwise.sim.log import SimulationLog
 from reachwise.sim.p5_scenes import get_scene
 from reachwise.sim.scenarios import load_scenario, scenario_from_dict
@@ -42,25 +46,34 @@ def _legs(log: SimulationLog) -> dict[str, tuple[float, float]]:
 
 
 def _true_box_overlap(log: SimulationLog, sc) -> float:  # type: ignore[no-untyped-def]
-    """Deepest point of the real box (its surface on a 2 cm grid) inside the grabber's
-    solid over the run (m; negative: never inside)."""
+    """How deep the real box and the grabber's solid overlap over the run (m; negative:
+    never), independently of the simulator's own contact judge (``Solid.depth``): the
+    grabber is the convex hull of its mesh (Qhull facets), placed by forward kinematics;
+    at each tick a linear program finds the point of the real box deepest inside that
+    hull, ``max t`` subject to ``n_i·x + c_i + t ≤ 0`` for every facet, ``lo ≤ x ≤ hi``
+    (HiGHS). ``t > 0``: the solids overlap that deep; ``t < 0``: they are disjoint."""
     lo, hi = get_scene("p5-occlusion").obstacles[0]
-    g = [np.arange(lo[i], hi[i] + 1e-9, 0.02) for i in range(3)]
-    faces = []
-    for ax in range(3):
-        o = [k for k in range(3) if k != ax]
-        U, V = np.meshgrid(g[o[0]], g[o[1]])
-        for side in (lo[ax], hi[ax]):
-            P = np.empty((U.size, 3))
-            P[:, ax], P[:, o[0]], P[:, o[1]] = side, U.ravel(), V.ravel()
-            faces.append(P)
-    box = np.concatenate(faces)
-    world = build_world(sc)
-    solid = world.solids["crane/link_6"][0]
+    spec = next(r for r in sc.spec.robots if r.name == "crane")
+    part = spec.link_clouds["link_6"]
+    mesh = trimesh.load(str(sc.folder / part.mesh), force="mesh")
+    mesh.apply_transform(part.pose.matrix())
+    facets = ConvexHull(np.asarray(mesh.vertices)).equations  # n·x + c <= 0 inside, |n| = 1
+    assert spec.base is None  # the crane stands where its robot file puts it
+    robot = load_robot(spec.robot)
+    link = robot.link_names.index("link_6")
     deepest = -np.inf
     for k in range(0, log.t.size, 5):
-        world.scene.set_joints("crane", log.q["crane"][k])
-        deepest = max(deepest, solid.depth(box, world.scene.poses()["crane/link_6"]))
+        F = robot.fk_all(log.q["crane"][k])[link]
+        n = facets[:, :3] @ F[:3, :3].T  # facet normals in world
+        c = facets[:, 3] - n @ F[:3, 3]
+        res = linprog(
+            [0.0, 0.0, 0.0, -1.0],
+            A_ub=np.column_stack([n, np.ones(len(c))]),
+            b_ub=-c,
+            bounds=[*zip(lo, hi, strict=True), (None, None)],
+        )
+        assert res.status == 0, res.message
+        deepest = max(deepest, -float(res.fun))
     return float(deepest)
 
 

@@ -21,8 +21,11 @@ from reachwise.synthesis.rank import (
 )
 
 
-def _m(g: float, k: float, w: float = 1.0, length: float = 5.0, p: int = 1) -> Measures:
-    return Measures(g, k, 0.5 * (g + k), w, length, p)
+def _m(
+    g: float, k: float, w: float = 1.0, length: float = 5.0, p: int = 1,
+    size: float = math.nan, limits: float = math.nan, bounds: float = math.nan,
+) -> Measures:  # fmt: skip
+    return Measures(g, k, 0.5 * (g + k), w, length, p, size, limits, bounds)
 
 
 def test_measures_match_the_indices_of_p2_eq_38_39(rng: np.random.Generator) -> None:
@@ -53,9 +56,9 @@ def test_link_length_sums_a_and_d() -> None:
 
 def test_rank_by_each_key_and_infeasible_unranked() -> None:
     cands = [
-        Candidate("a", 10, 10, _m(0.10, 0.07, w=5.0, length=9.0, p=2)),
-        Candidate("b", 10, 10, _m(0.12, 0.05, w=1.0, length=4.0, p=0)),
-        Candidate("c", 10, 10, _m(0.08, 0.08, w=9.0, length=6.0, p=1)),
+        Candidate("a", 10, 10, _m(0.10, 0.07, 5.0, 9.0, 2, size=3.0, limits=0.2, bounds=1.0)),
+        Candidate("b", 10, 10, _m(0.12, 0.05, 1.0, 4.0, 0, size=2.0, limits=0.3, bounds=0.0)),
+        Candidate("c", 10, 10, _m(0.08, 0.08, 9.0, 6.0, 1, size=4.0, limits=0.1, bounds=2.0)),
         Candidate("x", 9, 10, _m(0.50, 0.40)),  # misses a point: never ranked
         Candidate("y", 3, 10, None),
     ]
@@ -66,6 +69,9 @@ def test_rank_by_each_key_and_infeasible_unranked() -> None:
         "manipulability": ["c", "a", "b"],
         "length": ["b", "c", "a"],
         "prismatic": ["b", "c", "a"],
+        "size": ["b", "a", "c"],
+        "limits": ["c", "a", "b"],
+        "bounds": ["b", "a", "c"],
     }
     assert set(order) == set(RANK_KEYS)
     for key, want in order.items():
@@ -96,8 +102,17 @@ def test_rank_errors() -> None:
         _m(0.1, 0.1).value("nope")
 
 
+def test_an_objective_not_measured_ranks_last() -> None:
+    cands = [Candidate("m", 5, 5, _m(0.1, 0.05, size=3.0)), Candidate("n", 5, 5, _m(0.2, 0.1))]
+    assert [r.candidate.name for r in rank(cands, "size")] == ["m", "n"]
+    assert [r.candidate.name for r in rank(cands, "gci")] == ["n", "m"]
+
+
 def test_best_run_is_the_rule_of_synthesize() -> None:
     assert best_run_index([5, 7, 7], [0.1, 0.3, 0.2]) == 2
+    # with a design objective: most reached first, then the objective, then e_obj
+    assert best_run_index([7, 7, 6], [0.1, 0.3, 0.0], [0.5, -0.2, -9.0]) == 1
+    assert best_run_index([7, 7], [0.3, 0.1], [0.0, 0.0]) == 1
     assert best_run_index([7, 7], [0.2, 0.2]) == 0
     assert best_run_index([1], [math.inf]) == 0
     with pytest.raises(InputError):

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from reachwise import load_task
+from reachwise import load_robot, load_task
 from reachwise.errors import InputError
 from reachwise.io.sweep_store import SweepStore
 from reachwise.kinematics.robot import DesignSpace
@@ -69,7 +69,7 @@ def two_round_reference(gen: Task) -> SweepResult:
 # ---- must show: P-II on tunnel-87 -----------------------------------------------------------
 def test_p2_on_tunnel_87_ranked_with_gci_kci_mean_and_reproducible() -> None:
     task = load_task("tunnel-87")
-    p2 = builtin_set("p2")
+    p2 = builtin_set("p2", load_robot)
     cfg = SweepConfig(runs=1)  # one round on the complete task, like P-II §5
     res = run_sweep(task, p2, cfg, workers=2)
     table = res.table()
@@ -213,3 +213,21 @@ def test_config_and_input_errors(gen: Task) -> None:
     t = topologies_from_specs(["RRPRRR"])
     with pytest.raises(InputError, match="unique"):
         run_sweep(gen, t + t, workers=0)
+
+
+# ---- design objectives in the sweep ------------------------------------------------------------
+def test_sweep_improves_for_an_objective_and_ranks_by_it(gen: Task) -> None:
+    topos = topologies_from_specs(SPECS[:2])
+    plain = run_sweep(gen, topos, SweepConfig(runs=1, rank_key="size"), workers=0)
+    small = SweepConfig(runs=1, rank_key="size", objective={"size": 1.0})
+    res = run_sweep(gen, topos, small, workers=0)
+    assert res.sweep_id != plain.sweep_id  # the objective is part of the sweep's id
+    ranked = [r for r in res.table() if r["rank"] is not None]
+    sizes = [res.final.best_result(r["topology"]).measures.size for r in ranked]  # type: ignore[union-attr]
+    assert ranked and sizes == sorted(sizes)  # lower size ranks first
+    for r in ranked:
+        before = plain.final.best_result(r["topology"])
+        after = res.final.best_result(r["topology"])
+        if before.feasible:  # the same reaching run, then improved for size
+            assert after.feasible
+            assert after.measures.size <= before.measures.size + 1e-9  # type: ignore[union-attr]

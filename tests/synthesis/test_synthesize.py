@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import reachwise
 from reachwise import load_robot
 from reachwise.errors import InputError, ReachwiseError
 from reachwise.synthesis.synthesize import synthesize
@@ -68,6 +69,6 @@ def test_bad_input() -> None:
     with pytest.raises(InputError, match="no free design parameter"):
         synthesize(task, load_robot("panda"))
     with pytest.raises(ReachwiseError, match="no-such-template"):
-        synthesize(task, "no-such-template")
+        reachwise.synthesize(task, "no-such-template")
     with pytest.raises(InputError, match="solver"):
         synthesize(task, sb60(), solver="newton")

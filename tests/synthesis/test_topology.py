@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from reachwise import load_robot
 from reachwise.errors import InputError
 from reachwise.synthesis.problem import SynthesisProblem
 from reachwise.synthesis.topology import (
@@ -154,7 +155,7 @@ def test_template_options_validate() -> None:
 
 # ---- the P-II set --------------------------------------------------------------------------
 def test_p2_set_is_the_six_configurations_of_table_1() -> None:
-    topos = builtin_set("p2")
+    topos = builtin_set("p2", load_robot)
     assert [t.name for t in topos] == [f"p2-man{i}" for i in range(1, 7)]
     types = [t.spec.types for t in topos]
     # Table 1: RRPRRRP, RRPRRRP, RRPRRR, RRPRRR, (PRRRRR: Table 7 orders it RP…), RRRRRRR
@@ -165,7 +166,7 @@ def test_p2_set_is_the_six_configurations_of_table_1() -> None:
         assert t.template.design.size > 0
         assert str(t.spec)  # every template has a spec string
     with pytest.raises(InputError, match="p2"):
-        builtin_set("nope")
+        builtin_set("nope", load_robot)
 
 
 def test_topologies_from_specs_drop_duplicates_keep_order() -> None:

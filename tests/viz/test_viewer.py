@@ -213,8 +213,8 @@ def test_scenario_lines_follow_the_sliders(viewer: Viewer) -> None:
 
 
 def test_synthesis_browser_shows_each_configuration(viewer: Viewer, tmp_path: Path) -> None:
+    from reachwise import synthesize
     from reachwise.io.synthesis_out import write_synthesis
-    from reachwise.synthesis.synthesize import synthesize
 
     task = reachwise.load_task("tunnel-87").subset(np.arange(0, 87, 20), name="tunnel-87")
     res = synthesize(task, "sb60", runs=1, seed=0)
@@ -476,13 +476,19 @@ def test_browser_plays_a_simulation_log(page: Any, sim_folder: Path, tmp_path: P
         assert np.linalg.norm(link_position(viewer, "crane", "link_6") - before) > 1e-3
         assert_robot_at(viewer, "crane", log.q["crane"][k])
 
-        time.sleep(1.0)  # let the software renderer draw
-        png = page.screenshot(timeout=TIMEOUT * 1000)
+        # the software renderer draws when it gets to it: look until the robot's
+        # (orange) clouds are on screen, with a timeout rather than a fixed pause
+        end = time.monotonic() + TIMEOUT
+        while True:
+            png = page.screenshot(timeout=TIMEOUT * 1000)
+            img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))[:, :900]  # 3-D view
+            near = np.abs(img.astype(int) - np.array(WATCHED_RGB)).max(axis=2) < 45
+            if near.sum() > 200 or time.monotonic() > end:
+                break
+            time.sleep(0.2)
         (tmp_path / "viewer.png").write_bytes(png)
-        img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))[:, :900]  # the 3-D view
         assert img.std() > 10.0
         assert len(np.unique(img.reshape(-1, 3) // 16, axis=0)) > 30
-        near = np.abs(img.astype(int) - np.array(WATCHED_RGB)).max(axis=2) < 45
         assert near.sum() > 200, "the robot's (orange) clouds are not on screen"
         assert page.console_errors == []
     finally:

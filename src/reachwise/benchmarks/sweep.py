@@ -25,6 +25,7 @@ from collections.abc import Callable
 from functools import partial
 
 from reachwise.benchmarks._harness import BenchReport, Target
+from reachwise.io.robot_file import load_robot
 from reachwise.io.task_file import load_task
 from reachwise.synthesis.sweep import SweepConfig, SweepResult, run_sweep
 from reachwise.synthesis.topology import (
@@ -53,7 +54,7 @@ def run(quick: bool = False) -> BenchReport:
 
     # -- P-II: six topologies x 3 runs on the complete task, all cores
     runs = 1 if quick else P2_RUNS
-    p2 = builtin_set("p2")
+    p2 = builtin_set("p2", load_robot)
     t_p2, res = _timed(partial(run_sweep, task, p2, SweepConfig(runs=runs), workers=cores))
     rep.metrics["p2.topologies"] = float(len(p2))
     rep.metrics["p2.runs_per_topology"] = float(runs)

@@ -215,7 +215,7 @@ def _stages(ctx: Ctx) -> list[Stage]:
             "synthesis",
             "synthesis of the sb60 boom for tunnel-87 (P-I)",
             SYNTHESIS_FOLDER,
-            {**base, "runs": 2 if q else ctx.runs},
+            {**base, "runs": 2 if q else ctx.runs, "objective": {"gci": 1.0}},
             _synthesis,
         ),
         Stage(
@@ -333,6 +333,7 @@ def _task(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
 
 
 def _synthesis(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
+    from reachwise.io.robot_file import load_robot
     from reachwise.io.synthesis_out import summary, write_synthesis
     from reachwise.io.task_file import save_task
     from reachwise.report.synthesis import save_synthesis_figures, write_synthesis_report
@@ -346,7 +347,12 @@ def _synthesis(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
         def on_run(r: Any) -> None:
             bar.update(job, advance=1, description=f"seed {r.seed}: {r.n_reached}/{len(task)}")
 
-        result = synthesize(task, "sb60", runs=runs, seed=ctx.seed, on_run=on_run)
+        # reach first, then the conditioning objective (GCI, P-II Eq. 38) in the null
+        # space of the task, every pose kept reached
+        result = synthesize(
+            task, load_robot("sb60"), runs=runs, seed=ctx.seed, on_run=on_run,
+            objective=p["objective"],
+        )  # fmt: skip
     write_synthesis(result, folder)
     pngs = save_synthesis_figures(result, folder)
     save_task(task, folder / "task.yaml")
@@ -366,12 +372,17 @@ def _synthesis(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
         "kci_initial": b["kci_initial"],
         "table3": d["table3"],
         "table4": d["table4"],
+        "objective": d["objective"],
+        "gci_reach_only": b.get("reach_only", {}).get("gci"),
+        "kci_reach_only": b.get("reach_only", {}).get("kci"),
+        "bound_hits": d["bound_hits"],
     }
     lines = (
         f"{d['task_points']} points, {d['unknowns']} unknowns: {d['runs_reaching_all']}/"
         f"{d['runs']} runs reach every point inside the tunnel; best (seed "
         f"{d['best_seed']}): {b['reached']}/{d['task_points']}, GCI {b['gci_initial']:.3f} "
         f"→ {b['gci']:.3f}, KCI {b['kci_initial']:.3f} → {b['kci']:.3f}",
+        *_objective_lines(d),
         f"report: {report}",
     )
     return StageOutput(
@@ -382,7 +393,24 @@ def _synthesis(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
     )
 
 
+def _objective_lines(d: dict[str, Any]) -> list[str]:
+    """The conditioning objective's effect and the bound flags, for the console."""
+    b = d["best"]
+    out = []
+    if "reach_only" in b:
+        r, v = b["reach_only"], b["objective_values"]
+        out.append(
+            f"objective gci: reach-only → improved GCI {r['gci']:.4f} → {v['gci']:.4f}, "
+            f"KCI {r['kci']:.4f} → {v['kci']:.4f}, every point still reached"
+        )
+    hits = d["bound_hits"]
+    if hits:
+        out.append("bounds hit: " + ", ".join(f"{h['parameter']} ({h['side']})" for h in hits))
+    return out
+
+
 def _topology(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
+    from reachwise.io.robot_file import load_robot
     from reachwise.io.sweep_store import SweepStore
     from reachwise.report.ranking import write_report
     from reachwise.report.topology import write_topology_report
@@ -390,7 +418,7 @@ def _topology(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
     from reachwise.synthesis.topology import builtin_set
 
     task = ctx.task()
-    topos = builtin_set("p2")
+    topos = builtin_set("p2", load_robot)
     if ctx.quick:
         topos = [t for t in topos if t.name in ("p2-man1", "p2-man3")]
     cfg = SweepConfig(subset=p["subset"], top=p["top"], runs=p["runs"], seed=ctx.seed)

@@ -179,6 +179,9 @@ def _print(data: dict, console: Console) -> None:  # type: ignore[type-arg]
         n_reached = sum(g["reached_at"] is not None for g in s["goals"])
         md = s["min_distance"]
         md_s = f"{md * 100:.1f} cm" if md is not None else "n/a"
+        if "min_true_distance" in s:  # objects only sensors see: their true surfaces
+            tmd = s["min_true_distance"]
+            md_s += f" (sensed); true {tmd * 100:.1f} cm" if tmd is not None else ""
         coll = s["first_collision"]
         coll_s = (
             f"collides at {coll:.2f} s ({s['first_collision_pair']})"

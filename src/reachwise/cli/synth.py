@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import typer
 from rich.console import Console
@@ -25,25 +26,60 @@ def synth(
         True, "--tunnel/--no-tunnel", help="Keep links inside the task's tunnel envelope."
     ),
     figures: bool = typer.Option(True, "--figures/--no-figures", help="Write PNG figures."),
+    objective: str | None = typer.Option(
+        None,
+        "--objective",
+        help="After reach, improve the design: weighted objectives, e.g. gci:1,size:0.2 "
+        "(gci, kci, size, limits, bounds). Default: the robot file's design.objective.",
+    ),
+    pareto: str | None = typer.Option(
+        None,
+        "--pareto",
+        help="Two objectives, e.g. gci,size: sweep their weights from the "
+        "best reach-only design and keep the non-dominated designs (pareto/).",
+    ),
+    points: int = typer.Option(8, "--points", min=2, help="Weightings of the --pareto sweep."),
+    min_length: float | None = typer.Option(
+        None,
+        "--min-length",
+        min=0.0,
+        help="Every free a, d at least this long (m); overrides design.min_length.",
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print the summary as JSON."),
     tip: str | None = TIP,
     package_dir: list[Path] = PACKAGE_DIRS,
     lenient: bool = LENIENT,
 ) -> None:
-    """Find design parameters, base frame and joints reaching every task pose (P-I).
+    """Find design parameters, base frame and joints reaching every task pose (P-I),
+    then, with --objective, the best reaching design (or a Pareto front, --pareto).
 
     Ctrl-C stops after the current run and writes the runs finished so far.
     """
+    from dataclasses import replace
+
     from reachwise.errors import check_choice
     from reachwise.io.synthesis_out import summary, write_synthesis
     from reachwise.io.task_file import load_task
     from reachwise.report.synthesis import save_synthesis_figures, write_synthesis_report
+    from reachwise.synthesis.objectives import check_objective, parse_objective
     from reachwise.synthesis.problem import SynthesisProblem, locked_from_spec
     from reachwise.synthesis.synthesize import SOLVERS, RunResult, result_of, run_once
 
     solver_name = check_choice(solver, SOLVERS, source="--solver", kind="solver")
+    if pareto is not None and objective is not None:
+        raise typer.BadParameter("give --objective or --pareto, not both")
     t = load_task(task)
     template = load_with_options(robot, tip, package_dir, lenient)
+    if min_length is not None:
+        template = replace(template, design=replace(template.design, min_length=min_length))
+    weights = (
+        check_objective(template.design.objective, robot)
+        if objective is None
+        else parse_objective(objective)
+    )
+    names = _pareto_names(pareto) if pareto is not None else None
+    if names is not None:
+        weights = {}  # the sweep starts from the reach-only design
     workspace = t.envelope if tunnel else None
     problem = SynthesisProblem(template, t, locked_from_spec(template, lock or None))
     console = Console(stderr=True)
@@ -56,7 +92,7 @@ def synth(
         job = bar.add_task("", total=runs)
         try:
             for i in range(runs):
-                r = run_once(problem, seed + i, solver_name, workspace=workspace)
+                r = run_once(problem, seed + i, solver_name, workspace=workspace, objective=weights)
                 done.append(r)
                 bar.update(job, advance=1, description=f"run {i}: {r.n_reached}/{problem.K}")
         except KeyboardInterrupt:
@@ -64,11 +100,19 @@ def synth(
     if not done:
         console.print("interrupted before the first run finished: nothing written")
         raise typer.Exit(130)
-    result = result_of(problem, done, solver_name)
+    result = result_of(problem, done, solver_name, weights)
     folder = write_synthesis(result, out)
     pngs = save_synthesis_figures(result, folder) if figures else False
-    report = write_synthesis_report(result, folder, pngs)
+    extra = []
+    front = None
+    if names is not None and not interrupted:
+        front, section = _pareto(result, names, points, workspace, folder, figures, json_out)
+        if section is not None:
+            extra.append(section)
+    report = write_synthesis_report(result, folder, pngs, extra)
     data = summary(result)
+    if front is not None:
+        data["pareto"] = front
     data["interrupted"] = interrupted
     data["out"] = str(folder)
     data["report"] = str(report)
@@ -80,8 +124,49 @@ def synth(
         raise typer.Exit(130)
 
 
+def _pareto_names(text: str) -> tuple[str, str]:
+    from reachwise.synthesis.objectives import OBJECTIVES
+
+    names = tuple(n.strip() for n in text.split(",") if n.strip())
+    if len(names) != 2 or names[0] == names[1]:
+        raise typer.BadParameter("two different objectives, e.g. gci,size", param_hint="--pareto")
+    for n in names:
+        if n not in OBJECTIVES:
+            raise typer.BadParameter(
+                f"{n!r}: one of {', '.join(OBJECTIVES)}", param_hint="--pareto"
+            )
+    return names[0], names[1]
+
+
+def _pareto(
+    result: Any, names: tuple[str, str], points: int, workspace: Any, folder: Path,
+    figures: bool, quiet: bool,
+) -> tuple[dict[str, Any] | None, Any]:  # fmt: skip
+    """The Pareto sweep from the best run (if it reaches every pose): files in
+    ``folder/pareto/``, the report section, and the data for the summary."""
+    from reachwise.io.pareto_out import write_pareto
+    from reachwise.report.design import pareto_figure, pareto_section
+    from reachwise.report.png import save_png
+    from reachwise.synthesis.pareto import pareto_sweep
+
+    best = result.best
+    if not best.reached.all():
+        Console(stderr=True).print("no run reaches every pose: no Pareto sweep")
+        return None, None
+    prob = result.problem
+    if not quiet:
+        Console(stderr=True).print(f"Pareto sweep {names[0]}/{names[1]}: {points} weightings")
+    front = pareto_sweep(prob, prob.pack(best.design, best.q), names, points, workspace)
+    data = write_pareto(front, folder / "pareto")
+    fig = pareto_figure(front) if figures else None
+    if fig is not None:
+        save_png(fig, folder / "pareto" / "front.png", dpi=110)
+    return data, pareto_section(front, data, fig)
+
+
 def _print(result: object, data: dict) -> None:  # type: ignore[type-arg]
     from reachwise.io.synthesis_out import design_rows
+    from reachwise.report.design import SIDE, bound_flag
 
     console = Console()
     b = data["best"]
@@ -91,11 +176,36 @@ def _print(result: object, data: dict) -> None:  # type: ignore[type-arg]
         f"{b['reached']} reached, e_obj {b['e_obj']:.3g}, GCI {b['gci_initial']:.3f} → "
         f"{b['gci']:.3f}, KCI {b['kci_initial']:.3f} → {b['kci']:.3f}"
     )
+    if "reach_only" in b:
+        ro, ov = b["reach_only"], b["objective_values"]
+        console.print(
+            "objective " + ", ".join(f"{k}:{v:g}" for k, v in data["objective"].items())
+            + ": reach-only → improved design: "
+            + ", ".join(f"{n} {ro[n]:.4g} → {ov[n]:.4g}" for n in ("gci", "kci", "size",
+                                                                    "limits", "bounds"))
+        )  # fmt: skip
+    hits = data["bound_hits"]
+    if hits:
+        console.print(
+            f"[yellow]bounds hit ({len(hits)}): "
+            + ", ".join(f"{h['parameter']} {SIDE[h['side']]}" for h in hits)
+        )
     t = Table(title="normalized design parameters (P-I Table 3)")
-    for c in ("parameter", "initial", "optimized", "changed %"):
+    for c in ("parameter", "initial", "optimized", "changed %", "bound flag"):
         t.add_column(c, justify="right")
     for row in design_rows(result):  # type: ignore[arg-type]
-        t.add_row(*row)
+        t.add_row(*row, bound_flag(hits, row[0]) or "–")
     console.print(t)
+    if "pareto" in data:
+        f = data["pareto"]
+        a, bb = f["objectives"]
+        console.print(
+            f"Pareto front {a}/{bb}: {f['front_size']} non-dominated of {len(f['points'])} "
+            "designs, each reaching every pose (pareto/: front.csv, point-K/design.yaml|urdf)"
+        )
+        for r in f["points"]:
+            if r["front"]:
+                console.print(f"  #{r['index']}: {a} {r['values'][a]:.4g}, {bb} "
+                              f"{r['values'][bb]:.4g}  {r['design_yaml']}")  # fmt: skip
     console.print(f"wrote {data['out']}/ (design.yaml, design.urdf, summary.json, points.csv)")
     console.print(f"report: {data['report']}")

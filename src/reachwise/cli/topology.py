@@ -48,7 +48,15 @@ def topology(
     runs: int = typer.Option(3, "--runs", min=1, help="Multi-start runs per topology."),
     seed: int = typer.Option(0, "--seed", help="Seed of run 0; run i uses seed+i."),
     rank_key: str = typer.Option(
-        "mean", "--rank", help="mean, gci, kci, manipulability, length or prismatic."
+        "mean",
+        "--rank",
+        help="mean, gci, kci, manipulability, length, prismatic, or an objective: size, "
+        "limits, bounds.",
+    ),
+    objective: str | None = typer.Option(
+        None,
+        "--objective",
+        help="Improve every reaching run for weighted objectives, e.g. gci:1,size:0.2.",
     ),
     workers: int | None = typer.Option(
         None, "--workers", min=0, help="Worker processes (default all cores; 0 = in process)."
@@ -73,6 +81,7 @@ def topology(
     what is done. Ctrl-C stops submitting, waits for the running runs, stores them and
     exits (130); a killed sweep loses nothing it stored.
     """
+    from reachwise.io.robot_file import load_robot
     from reachwise.io.sweep_store import SweepStore
     from reachwise.io.task_file import load_task
     from reachwise.report.ranking import write_report
@@ -102,7 +111,7 @@ def topology(
     )
     topos: list[Topology]
     if set_name is not None:
-        topos = builtin_set(set_name)
+        topos = builtin_set(set_name, load_robot)
     elif rules is not None:
         r = parse_rules(rules)
         if "rotations=" not in rules:  # rule 4 from the task: 6-D needs 3 axes, 5-D 2
@@ -116,9 +125,11 @@ def topology(
     if list_only:
         _list(topos, json_out)
         return
+    from reachwise.synthesis.objectives import parse_objective
+
     cfg = SweepConfig(
         subset=subset, top=top, runs=runs, seed=seed, rank_key=key, workspace=tunnel,
-        batch_size=batch,
+        batch_size=batch, objective=parse_objective(objective) if objective else None,
     )  # fmt: skip
     console = Console(stderr=True)
     interrupted = False

@@ -32,10 +32,12 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from reachwise.control.tick.types import AvoidanceRows
 from reachwise.distance.scene import OnLink, SceneLike, SceneResult
 from reachwise.errors import InputError
 from reachwise.kinematics.robot import Robot
@@ -74,6 +76,8 @@ class AvoidancePoints:
     valid: bool = True
     reason: str = ""
     obstacle_velocity: NDArray[np.float64] | None = None
+    #: The compiled tick's input group, as ``tuple(AvoidanceRows(...))`` (built here).
+    kernel_rows: tuple[NDArray[Any], ...] = field(init=False, repr=False, compare=False)
 
     @classmethod
     def empty(cls, sequence: int, stamp: float, computed: float | None = None) -> AvoidancePoints:
@@ -90,6 +94,7 @@ class AvoidancePoints:
         if self.obstacle_velocity is None:
             object.__setattr__(self, "obstacle_velocity", np.zeros((m, 3)))
         shapes = {
+            "distance": (m,),
             "a_link": (m,),
             "a_point": (m, 3),
             "b_link": (m,),
@@ -113,6 +118,19 @@ class AvoidancePoints:
         for name in ("a_point", "b_point", "normal", "distance", "margin", "obstacle_velocity"):
             v = np.ascontiguousarray(getattr(self, name), np.float64)
             object.__setattr__(self, name, v)
+        velocity: NDArray[np.float64] = self.obstacle_velocity  # type: ignore[assignment]
+        rows = AvoidanceRows(
+            a_link=self.a_link,
+            a_point=self.a_point,
+            b_link=self.b_link,
+            b_point=self.b_point,
+            normal=self.normal,
+            obstacle_velocity=velocity,
+            distance=self.distance,
+            margin=self.margin,
+            task_space=self.task_space,
+        )
+        object.__setattr__(self, "kernel_rows", tuple(rows))
 
     def __len__(self) -> int:
         return int(self.distance.shape[0])

@@ -73,8 +73,8 @@ One tick, ``Controller.step(q, goal, distances, now) -> (q̇, status)``:
    ``protective_stop`` (with the reason) or ``stalled`` (no progress toward the goal
    for ``stall_time`` — the local minimum of thesis Fig. 3.3, reported, not hidden).
 
-The arithmetic of one tick is one compiled kernel (``_kernel``), so a tick costs tens
-of microseconds.
+The arithmetic of one tick is one compiled kernel (``reachwise.control.tick``) on typed
+input groups, built and validated once here, so a tick costs tens of microseconds.
 """
 
 from __future__ import annotations
@@ -86,10 +86,21 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-import reachwise.control._kernel as K
 from reachwise.control.avoidance import AvoidancePoints
 from reachwise.control.safety import DataCheck, SafetyConfig, check_data, stop_ramp
+from reachwise.control.tick.step import control_step
+from reachwise.control.tick.types import (
+    MEM_AGE,
+    MEM_COLS,
+    AvoidanceSettings,
+    Gains,
+    JointLimits,
+    Target,
+    TickDiagnostics,
+    check_static,
+)
 from reachwise.errors import InputError
+from reachwise.kinematics.dls import EPSILON_CONTROL, LAMBDA_MAX
 from reachwise.kinematics.robot import Robot
 from reachwise.kinematics.transforms import check_pose
 
@@ -104,7 +115,7 @@ class ControllerConfig:
 
     ``kv`` (1/s) and ``kw`` (1/s): position and orientation gains (Eq. 3.8, 3.10);
     ``v_max`` (m/s), ``w_max`` (rad/s): task velocity bounds (Eq. 3.12–3.13);
-    ``lambda_max``, ``epsilon``: damping schedule (P-I Eq. 14);
+    ``lambda_max``, ``epsilon``: damping schedule (P-I Eq. 14, ``reachwise.kinematics.dls``);
     ``mu`` (m⁴/s): Khatib coefficient (Eq. 3.17), ``v_rep_max`` (m/s) caps a repulsive
     speed; ``k_limit`` (1/s): position-limit velocity damper, ``limit_zone`` (rad or
     m): where the limit weighting starts; ``guard``, ``stop_distance`` ``ρ_s`` (m) and
@@ -121,8 +132,8 @@ class ControllerConfig:
     kw: float = 1.0
     v_max: float = 0.5
     w_max: float = 0.3
-    lambda_max: float = 0.05
-    epsilon: float = 0.05
+    lambda_max: float = LAMBDA_MAX
+    epsilon: float = EPSILON_CONTROL
     mu: float = 2e-4
     v_rep_max: float = 1.0
     k_limit: float = 2.0
@@ -232,20 +243,47 @@ class Controller:
         locked_joints: tuple[int, ...] = (),
     ) -> None:
         self.robot = robot
-        self.config = config or ControllerConfig()
+        self.config = cfg = config or ControllerConfig()
         usable = np.array(robot.actuated, dtype=np.bool_)
         for k in locked_joints:
             if not 0 <= k < robot.n:
                 raise InputError(robot.name, "locked_joints", f"no joint variable {k}")
             usable[k] = False
-        self._usable = usable
-        self._passive = np.array(~np.asarray(robot.actuated), dtype=np.bool_)
-        self._zone = np.full(robot.n, self.config.limit_zone)
-        self._c = robot.arrays
-        self._mem = np.zeros((0, K.MEM_COLS))
+        limits = JointLimits(
+            lower=robot.lower,
+            upper=robot.upper,
+            vmax=robot.vmax,
+            usable=usable,
+            passive=np.array(~np.asarray(robot.actuated), dtype=np.bool_),
+            zone=np.full(robot.n, float(cfg.limit_zone)),
+        )
+        gains = Gains(
+            kv=float(cfg.kv),
+            kw=float(cfg.kw),
+            v_max=float(cfg.v_max),
+            w_max=float(cfg.w_max),
+            lambda_max=float(cfg.lambda_max),
+            epsilon=float(cfg.epsilon),
+            mu=float(cfg.mu),
+            v_rep_max=float(cfg.v_rep_max),
+            k_limit=float(cfg.k_limit),
+        )
+        settings = AvoidanceSettings(
+            avoidance=bool(cfg.avoidance),
+            guard=bool(cfg.guard),
+            stop_distance=float(cfg.stop_distance),
+            approach_speed=float(cfg.approach_speed),
+            reaction_time=float(cfg.reaction_time),
+            velocity_aware=bool(cfg.velocity_aware),
+        )
+        check_static(robot.arrays, limits, gains, settings)
+        # the groups every tick passes, as the compiled entry takes them (plain tuples)
+        self._groups = (tuple(robot.arrays), tuple(limits), tuple(gains), tuple(settings))
+        self._depth = cfg.guard_memory if cfg.avoidance else 0
+        self._mem = np.zeros((0, MEM_COLS))
+        self._target: tuple[Goal | None, tuple[object, ...]] = (None, ())
         self.locked = False
         self.reset()
-        self._warm_up()
 
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
@@ -260,32 +298,18 @@ class Controller:
         self._forget()
 
     def _forget(self) -> None:
-        """Drop the guard's remembered collision lines (rows of ``K.MEM_COLS`` columns,
-        see ``_kernel``; age 0 marks an empty row)."""
-        self._mem[:, K.MEM_AGE] = 0.0
+        """Drop the guard's remembered collision lines (rows of ``MEM_COLS`` columns,
+        see ``tick.types``; age 0 marks an empty row)."""
+        self._mem[:, MEM_AGE] = 0.0
 
     def _memory_for(self, rows: int) -> NDArray[np.float64]:
         """The memory, grown to hold ``guard_memory`` ticks of ``rows`` lines each."""
         need = self.config.guard_memory * rows
         if self._mem.shape[0] < need:
-            grown = np.zeros((max(need, 2 * self._mem.shape[0]), K.MEM_COLS))
+            grown = np.zeros((max(need, 2 * self._mem.shape[0]), MEM_COLS))
             grown[: self._mem.shape[0]] = self._mem
             self._mem = grown
         return self._mem
-
-    def _warm_up(self) -> None:
-        q = np.clip(np.zeros(self.robot.n), self.robot.lower, self.robot.upper)
-        T = self.robot.fk(q)
-        for m in (0, 1):
-            pts = AvoidancePoints(
-                0, 0.0, 0.0,
-                np.full(m, len(self.robot.link_names) - 1, np.int64), np.zeros((m, 3)),
-                np.full(m, -1, np.int64), np.zeros((m, 3)), np.tile([0.0, 0.0, 1.0], (m, 1)),
-                np.full(m, 0.1), np.full(m, 0.2), np.zeros(m, np.bool_),
-            )  # fmt: skip
-            for dims in (3, 6):
-                self._kernel(q, Goal(T, dims), pts, True)
-        self._forget()  # the warm-up ticks remembered their made-up lines
 
     # ------------------------------------------------------------------ tick
     def step(
@@ -323,7 +347,7 @@ class Controller:
                 return self._stop(chk.reason)
             self._last_seq = distances.sequence
         pts = distances if (cfg.avoidance and distances is not None) else _NO_POINTS
-        qdot, diag = self._kernel(qq, goal, pts, cfg.avoidance)
+        qdot, diag = self._tick(qq, goal, pts)
         self._faults = 0
         self._last_cmd = qdot.copy()
         ptol = (
@@ -334,8 +358,8 @@ class Controller:
             if goal.orientation_tolerance is None
             else goal.orientation_tolerance
         )
-        pe = float(diag[0])
-        oe = float(diag[1]) if goal.dims == 6 else 0.0
+        pe = diag.position_error
+        oe = diag.orientation_error if goal.dims == 6 else 0.0
         state: State = "moving"
         reason = ""
         if pe <= ptol and oe <= otol:
@@ -353,9 +377,18 @@ class Controller:
                     f"(error {err:.3f}, best {self._best:.3f}); a local minimum"
                 )
         status = ControlStatus(
-            state, reason, pe, oe, float(diag[4]), float(diag[5]), float(diag[7]),
-            float(diag[2]), float(diag[3]), int(diag[6]), float(diag[8]),
-        )  # fmt: skip
+            state,
+            reason,
+            position_error=pe,
+            orientation_error=oe,
+            task_scale=diag.task_scale,
+            limit_scale=diag.limit_scale,
+            guard_scale=diag.guard_scale,
+            sigma_min=diag.sigma_min,
+            damping=diag.damping,
+            active_points=diag.active_points,
+            min_distance=diag.min_distance,
+        )
         return qdot, status
 
     def _stop(self, reason: str) -> tuple[NDArray[np.float64], ControlStatus]:
@@ -365,26 +398,21 @@ class Controller:
         cmd = stop_ramp(self._last_cmd, st - self._faults, st)
         return cmd, ControlStatus("protective_stop", reason)
 
-    def _kernel(
-        self, q: NDArray[np.float64], goal: Goal, p: AvoidancePoints, avoid: bool
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        cfg = self.config
-        c = self._c
-        r = self.robot
-        qdot = np.empty(r.n)
-        diag = np.empty(K.DIAG)
-        K.control_step(
-            c.kind, c.qidx, c.dh, c.classic, c.base, c.tool, q, goal.pose, goal.dims == 6,
-            cfg.kv, cfg.kw, cfg.v_max, cfg.w_max, cfg.lambda_max, cfg.epsilon,
-            r.lower, r.upper, r.vmax, self._usable, self._passive, cfg.k_limit, self._zone,
-            p.a_link, p.a_point, p.b_link, p.b_point, p.normal, p.obstacle_velocity,
-            p.distance, p.margin,
-            np.full(len(p), cfg.mu), cfg.v_rep_max, p.task_space, avoid,
-            cfg.guard and avoid, cfg.stop_distance, cfg.approach_speed, cfg.reaction_time,
-            cfg.velocity_aware, self._memory_for(len(p)), cfg.guard_memory if avoid else 0,
-            qdot, diag,
-        )  # fmt: skip
-        return qdot, diag
+    def _tick(
+        self, q: NDArray[np.float64], goal: Goal, p: AvoidancePoints
+    ) -> tuple[NDArray[np.float64], TickDiagnostics]:
+        """Run the compiled tick on this controller's groups, the goal's and ``p``'s."""
+        if self._target[0] is not goal:
+            self._target = (goal, tuple(Target(pose=goal.pose, six=goal.dims == 6)))
+        memory = (self._memory_for(len(p)), self._depth)
+        try:
+            return control_step(*self._groups, self._target[1], p.kernel_rows, memory, q)  # type: ignore[no-any-return]
+        except IndexError as exc:  # raised by the kernel before it computes anything
+            field = "b_link" if "b_link" in str(exc) else "a_link"
+            last = len(self.robot.link_names) - 1
+            raise InputError(
+                "avoidance points", field, f"frame index outside {self.robot.name}'s 0 … {last}"
+            ) from None
 
 
 _NO_POINTS = AvoidancePoints.empty(0, 0.0)

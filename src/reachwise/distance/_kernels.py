@@ -1,6 +1,7 @@
 """numba kernels of the distance engine: tree build, dual-tree search, range and pair scans.
 
-Every kernel is compiled eagerly with an explicit signature (``cache=True``), so that
+Every kernel is compiled eagerly with an explicit signature (``cache=True``; the one JIT
+strategy of the package, see ``reachwise.kinematics._jit``), so that
 importing this module compiles them once (or loads them from numba's on-disk cache) and
 a query never compiles: a call with other argument types raises ``TypeError`` instead.
 None uses ``parallel=True``, BLAS or threads; one query runs on one core.

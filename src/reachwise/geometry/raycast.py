@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     #: A mesh: a ``trimesh.Trimesh`` or a ``(vertices (V, 3), faces (F, 3))`` pair.
     MeshLike: TypeAlias = trimesh.Trimesh | tuple[ArrayLike, ArrayLike]
 
-__all__ = ["Engine", "cast_rays"]
+__all__ = ["Engine", "cast_rays", "first_hits"]
 
 #: trimesh's ray backend: ``"embree"``, ``"triangle"``, or ``"auto"`` (Embree if installed).
 Engine = Literal["auto", "embree", "triangle"]
@@ -88,6 +88,19 @@ def cast_rays(
     only names the first triangle hit; the distance is recomputed in float64 from that
     triangle's plane. Rays that miss have ``hit`` False and distance ``inf``.
     """
+    hit, dist, _ = first_hits(meshes, origins, directions, engine=engine)
+    return hit, dist
+
+
+def first_hits(
+    meshes: MeshLike | Sequence[MeshLike],
+    origins: ArrayLike,
+    directions: ArrayLike,
+    *,
+    engine: Engine = "auto",
+) -> tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.int64]]:
+    """:func:`cast_rays`, and which mesh each ray hit first: ``(hit, distance, mesh)``
+    with ``mesh`` the index into ``meshes`` (``-1`` for a miss)."""
     import trimesh
     from trimesh.ray import ray_triangle
 
@@ -124,6 +137,8 @@ def cast_rays(
         raise MissingDependency("rtree", "", f"trimesh's {engine!r} ray backend") from None
     dist = np.full(len(o), np.inf)
     hit = tri >= 0
+    face_ends = np.cumsum([len(f) for _, f in parts])
+    which = np.where(hit, np.searchsorted(face_ends, tri, side="right"), -1)
     if hit.any():
         v = np.asarray(mesh.vertices)[np.asarray(mesh.faces)[tri[hit]]]
         n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
@@ -135,4 +150,5 @@ def cast_rays(
         idx = np.flatnonzero(hit)
         dist[idx[good]] = t[good]
         hit[idx[~good]] = False
-    return hit, dist
+        which[idx[~good]] = -1
+    return hit, dist, which.astype(np.int64)

@@ -115,6 +115,20 @@ class DesignModel(BaseModel):
     model_config = _STRICT
     joints: dict[int, dict[Literal["a", "alpha", "d", "theta"], Pair]] = {}
     base: dict[Literal["x", "y", "z", "roll", "pitch", "yaw"], Pair] = {}
+    min_length: float = Field(default=0.0, ge=0.0)
+    margin: float = Field(default=0.05, gt=0.0, lt=0.5)
+    objective: dict[str, float] = {}
+
+    @model_validator(mode="after")
+    def _objective_names(self) -> DesignModel:
+        from reachwise.synthesis.objectives import OBJECTIVES
+
+        for name, w in self.objective.items():
+            if name not in OBJECTIVES:
+                raise ValueError(f"unknown objective {name!r}; valid: {', '.join(OBJECTIVES)}")
+            if w < 0:
+                raise ValueError(f"objective {name!r}: weight must be >= 0, got {w}")
+        return self
 
 
 class RobotModel(BaseModel):
@@ -147,6 +161,9 @@ def robot_from_dict(data: Any, source: str = "robot") -> Robot:
         design = DesignSpace(
             joints={j: {str(p): b for p, b in ps.items()} for j, ps in m.design.joints.items()},
             base={str(p): b for p, b in m.design.base.items()},
+            min_length=m.design.min_length,
+            margin=m.design.margin,
+            objective=dict(m.design.objective),
         )
         return Robot(
             name=m.name,
@@ -207,6 +224,12 @@ def robot_to_dict(robot: Robot) -> dict[str, Any]:
             },
             "base": {p: list(b) for p, b in robot.design.base.items()},
         }
+        if robot.design.min_length:
+            out["design"]["min_length"] = robot.design.min_length
+        if robot.design.margin != 0.05:
+            out["design"]["margin"] = robot.design.margin
+        if robot.design.objective:
+            out["design"]["objective"] = dict(robot.design.objective)
     return out
 
 

@@ -1,4 +1,4 @@
-"""The SQLite results store of topology sweeps (``synthesis.sweep``; mission item 7).
+"""The SQLite results store of topology sweeps (``synthesis.sweep.store.ResultStore``; item 7).
 
 One database holds any number of sweeps, each identified by its fingerprint
 (``sweep.sweep_fingerprint``). Tables:
@@ -9,7 +9,8 @@ One database holds any number of sweeps, each identified by its fingerprint
   (a resumed sweep whose template under a name changed is refused);
 * ``items`` — one row per finished run ``(sweep, topology, round, run)`` (the primary
   key: a run can never be stored twice): seed, reach, objective, iterations, GCI, KCI,
-  mean, manipulability, link length, prismatic joints, design (JSON), per-point status
+  mean, manipulability, link length, prismatic joints, the size/limits/bounds objectives
+  (schema 2; a schema-1 database is upgraded in place), design (JSON), per-point status
   (JSON), the joint values of every task point (float64 BLOB), wall time, worker,
   versions, finish time, and the error text of a run that raised.
 
@@ -34,9 +35,12 @@ import numpy as np
 
 from reachwise.errors import InputError
 from reachwise.synthesis.rank import Measures
-from reachwise.synthesis.sweep import ItemResult
+from reachwise.synthesis.sweep.items import ItemResult
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+# v2 adds the design-objective measures (``rank.Measures.size/limits/bounds``); a v1
+# database is upgraded in place (the new columns read NULL, i.e. NaN, for old rows).
+_V2_COLUMNS = ("size", "limits", "bounds")
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (
   key TEXT PRIMARY KEY,
@@ -74,6 +78,9 @@ CREATE TABLE IF NOT EXISTS items (
   manipulability REAL,
   length REAL,
   prismatic INTEGER,
+  size REAL,
+  limits REAL,
+  bounds REAL,
   max_position_error REAL,
   max_orientation_error REAL,
   design_names TEXT NOT NULL,
@@ -95,9 +102,9 @@ CREATE TABLE IF NOT EXISTS items (
 _COLUMNS = (
     "sweep_id", "topology", "round", "run", "seed", "n_points", "n_reached", "feasible",
     "e_obj", "iterations", "converged", "gci", "kci", "mean", "manipulability", "length",
-    "prismatic", "max_position_error", "max_orientation_error", "design_names", "design",
-    "status", "q", "q_rows", "q_cols", "error", "wall_s", "worker", "versions",
-    "finished_at",
+    "prismatic", "size", "limits", "bounds", "max_position_error", "max_orientation_error",
+    "design_names", "design", "status", "q", "q_rows", "q_cols", "error", "wall_s", "worker",
+    "versions", "finished_at",
 )  # fmt: skip
 
 
@@ -134,6 +141,11 @@ class SweepStore:
                 self._db.execute(
                     "INSERT INTO meta(key, value) VALUES ('schema', ?)", (str(SCHEMA_VERSION),)
                 )
+            elif int(row[0]) == 1:
+                for c in _V2_COLUMNS:
+                    self._db.execute(f"ALTER TABLE items ADD COLUMN {c} REAL")
+                self._db.execute("UPDATE meta SET value = ? WHERE key = 'schema'",
+                                 (str(SCHEMA_VERSION),))  # fmt: skip
             elif int(row[0]) != SCHEMA_VERSION:
                 raise InputError(self.path, "schema", f"version {row[0]}, expected "
                                  f"{SCHEMA_VERSION}")  # fmt: skip
@@ -235,6 +247,8 @@ class SweepStore:
             None if m is None else m.gci, None if m is None else m.kci,
             None if m is None else m.mean, None if m is None else m.manipulability,
             None if m is None else m.length, None if m is None else int(m.prismatic),
+            None if m is None else _real(m.size), None if m is None else _real(m.limits),
+            None if m is None else _real(m.bounds),
             _real(result.max_position_error), _real(result.max_orientation_error),
             json.dumps(list(result.design_names)), json.dumps(list(result.design)),
             json.dumps(list(result.status)), q.tobytes(), int(q.shape[0]), int(q.shape[1]),
@@ -267,7 +281,8 @@ class SweepStore:
             measures = Measures(
                 gci=float(r["gci"]), kci=float(r["kci"]), mean=float(r["mean"]),
                 manipulability=float(r["manipulability"]), length=float(r["length"]),
-                prismatic=int(r["prismatic"]),
+                prismatic=int(r["prismatic"]), size=_float(r["size"]),
+                limits=_float(r["limits"]), bounds=_float(r["bounds"]),
             )  # fmt: skip
         q = np.frombuffer(r["q"], dtype="<f8").reshape(r["q_rows"], r["q_cols"]).copy()
         return ItemResult(

@@ -57,7 +57,10 @@ def summary(result: SynthesisResult) -> dict[str, Any]:
             "gci": gci(best.lci_final),
             "kci": kci(best.lci_final),
             "status_counts": {s: best.status.count(s) for s in STATUSES},
+            **_design_objectives(result),
         },
+        "objective": dict(result.objective),
+        "bound_hits": [h.as_dict() for h in result.bound_hits()],
         "table3": result.table3(),
         "table4": result.table4(),
         "per_run": [
@@ -71,6 +74,22 @@ def summary(result: SynthesisResult) -> dict[str, Any]:
             for r in runs
         ],
     }
+
+
+def _design_objectives(result: SynthesisResult) -> dict[str, Any]:
+    """The best run's design objectives before (reach only) and after the improvement."""
+    best = result.best
+    if best.reach_design is None or best.lci_reach is None:
+        return {}
+    return {
+        "reach_only": {
+            "design": dict(zip(result.problem.design_names, map(float, best.reach_design),
+                               strict=True)),
+            **best.objective_start,
+        },
+        "objective_values": dict(best.objective_final),
+        "improve_iterations": best.improve_iterations,
+    }  # fmt: skip
 
 
 def write_synthesis(result: SynthesisResult, out: str | Path) -> Path:

@@ -1,160 +1,140 @@
-"""Compiled inner loop of the damped-least-squares inverse kinematics (see ``ik.py``)."""
+"""Compiled inner loop of the damped-least-squares inverse kinematics (see ``ik.py``),
+on typed groups: the ``Chain``, an ``IKTarget``, ``IKBounds`` and ``IKSettings``."""
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+from numpy.typing import NDArray
 
+from reachwise.kinematics._jit import RO_F8_1D, Field, group_type
 from reachwise.kinematics._kernels import frames, tool_jacobian
-
-
-@njit(cache=True)
-def rotvec_error(Rd, F, out):  # type: ignore[no-untyped-def]
-    """Rotation vector of ``Rd Rᵀ`` (R = rotation of the 4x4 ``F``) into ``out[0:3]``."""
-    E = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            E[i, j] = Rd[i, 0] * F[j, 0] + Rd[i, 1] * F[j, 1] + Rd[i, 2] * F[j, 2]
-    vx = 0.5 * (E[2, 1] - E[1, 2])
-    vy = 0.5 * (E[0, 2] - E[2, 0])
-    vz = 0.5 * (E[1, 0] - E[0, 1])
-    s = math.sqrt(vx * vx + vy * vy + vz * vz)
-    c = 0.5 * (E[0, 0] + E[1, 1] + E[2, 2] - 1.0)
-    phi = math.atan2(s, c)
-    if s > 1e-7:
-        f = phi / s
-        out[0] = f * vx
-        out[1] = f * vy
-        out[2] = f * vz
-    elif c > 0.0:
-        out[0] = vx
-        out[1] = vy
-        out[2] = vz
-    else:
-        # φ ≈ π: axis from the symmetric part, E ≈ 2 u uᵀ − I.
-        k = 0
-        for i in range(1, 3):
-            if E[i, i] > E[k, k]:
-                k = i
-        u = np.empty(3)
-        for i in range(3):
-            u[i] = 0.5 * (E[i, k] + E[k, i])
-        u[k] = math.sqrt(max(0.5 * (E[k, k] + 1.0), 0.0))
-        nrm = math.sqrt(u[0] ** 2 + u[1] ** 2 + u[2] ** 2)
-        for i in range(3):
-            out[i] = phi * u[i] / nrm
+from reachwise.kinematics.chain import CHAIN, Chain
+from reachwise.kinematics.dls import damped_solve
+from reachwise.kinematics.orientation import axis_error_into, rotation_error_into
 
 
 @njit(cache=True)
 def axis_rows(zd, F, Jw, e, J5, r0):  # type: ignore[no-untyped-def]
-    """5-D rows: angular error and Jacobian rows on the two directions normal to the
-    current tool axis z (rotation about z does not change the axis)."""
-    z = F[:3, 2]
-    cx = z[1] * zd[2] - z[2] * zd[1]
-    cy = z[2] * zd[0] - z[0] * zd[2]
-    cz = z[0] * zd[1] - z[1] * zd[0]
-    s = math.sqrt(cx * cx + cy * cy + cz * cz)
-    c = z[0] * zd[0] + z[1] * zd[1] + z[2] * zd[2]
-    phi = math.atan2(s, c)
-    if s > 1e-12:
-        ex = phi * cx / s
-        ey = phi * cy / s
-        ez = phi * cz / s
-    elif c < 0:
-        ex = math.pi * F[0, 0]
-        ey = math.pi * F[1, 0]
-        ez = math.pi * F[2, 0]
-    else:
-        ex = 0.0
-        ey = 0.0
-        ez = 0.0
-    # basis of the plane normal to z: the tool's own x and y axes
+    """5-D rows from ``r0`` on: the axis error (``orientation.axis_error_into``) and the
+    angular Jacobian rows on the two directions normal to the current tool axis z, the
+    tool's own x and y axes (rotation about z does not change the axis). Returns φ."""
+    ev = np.empty(3)
+    phi = axis_error_into(F, zd, ev)
     for b in range(2):
         ux = F[0, b]
         uy = F[1, b]
         uz = F[2, b]
-        e[r0 + b] = ux * ex + uy * ey + uz * ez
+        e[r0 + b] = ux * ev[0] + uy * ev[1] + uz * ev[2]
         for k in range(Jw.shape[1]):
             J5[r0 + b, k] = ux * Jw[3, k] + uy * Jw[4, k] + uz * Jw[5, k]
     return phi
 
 
 @njit(cache=True)
-def dls_step(J, e, w, lam_max, eps, znull, dq):  # type: ignore[no-untyped-def]
+def dls_step(J, e, w, epsilon, lambda_max, znull, dq):  # type: ignore[no-untyped-def]
     """Weighted damped least squares (P-II Eq. 25–28) with the σ_min damping of
-    P-I Eq. 14 and a null-space term (thesis Eq. 3.7):
+    P-I Eq. 14 and a null-space term (thesis Eq. 3.7), see ``reachwise.kinematics.dls``:
 
-        Φ = J W,   λ² = (1 − (σ_min/ε)²) λ_max² if σ_min < ε else 0,
-        Δq = W Φᵀ (Φ Φᵀ + λ² I)⁻¹ e + W (I − Φ⁺ Φ) W z.
+        Φ = J W,   Δq = W Φ̃⁺ e + W (I − Φ⁺ Φ) W z.
 
-    The null-space projector uses the exact (rank-truncated) pseudo-inverse ``Φ⁺`` so
-    the secondary motion never disturbs the task, even while the primary solution is
-    damped. Returns σ_min of Φ.
+    Returns σ_min of Φ.
     """
     r, n = J.shape
     Phi = np.empty((r, n))
     for i in range(r):
         for k in range(n):
             Phi[i, k] = J[i, k] * w[k]
-    # Gram matrix of the smaller side: σ_min² is its smallest eigenvalue.
-    wide = r <= n
-    G = Phi @ Phi.T if wide else Phi.T @ Phi
-    ev, V = np.linalg.eigh(G)
-    smin = math.sqrt(max(ev[0], 0.0))
-    lam2 = 0.0
-    if smin < eps:
-        lam2 = (1.0 - (smin / eps) ** 2) * lam_max * lam_max
-    m = ev.shape[0]
-    damped = np.empty(m)
-    exact = np.empty(m)
-    cut = 1e-12 * max(ev[m - 1], 1e-300)
-    for i in range(m):
-        damped[i] = 1.0 / max(ev[i] + lam2, 1e-300)
-        exact[i] = 1.0 / ev[i] if ev[i] > cut else 0.0
-    if wide:
-        x = Phi.T @ (V @ (damped * (V.T @ e)))
-    else:
-        x = V @ (damped * (V.T @ (Phi.T @ e)))
-    wz = w * znull
-    if wide:
-        nz = wz - Phi.T @ (V @ (exact * (V.T @ (Phi @ wz))))
-    else:
-        nz = wz - V @ ((exact * ev) * (V.T @ wz))
+    d = damped_solve(Phi, e, w * znull, epsilon, lambda_max)
     for k in range(n):
-        dq[k] = w[k] * (x[k] + nz[k])
-    return smin
+        dq[k] = w[k] * (d.step[k] + d.null_motion[k])
+    return d.sigma_min
+
+
+class IKTarget(NamedTuple):
+    """What one solve aims at: the tool ``pose`` (4, 4), the task ``rows`` (6 bools:
+    x y z rx ry rz, world frame) and ``axis_mode`` (the 5-D tool-axis error instead of
+    the rotation-vector rows)."""
+
+    pose: NDArray[np.float64]
+    rows: NDArray[np.bool_]
+    axis_mode: bool
+
+
+class IKBounds(NamedTuple):
+    """Per joint variable ``(n,)``: the limits ``lower``, ``upper`` (may be infinite)
+    and the step cap ``max_step`` of one iteration."""
+
+    lower: NDArray[np.float64]
+    upper: NDArray[np.float64]
+    max_step: NDArray[np.float64]
+
+
+class IKSettings(NamedTuple):
+    """Tolerances ``tol_position`` (m), ``tol_orientation`` (rad), ``max_iter``; the
+    damping schedule ``lambda_max``, ``epsilon`` (``reachwise.kinematics.dls``), faded
+    by ``min(1, error/err_ref)``; ``k_null`` the mid-range gain in the null space."""
+
+    tol_position: float
+    tol_orientation: float
+    max_iter: int
+    lambda_max: float
+    epsilon: float
+    k_null: float
+    err_ref: float
+
+
+class IKAttempt(NamedTuple):
+    """Outcome of one attempt: final ``q``, ``iterations``, ``position_error`` (m) and
+    ``orientation_error`` (rad) over the constrained rows."""
+
+    q: NDArray[np.float64]
+    iterations: int
+    position_error: float
+    orientation_error: float
+
+
+TARGET_SPEC = {
+    "pose": Field(np.float64, (4, 4)),
+    "rows": Field(np.bool_, (6,)),
+    "axis_mode": Field(bool),
+}
+BOUNDS_SPEC = {
+    "lower": Field(np.float64, ("n",)),
+    "upper": Field(np.float64, ("n",)),
+    "max_step": Field(np.float64, ("n",)),
+}
+SETTINGS_SPEC = {
+    "tol_position": Field(float),
+    "tol_orientation": Field(float),
+    "max_iter": Field(int),
+    "lambda_max": Field(float),
+    "epsilon": Field(float),
+    "k_null": Field(float),
+    "err_ref": Field(float),
+}
 
 
 @njit(cache=True)
-def ik_loop(  # type: ignore[no-untyped-def]
-    kind,
-    qidx,
-    dh,
-    classic,
-    base,
-    tool,
-    Td,
-    rows,
-    axis_mode,
-    q0,
-    lo,
-    hi,
-    max_step,
-    tol_p,
-    tol_o,
-    max_iter,
-    lam_max,
-    eps,
-    k_null,
-    err_ref,
-):
-    """Iterate DLS steps from ``q0``; returns (q, iterations, position err, orientation err).
-
-    ``rows`` (6 bools) selects the position rows and, unless ``axis_mode``, the
-    rotation-vector rows; ``axis_mode`` uses the 5-D tool-axis error instead.
-    """
+def _iterate(chain, target, bounds, settings, q0):  # type: ignore[no-untyped-def]
+    """The iteration of :func:`ik_loop` (below) on named groups."""
+    kind = chain.kind
+    qidx = chain.qidx
+    classic = chain.classic
+    Td = target.pose
+    rows = target.rows
+    axis_mode = target.axis_mode
+    lo = bounds.lower
+    hi = bounds.upper
+    max_step = bounds.max_step
+    tol_p = settings.tol_position
+    tol_o = settings.tol_orientation
+    lambda_max = settings.lambda_max
+    epsilon = settings.epsilon
+    k_null = settings.k_null
     N = kind.shape[0]
     n = q0.shape[0]
     F = np.empty((N + 2, 4, 4))
@@ -182,7 +162,7 @@ def ik_loop(  # type: ignore[no-untyped-def]
     best = 1e300
     stall = 0
     while True:
-        frames(kind, qidx, dh, classic, base, tool, q, F)
+        frames(kind, qidx, chain.dh, classic, chain.base, chain.tool, q, F)
         tool_jacobian(kind, qidx, classic, F, n, Jg)
         Tt = F[N + 1]
         row = 0
@@ -198,7 +178,7 @@ def ik_loop(  # type: ignore[no-untyped-def]
         if axis_mode:
             eo = axis_rows(zd, Tt, Jg, e, J, row)
         else:
-            rotvec_error(Rd, Tt, e6)
+            rotation_error_into(Tt, Rd, e6)
             eo2 = 0.0
             for i in range(3):
                 if rows[3 + i]:
@@ -207,7 +187,7 @@ def ik_loop(  # type: ignore[no-untyped-def]
                     eo2 += e6[i] * e6[i]
                     row += 1
             eo = math.sqrt(eo2)
-        if (ep <= tol_p and eo <= tol_o) or it >= max_iter:
+        if (ep <= tol_p and eo <= tol_o) or it >= settings.max_iter:
             break
         score = ep + eo
         if score < 0.999 * best:
@@ -221,7 +201,7 @@ def ik_loop(  # type: ignore[no-untyped-def]
         # Near the solution the damping fades with the error (Levenberg–Marquardt
         # style) so the last steps converge quadratically even inside the singular
         # region; far from it, λ_max applies as in P-I Eq. 14.
-        lam = lam_max * min(1.0, score / err_ref)
+        lam = lambda_max * min(1.0, score / settings.err_ref)
         for k in range(n):
             if math.isfinite(span[k]) and span[k] > 0.0:
                 znull[k] = -k_null * (q[k] - mid[k]) / (span[k] * span[k])
@@ -231,7 +211,7 @@ def ik_loop(  # type: ignore[no-untyped-def]
         # Dynamic weighting (P-II Eq. 25–28): a joint at a bound that the step drives
         # further out gets weight 0, and the step is solved again without it.
         for _ in range(n + 1):
-            dls_step(J, e, w, lam, eps, znull, dq)
+            dls_step(J, e, w, epsilon, lam, znull, dq)
             changed = False
             for k in range(n):
                 if w[k] > 0.0 and (
@@ -248,39 +228,20 @@ def ik_loop(  # type: ignore[no-untyped-def]
                 scale = max_step[k] / a
         for k in range(n):
             q[k] = min(max(q[k] + scale * dq[k], lo[k]), hi[k])
-    return q, it, ep, eo
+    return IKAttempt(q, it, ep, eo)
 
 
-def warm_up() -> None:
-    """Compile the IK kernel for the signatures used at run time."""
-    kind = np.array([0, 1], dtype=np.int64)
-    qidx = np.array([0, 1], dtype=np.int64)
-    dh = np.zeros((2, 4))
-    eye = np.eye(4)
-    rows = np.ones(6, dtype=np.bool_)
-    lo = np.full(2, -1.0)
-    hi = np.full(2, 1.0)
-    for classic in (False, True):
-        for axis_mode in (False, True):
-            ik_loop(
-                kind,
-                qidx,
-                dh,
-                classic,
-                eye,
-                eye,
-                eye,
-                rows,
-                axis_mode,
-                np.zeros(2),
-                lo,
-                hi,
-                np.full(2, 0.5),
-                1e-6,
-                1e-6,
-                2,
-                0.1,
-                0.01,
-                0.0,
-                0.01,
-            )
+@njit(
+    (
+        CHAIN,
+        group_type(IKTarget, TARGET_SPEC),
+        group_type(IKBounds, BOUNDS_SPEC),
+        group_type(IKSettings, SETTINGS_SPEC),
+        RO_F8_1D,
+    ),
+    cache=True,
+)
+def ik_loop(chain, target, bounds, settings, q0):  # type: ignore[no-untyped-def]
+    """Iterate DLS steps from ``q0`` (groups as plain tuples, see ``_jit``); returns an
+    :class:`IKAttempt`."""
+    return _iterate(Chain(*chain), IKTarget(*target), IKBounds(*bounds), IKSettings(*settings), q0)

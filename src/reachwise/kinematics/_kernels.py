@@ -1,8 +1,9 @@
 """Compiled kinematics kernels (numba): frames, tool/point/parameter Jacobians.
 
-Everything here works on the packed chain of ``robot.ChainArrays``. Rigid transforms
-are multiplied as ``[R p; 0 1]`` blocks. The kernels are compiled once and cached on
-disk (``cache=True``); ``warm_up`` triggers compilation outside any control loop.
+Everything here works on the packed chain ``Chain`` (``Robot.arrays``), its six fields
+passed one by one. Rigid transforms are multiplied as ``[R p; 0 1]`` blocks. The
+functions Python calls carry explicit signatures and are compiled at import (or loaded
+from numba's disk cache); the others compile into their callers (``_jit``).
 
 Joint transform (P-I Eq. 2–3, modified DH, Craig)::
 
@@ -20,7 +21,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+
+from reachwise.kinematics._jit import RO_F8_1D, RO_F8_2D, RO_F8_3D, RO_I8_1D, W_F8_2D, W_F8_3D
+
+#: The chain's six fields (``Chain``) in the signatures below.
+_CHAIN = (RO_I8_1D, RO_I8_1D, RO_F8_2D, types.boolean, RO_F8_2D, RO_F8_2D)
 
 
 @njit(cache=True, fastmath=False)
@@ -82,7 +88,7 @@ def rigid_mul(A, B, out):  # type: ignore[no-untyped-def]
     out[3, 3] = 1.0
 
 
-@njit(cache=True)
+@njit((*_CHAIN, RO_F8_1D, W_F8_3D), cache=True)
 def frames(kind, qidx, dh, classic, base, tool, q, F):  # type: ignore[no-untyped-def]
     """World pose of every frame into ``F`` (N+2, 4, 4): base, link 1..N, tool."""
     N = kind.shape[0]
@@ -96,7 +102,7 @@ def frames(kind, qidx, dh, classic, base, tool, q, F):  # type: ignore[no-untype
     rigid_mul(F[N], tool, F[N + 1])
 
 
-@njit(cache=True)
+@njit((*_CHAIN, RO_F8_2D), cache=True)
 def fk_batch(kind, qidx, dh, classic, base, tool, Q):  # type: ignore[no-untyped-def]
     """Tool poses ``(m, 4, 4)`` for a batch of configurations ``Q`` (m, n)."""
     m = Q.shape[0]
@@ -117,7 +123,7 @@ def fk_batch(kind, qidx, dh, classic, base, tool, Q):  # type: ignore[no-untyped
     return out
 
 
-@njit(cache=True)
+@njit((*_CHAIN, RO_F8_2D), cache=True)
 def fk_all_batch(kind, qidx, dh, classic, base, tool, Q):  # type: ignore[no-untyped-def]
     """Every frame for a batch: ``(m, N+2, 4, 4)``."""
     m = Q.shape[0]
@@ -132,36 +138,6 @@ def fk_all_batch(kind, qidx, dh, classic, base, tool, Q):  # type: ignore[no-unt
 def _axis_frame(i, classic):  # type: ignore[no-untyped-def]
     """Frame whose z axis is joint ``i``'s axis: frame i+1 (modified) or i (classic)."""
     return i if classic else i + 1
-
-
-@njit(cache=True)
-def tool_jacobian(kind, qidx, classic, F, n, J):  # type: ignore[no-untyped-def]
-    """Geometric tool Jacobian ``J`` (6, n) from frames ``F`` (thesis Eq. 3.1).
-
-    Revolute column ``[z × (p_tool − p_i); z]``, prismatic ``[z; 0]``.
-    """
-    N = kind.shape[0]
-    point_jacobian_rows(
-        kind, qidx, classic, F, N + 1, F[N + 1, 0, 3], F[N + 1, 1, 3], F[N + 1, 2, 3], J
-    )
-
-
-@njit(cache=True)
-def point_jacobian_rows(kind, qidx, classic, F, link, px, py, pz, J):  # type: ignore[no-untyped-def]
-    """Jacobian (6, n) of world point (px, py, pz) fixed to frame ``link`` of ``F``.
-
-    Joint ``i`` moves frames ``i+1`` … tool, so only joints with ``i + 1 <= link``
-    contribute; the other columns are zero.
-    """
-    N = kind.shape[0]
-    J[:, :] = 0.0
-    for i in range(N):
-        k = qidx[i]
-        if k < 0 or i + 1 > link:
-            continue
-        f = _axis_frame(i, classic)
-        _screw(J, k, kind[i] == 0, F[f, 0, 2], F[f, 1, 2], F[f, 2, 2],
-               F[f, 0, 3], F[f, 1, 3], F[f, 2, 3], px, py, pz)  # fmt: skip
 
 
 @njit(cache=True)
@@ -184,6 +160,39 @@ def _screw(J, col, revolute, ax, ay, az, ox, oy, oz, px, py, pz):  # type: ignor
         J[3, col] = 0.0
         J[4, col] = 0.0
         J[5, col] = 0.0
+
+
+@njit(cache=True)
+def tool_jacobian(kind, qidx, classic, F, n, J):  # type: ignore[no-untyped-def]
+    """Geometric tool Jacobian ``J`` (6, n) from frames ``F`` (thesis Eq. 3.1).
+
+    Revolute column ``[z × (p_tool − p_i); z]``, prismatic ``[z; 0]``.
+    """
+    N = kind.shape[0]
+    point_jacobian_rows(
+        kind, qidx, classic, F, N + 1, F[N + 1, 0, 3], F[N + 1, 1, 3], F[N + 1, 2, 3], J
+    )
+
+
+@njit(
+    (RO_I8_1D, RO_I8_1D, types.boolean, RO_F8_3D, types.int64, *(types.float64,) * 3, W_F8_2D),
+    cache=True,
+)
+def point_jacobian_rows(kind, qidx, classic, F, link, px, py, pz, J):  # type: ignore[no-untyped-def]
+    """Jacobian (6, n) of world point (px, py, pz) fixed to frame ``link`` of ``F``.
+
+    Joint ``i`` moves frames ``i+1`` … tool, so only joints with ``i + 1 <= link``
+    contribute; the other columns are zero.
+    """
+    N = kind.shape[0]
+    J[:, :] = 0.0
+    for i in range(N):
+        k = qidx[i]
+        if k < 0 or i + 1 > link:
+            continue
+        f = _axis_frame(i, classic)
+        _screw(J, k, kind[i] == 0, F[f, 0, 2], F[f, 1, 2], F[f, 2, 2],
+               F[f, 0, 3], F[f, 1, 3], F[f, 2, 3], px, py, pz)  # fmt: skip
 
 
 @njit(cache=True)
@@ -233,7 +242,7 @@ def param_jacobian(classic, F, J):  # type: ignore[no-untyped-def]
     _screw(J, c + 5, True, 0.0, 0.0, 1.0, bx, by, bz, px, py, pz)
 
 
-@njit(cache=True)
+@njit((*_CHAIN, RO_F8_2D, types.boolean), cache=True)
 def jacobians_batch(kind, qidx, dh, classic, base, tool, Q, with_params):  # type: ignore[no-untyped-def]
     """Tool poses (m,4,4), tool Jacobians (m,6,n) and, if asked, parameter
     Jacobians (m, 6, 4N+6) for a batch of configurations in one pass."""
@@ -251,19 +260,3 @@ def jacobians_batch(kind, qidx, dh, classic, base, tool, Q, with_params):  # typ
         if with_params:
             param_jacobian(classic, F, P[s])
     return T, J, P
-
-
-def warm_up() -> None:
-    """Compile every kernel for the float64/int64 signatures used at run time."""
-    kind = np.array([0, 1, 2], dtype=np.int64)
-    qidx = np.array([0, 1, -1], dtype=np.int64)
-    dh = np.zeros((3, 4))
-    eye = np.eye(4)
-    Q = np.zeros((1, 2))
-    for classic in (False, True):
-        fk_batch(kind, qidx, dh, classic, eye, eye, Q)
-        fk_all_batch(kind, qidx, dh, classic, eye, eye, Q)
-        jacobians_batch(kind, qidx, dh, classic, eye, eye, Q, True)
-        F = np.empty((5, 4, 4))
-        frames(kind, qidx, dh, classic, eye, eye, Q[0], F)
-        point_jacobian_rows(kind, qidx, classic, F, 2, 0.0, 0.0, 0.0, np.empty((6, 2)))

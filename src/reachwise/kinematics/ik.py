@@ -28,7 +28,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from reachwise.errors import InputError
-from reachwise.kinematics._ik_kernel import ik_loop
+from reachwise.kinematics._ik_kernel import IKBounds, IKSettings, IKTarget, ik_loop
+from reachwise.kinematics.dls import EPSILON_SOLVER, LAMBDA_MAX
 from reachwise.kinematics.transforms import check_pose
 
 if TYPE_CHECKING:
@@ -108,8 +109,8 @@ def solve_ik(
     tol_orientation: float = 1e-6,
     max_iter: int = 100,
     restarts: int = 50,
-    lam_max: float = 0.05,
-    eps: float = 0.02,
+    lambda_max: float = LAMBDA_MAX,
+    epsilon: float = EPSILON_SOLVER,
     k_null: float = 0.05,
     err_ref: float = 0.01,
 ) -> IKResult:
@@ -118,7 +119,8 @@ def solve_ik(
     ``q0`` is the first initial guess (default: mid-range); up to ``restarts`` further
     attempts start from random configurations drawn from ``rng`` (a Generator or seed;
     default seed 0, so results are reproducible). Returns the first attempt that
-    converges, else the best one with ``success=False``.
+    converges, else the best one with ``success=False``. ``lambda_max`` and ``epsilon``
+    set the damping schedule (``reachwise.kinematics.dls``).
     """
     Td = np.ascontiguousarray(check_pose(T, f"{robot.name}: ik target"))
     rows, axis_mode = task_rows(mask)
@@ -135,18 +137,29 @@ def solve_ik(
         start = np.clip(start, robot.lower, robot.upper)
     span = hi - lo
     max_step = np.where(robot.prismatic, np.clip(0.2 * span, 0.05, 1.0), 0.5)
-    c = robot.arrays
+    # the kernel's groups, passed as plain tuples (see reachwise.kinematics._jit)
+    chain = tuple(robot.arrays)
+    target = tuple(IKTarget(pose=Td, rows=rows, axis_mode=axis_mode))
+    bounds = tuple(IKBounds(lower=robot.lower, upper=robot.upper, max_step=max_step))
+    settings = tuple(
+        IKSettings(
+            tol_position=float(tol_position),
+            tol_orientation=float(tol_orientation),
+            max_iter=int(max_iter),
+            lambda_max=float(lambda_max),
+            epsilon=float(epsilon),
+            k_null=float(k_null),
+            err_ref=float(err_ref),
+        )
+    )
     best = IKResult(start.copy(), False, np.inf, np.inf, 0, 0)
     total = 0
     for attempt in range(restarts + 1):
         if attempt > 0:
             start = gen.uniform(lo, hi)
         q, it, ep, eo = ik_loop(
-            c.kind, c.qidx, c.dh, c.classic, c.base, c.tool, Td, rows, axis_mode,
-            np.ascontiguousarray(start, dtype=np.float64), robot.lower.copy(),
-            robot.upper.copy(), max_step, tol_position, tol_orientation, max_iter,
-            lam_max, eps, k_null, err_ref,
-        )  # fmt: skip
+            chain, target, bounds, settings, np.ascontiguousarray(start, dtype=np.float64)
+        )
         total += int(it)
         ok = bool(ep <= tol_position and eo <= tol_orientation and robot.within_limits(q))
         res = IKResult(q, ok, float(ep), float(eo), total, attempt + 1)

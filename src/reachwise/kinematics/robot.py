@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from reachwise.errors import InputError, RobotFileError, UnknownName
+from reachwise.kinematics.chain import Chain
 from reachwise.kinematics.link_geometry import LinkGeometry, shapes_by_link
 from reachwise.kinematics.transforms import Pose, check_pose
 
@@ -88,12 +89,26 @@ class DesignSpace:
 
     ``joints`` maps a 0-based joint index to ``{param: (lo, hi)}`` with params among
     ``a, alpha, d, theta``; ``base`` maps ``x, y, z, roll, pitch, yaw`` to bounds.
+    What a designer asks beyond reach (``synthesis.objectives``): ``min_length`` (m)
+    every free ``a`` and ``d`` keeps in magnitude (a link that can be built),
+    ``margin`` the fraction of each range the ``bounds`` objective keeps free, and
+    ``objective`` the weights of the named objectives (``{"gci": 1.0, "size": 0.2}``).
     """
 
     joints: Mapping[int, Mapping[str, tuple[float, float]]] = field(default_factory=dict)
     base: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    min_length: float = 0.0
+    margin: float = 0.05
+    objective: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        if not (np.isfinite(self.min_length) and self.min_length >= 0):
+            raise InputError("design", "min_length", f"must be >= 0, got {self.min_length}")
+        if not (np.isfinite(self.margin) and 0 < self.margin < 0.5):
+            raise InputError("design", "margin", f"must lie in (0, 0.5), got {self.margin}")
+        for name, w in self.objective.items():
+            if not (np.isfinite(w) and w >= 0):
+                raise InputError("design", f"objective.{name}", f"weight must be >= 0, got {w}")
         for j, params in self.joints.items():
             for p, (lo, hi) in params.items():
                 if p not in DH_PARAMS:
@@ -123,18 +138,6 @@ def _check_bounds(where: str, lo: float, hi: float) -> None:
         raise InputError("design", where, f"bounds must be finite, got [{lo}, {hi}]")
     if lo > hi:
         raise InputError("design", where, f"lower bound {lo} > upper bound {hi}")
-
-
-@dataclass(frozen=True)
-class ChainArrays:
-    """The chain packed as arrays for the compiled kernels (see ``_kernels``)."""
-
-    kind: NDArray[np.int64]  # (N,) 0 revolute, 1 prismatic, 2 fixed
-    qidx: NDArray[np.int64]  # (N,) index into q, -1 for fixed joints
-    dh: NDArray[np.float64]  # (N, 4) a, alpha, d, theta
-    classic: bool
-    base: NDArray[np.float64]  # (4, 4)
-    tool: NDArray[np.float64]  # (4, 4)
 
 
 @dataclass(frozen=True, eq=False)
@@ -228,13 +231,13 @@ class Robot:
         return _ro(np.array([[j.a, j.alpha, j.d, j.theta] for j in self.joints], float))
 
     @cached_property
-    def arrays(self) -> ChainArrays:
+    def arrays(self) -> Chain:
         qidx = np.full(len(self.joints), -1, dtype=np.int64)
         for k, i in enumerate(self.movable_joints):
             qidx[i] = k
-        return ChainArrays(
-            kind=np.array([_KIND[j.type] for j in self.joints], dtype=np.int64),
-            qidx=qidx,
+        return Chain(
+            kind=_ro(np.array([_KIND[j.type] for j in self.joints], dtype=np.int64)),
+            qidx=_ro(qidx),
             dh=np.ascontiguousarray(self.dh),
             classic=self.convention == "classic",
             base=np.ascontiguousarray(self.base),

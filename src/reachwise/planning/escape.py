@@ -48,7 +48,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from reachwise.control.controller import Goal
-from reachwise.errors import InputError
+from reachwise.errors import InputError, MissingDependency
 from reachwise.kinematics.ik import finite_limits
 from reachwise.kinematics.robot import DesignSpace, Joint, Robot
 from reachwise.planning.validity import ClearanceChecker
@@ -66,29 +66,30 @@ __all__ = [
     "require_ompl",
 ]
 
-MISSING = (
-    "the local-minimum escape needs OMPL, the optional 'plan' extra: pip install 'reachwise[plan]'"
-)
+#: What the local-minimum escape needs and where it comes from (the optional extra).
+_NEEDED = ("ompl", "plan", "the local-minimum escape")
+#: The install hint, as :class:`~reachwise.errors.MissingDependency` words it.
+MISSING = str(MissingDependency(*_NEEDED))
 
 
 def ompl_available() -> bool:
     """True when OMPL's Python bindings can be imported."""
     try:
         require_ompl()
-    except InputError:
+    except MissingDependency:
         return False
     return True
 
 
 def require_ompl() -> tuple[Any, Any, Any]:
-    """OMPL's ``base``, ``geometric`` and ``util`` modules, or an
-    :class:`~reachwise.errors.InputError` naming the missing extra."""
+    """OMPL's ``base``, ``geometric`` and ``util`` modules, or a
+    :class:`~reachwise.errors.MissingDependency` naming the ``plan`` extra."""
     try:
         from ompl import base as ob
         from ompl import geometric as og
         from ompl import util as ou
     except ImportError:
-        raise InputError("planner", "ompl", MISSING) from None
+        raise MissingDependency(*_NEEDED) from None
     return ob, og, ou
 
 

@@ -59,7 +59,15 @@ def key_figures(key: str, r: Mapping[str, Any]) -> list[str]:
             f"{r['runs_reaching_all']}/{r['runs']} runs reach all {r['task_points']} points",
             f"best: GCI {r['gci_initial']:.3f} → {r['gci']:.3f}, KCI {r['kci_initial']:.3f} → "
             f"{r['kci']:.3f}",
-        ]
+            *(
+                [f"conditioning objective: GCI {r['gci_reach_only']:.4f} (reach only) → "
+                 f"{r['gci']:.4f}"]
+                if r.get("gci_reach_only") is not None
+                else []
+            ),
+            *([f"{len(r['bound_hits'])} design parameter(s) at a bound"]
+              if r.get("bound_hits") else []),
+        ]  # fmt: skip
     if key == "topology":
         out = [f"{len(r['topologies'])} topologies, subset {r['subset']}, top {r['top']}"]
         for row in r["table"]:

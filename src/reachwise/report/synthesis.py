@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -101,9 +101,13 @@ def design_rows(result: SynthesisResult) -> list[list[object]]:
 
 
 def _table3(result: SynthesisResult, with_thesis: bool) -> Raw:
+    from reachwise.report.design import bound_flag
+
+    hits = [h.as_dict() for h in result.bound_hits()]
     head = ["parameter", "initial", "optimized", "changed %"]
     if with_thesis:
         head += ["thesis initial", "thesis optimized", "thesis changed %"]
+    head += ["bound flag"]
     rows = []
     for r in result.table3():
         row: list[object] = [
@@ -115,10 +119,11 @@ def _table3(result: SynthesisResult, with_thesis: bool) -> Raw:
         if with_thesis:
             a, b, c = thesis.P1_TABLE3[str(r["parameter"])]
             row += [num(a), num(b), num(c, 2)]
-        rows.append(row)
+        rows.append([*row, bound_flag(hits, str(r["parameter"])) or "–"])
     cap = (
         "Normalized design parameters of the best run: 0 and 1 are each parameter's "
-        "bounds (P-I Table 3)."
+        "bounds (P-I Table 3). Bound flag: the parameter ended at, or within 1 % of its "
+        "range from, a bound (or its minimum length)."
     )
     if with_thesis:
         cap += (
@@ -259,11 +264,15 @@ def _comparison(result: SynthesisResult, data: Mapping[str, Any]) -> Raw:
 
 
 def synthesis_html(
-    result: SynthesisResult, figures: Mapping[str, FigureSource] | None = None
+    result: SynthesisResult,
+    figures: Mapping[str, FigureSource] | None = None,
+    extra: Sequence[Raw] = (),
 ) -> str:
     """The report of ``result`` as an HTML string; ``figures`` (name → Figure, PNG
-    bytes or PNG file) are embedded, ``None`` embeds none."""
+    bytes or PNG file) are embedded, ``None`` embeds none; ``extra`` sections (e.g. a
+    Pareto front, ``report.design``) follow the design tables."""
     from reachwise.io.synthesis_out import summary
+    from reachwise.report.design import bounds_section, objective_section
 
     data = summary(result)
     prob = result.problem
@@ -301,6 +310,8 @@ def synthesis_html(
             id="summary",
         ),
     ]
+    objectives = objective_section(result, data)
+    body += [s for s in (objectives, bounds_section(data)) if s is not None]
     if with_thesis:
         body.append(
             section(
@@ -330,6 +341,7 @@ def synthesis_html(
                 id="design",
             ),
         ),
+        *extra,
         section("Runs (convergence)", _runs(result), id="per-run"),
         section(
             "Task points",
@@ -361,8 +373,10 @@ def write_synthesis_report(
     result: SynthesisResult,
     folder: str | Path,
     figures: Mapping[str, FigureSource] | bool = True,
+    extra: Sequence[Raw] = (),
 ) -> Path:
     """Write ``folder/report.html`` for ``result``. ``figures``: ``True`` draws them,
-    ``False`` leaves them out, a mapping embeds those (e.g. the PNGs just written)."""
+    ``False`` leaves them out, a mapping embeds those (e.g. the PNGs just written);
+    ``extra``: further sections (``synthesis_html``)."""
     figs = synthesis_figures(result) if figures is True else (figures or None)
-    return write_page(Path(folder) / "report.html", synthesis_html(result, figs))
+    return write_page(Path(folder) / "report.html", synthesis_html(result, figs, extra))

@@ -8,6 +8,12 @@ lies inside the part's solid (box, cylinder, capsule, sphere, closed mesh, or th
 of a link's several shapes). Its signed distance is
 then ``−depth`` (how deep the deepest point lies), else the cloud distance. Objects
 without a solid (a scan) are tested only as points against the robot's solids.
+
+An object that only sensors see (``scene: false``: the controllers get its sensed
+cloud, never its shape) is judged on its true surface: :func:`true_clearance` is the
+exact distance between a robot part's surface and the object's
+(:func:`reachwise.geometry.mesh_distance.mesh_distance`), or ``−depth`` when the solids
+overlap (the surfaces cross, or one lies inside the other).
 """
 
 from __future__ import annotations
@@ -23,7 +29,7 @@ if TYPE_CHECKING:
 
     from reachwise.kinematics.robot import LinkGeometry
 
-__all__ = ["Solid", "solid_of_geometry", "solid_of_link", "solid_of_mesh"]
+__all__ = ["Solid", "solid_of_geometry", "solid_of_link", "solid_of_mesh", "true_clearance"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -110,3 +116,28 @@ def solid_of_link(
     if len(solids) == 1:
         return solids[0]
     return Solid("union", np.eye(4), np.zeros(3), parts=tuple(solids))
+
+
+def true_clearance(
+    a: tuple[NDArray[np.float64], NDArray[np.int64]],
+    solid_a: Solid,
+    pose_a: NDArray[np.float64],
+    b: tuple[NDArray[np.float64], NDArray[np.int64]],
+    solid_b: Solid,
+    pose_b: NDArray[np.float64],
+) -> float:
+    """Signed distance of two parts by their true surfaces: meshes ``a``, ``b``
+    (``(vertices, faces)`` in their part frames, placed at ``pose_a``, ``pose_b``) and
+    their solids. Disjoint: the exact surface distance (m, > 0). Overlapping — the
+    surfaces touch or cross, or a vertex of one lies inside the other's solid (then the
+    piece of it does) —: ``−depth`` of the deepest vertex inside the other solid (≤ 0;
+    0 when only edges and faces cross)."""
+    from reachwise.geometry.mesh_distance import mesh_distance
+
+    d = mesh_distance(a, b, pose_a, pose_b)
+    va = a[0] @ pose_a[:3, :3].T + pose_a[:3, 3]
+    vb = b[0] @ pose_b[:3, :3].T + pose_b[:3, 3]
+    depth = max(solid_b.depth(va, pose_b), solid_a.depth(vb, pose_a))
+    if d > 0.0 and depth < 0.0:
+        return d
+    return -max(depth, 0.0)

@@ -58,6 +58,11 @@ class SimulationLog:
     when the solids overlap, ``margins`` (P,) the collision margins ρ_O. ``events``,
     ``goals``; ``first_collision`` (s) and its pair, or ``None``. ``object_poses``:
     per moving object (``motion``), its world pose at each tick (T, 4, 4), for replay.
+    ``true_pairs`` (``"robot/link|object"``) and ``true_distance`` (T, Q): the signed
+    distance of each robot link's true surface to each object outside the scene
+    (``scene: false``: seen only by sensors), exact (:mod:`reachwise.sim.contact`),
+    ``inf`` beyond margin + monitor range. ``frames``: per sensor, the index of the
+    frame in the scene at each tick (T,), for replay (:mod:`reachwise.sim.sensors`).
     """
 
     scenario: str
@@ -84,6 +89,16 @@ class SimulationLog:
     first_collision_pair: str | None = None
     extras: dict[str, Any] = field(default_factory=dict)
     object_poses: dict[str, NDArray[np.float64]] = field(default_factory=dict)
+    true_pairs: tuple[str, ...] = ()
+    true_distance: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
+    frames: dict[str, NDArray[np.int64]] = field(default_factory=dict)
+
+    @property
+    def min_true_distance(self) -> NDArray[np.float64]:
+        """Smallest true signed distance over ``true_pairs`` at each tick (inf without)."""
+        if self.true_distance.ndim != 2 or self.true_distance.shape[1] == 0:
+            return np.full(self.t.shape, np.inf)
+        return np.asarray(self.true_distance.min(axis=1))
 
     @property
     def min_distance(self) -> NDArray[np.float64]:
@@ -93,31 +108,70 @@ class SimulationLog:
         return np.asarray(self.signed.min(axis=1))
 
     @property
+    def closest_pair(self) -> NDArray[np.str_]:
+        """The pair (``"a|b"``) with the smallest signed distance at each tick (``""``
+        without pairs or when every pair is beyond range)."""
+        if self.signed.shape[1] == 0:
+            return np.full(self.t.shape, "", dtype=np.str_)
+        names = np.array([*self.pairs, ""], dtype=np.str_)
+        k = np.argmin(self.signed, axis=1)
+        k = np.where(np.isfinite(self.signed[np.arange(k.size), k]), k, len(self.pairs))
+        return names[k]
+
+    def first_contact(self) -> tuple[float, str] | None:
+        """The first tick whose signed distance is ≤ 0 for some pair (the solids
+        overlap or the clouds touch): its time and the first such pair; else None."""
+        hit = self.signed <= 0.0
+        ticks = np.flatnonzero(hit.any(axis=1))
+        if ticks.size == 0:
+            return None
+        k = int(ticks[0])
+        return float(self.t[k]), self.pairs[int(np.argmax(hit[k]))]
+
+    @property
     def all_goals_reached(self) -> bool:
         return all(g.reached_at is not None for g in self.goals)
 
-    def limits_held(self, tol: float = 1e-9) -> dict[str, bool]:
-        """Per robot: every joint inside its limits at every tick (a joint that starts
-        outside must not move farther out)."""
+    def limit_violations(self, tol: float = 1e-9) -> dict[str, NDArray[np.bool_]]:
+        """Per robot, ``(T, n)``: True where joint ``j`` at tick ``k`` breaks its limits.
+
+        A joint inside ``[lower, upper]`` must stay inside (within ``tol``). A joint
+        that starts outside may only move back inward: its violation (how far it is
+        outside) may never exceed the smallest violation it has had so far by more
+        than ``tol`` — it must not move farther out, and once back inside it must stay
+        inside."""
         out = {}
         for r in self.robots:
-            q = self.q[r]
-            lo = np.minimum(self.lower[r], q[0])
-            hi = np.maximum(self.upper[r], q[0])
-            ok = bool(np.all(q >= lo - tol) & np.all(q <= hi + tol))
-            # a joint outside at the start: monotone back inward
-            out[r] = ok
+            q = np.asarray(self.q[r], dtype=float)
+            lo = np.asarray(self.lower[r], dtype=float)
+            hi = np.asarray(self.upper[r], dtype=float)
+            outside = np.maximum(np.maximum(q - hi, lo - q), 0.0)  # (T, n), 0 inside
+            if outside.shape[0] == 0:
+                out[r] = np.zeros(outside.shape, dtype=bool)
+                continue
+            best = np.minimum.accumulate(outside, axis=0)  # smallest violation so far
+            allowed = np.vstack([outside[:1], best[:-1]])  # the start is what it is
+            out[r] = outside > allowed + tol
         return out
+
+    def limits_held(self, tol: float = 1e-9) -> dict[str, bool]:
+        """Per robot: every joint inside its limits at every tick (a joint that starts
+        outside must move monotonically back inward: never farther out, and once inside
+        it stays inside; see :meth:`limit_violations`)."""
+        return {r: not bool(v.any()) for r, v in self.limit_violations(tol).items()}
+
+    def speed_violations(self, tol: float = 1e-9) -> dict[str, NDArray[np.bool_]]:
+        """Per robot, ``(T, n)``: True where the commanded or the actual speed of joint
+        ``j`` at tick ``k`` exceeds its ``v_max`` by more than ``tol``."""
+        return {
+            r: (np.abs(self.command[r]) > self.vmax[r] + tol)
+            | (np.abs(self.qdot[r]) > self.vmax[r] + tol)
+            for r in self.robots
+        }
 
     def speeds_held(self, tol: float = 1e-9) -> dict[str, bool]:
         """Per robot: |command| and |actual velocity| ≤ v_max at every tick."""
-        return {
-            r: bool(
-                np.all(np.abs(self.command[r]) <= self.vmax[r] + tol)
-                and np.all(np.abs(self.qdot[r]) <= self.vmax[r] + tol)
-            )
-            for r in self.robots
-        }
+        return {r: not bool(v.any()) for r, v in self.speed_violations(tol).items()}
 
     def summary(self) -> dict[str, Any]:
         """A JSON-ready summary of the outcome."""
@@ -153,6 +207,7 @@ class SimulationLog:
             },
             "first_collision": self.first_collision,
             "first_collision_pair": self.first_collision_pair,
+            **self._true_summary(),
             "limits_held": self.limits_held(),
             "speeds_held": self.speeds_held(),
             "stalls": [{"t": e.t, "robot": e.robot, "text": e.text} for e in stalls],
@@ -160,6 +215,22 @@ class SimulationLog:
             "events": [
                 {"t": e.t, "robot": e.robot, "kind": e.kind, "text": e.text} for e in self.events
             ],
+        }
+
+    def _true_summary(self) -> dict[str, Any]:
+        """The true clearances of the summary (only for a run that has them)."""
+        if not self.true_pairs:
+            return {}
+        md = self.min_true_distance
+        finite = md[np.isfinite(md)]
+        return {
+            "min_true_distance": float(finite.min()) if finite.size else None,
+            "min_true_distance_by_pair": {
+                p: (float(v) if math.isfinite(v) else None)
+                for p, v in zip(self.true_pairs, self.true_distance.min(axis=0), strict=True)
+            }
+            if self.t.size
+            else {},
         }
 
     def save(self, folder: str | Path) -> Path:
@@ -184,6 +255,11 @@ class SimulationLog:
             arrays[f"{r}.goal_index"] = self.goal_index[r]
         for name, poses in self.object_poses.items():
             arrays[f"object.{name}.pose"] = poses
+        if self.true_pairs:
+            arrays["true_pairs"] = np.array(self.true_pairs, dtype=str)
+            arrays["true_distance"] = self.true_distance
+        for name, frames in self.frames.items():
+            arrays[f"sensor.{name}.frame"] = frames
         with atomic_open(out / "log.npz", "wb") as npz:
             np.savez_compressed(npz, **arrays)
         with atomic_open(out / "log.csv", "w", newline="") as fh:
@@ -252,6 +328,13 @@ def load_log(folder: str | Path, scenario: Scenario | str | Path | None = None) 
         for k in arrays
         if k.startswith("object.") and k.endswith(".pose")
     }
+    frames = {
+        k[len("sensor.") : -len(".frame")]: arrays[k]
+        for k in arrays
+        if k.startswith("sensor.") and k.endswith(".frame")
+    }
+    true_pairs = tuple(str(p) for p in arrays.get("true_pairs", ()))
+    true_distance = arrays.get("true_distance", np.zeros((arrays["t"].size, 0)))
     extras: dict[str, Any] = dict(meta.get("extras") or {})
     lower: dict[str, NDArray[np.float64]] = {}
     upper: dict[str, NDArray[np.float64]] = {}
@@ -321,4 +404,7 @@ def load_log(folder: str | Path, scenario: Scenario | str | Path | None = None) 
         first_collision_pair=meta.get("first_collision_pair"),
         extras=extras,
         object_poses=objects,
+        true_pairs=true_pairs,
+        true_distance=true_distance,
+        frames=frames,
     )

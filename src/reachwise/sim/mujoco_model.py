@@ -39,21 +39,25 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from reachwise.errors import InputError
+from reachwise.errors import InputError, MissingDependency
 from reachwise.kinematics.robot import Robot
 from reachwise.kinematics.transforms import Pose, rot_x, rot_z, translation
 
 __all__ = ["MujocoRobot", "dh_body_transform", "mujoco_model", "require_mujoco"]
 
-MISSING = 'MuJoCo is not installed; it is the optional "sim" extra: pip install -e ".[sim]"'
+#: What the MuJoCo plant needs and where it comes from (the optional extra).
+_NEEDED = ("mujoco", "sim", "the MuJoCo plant")
+#: The install hint, as :class:`~reachwise.errors.MissingDependency` words it.
+MISSING = str(MissingDependency(*_NEEDED))
 
 
 def require_mujoco() -> Any:
-    """The ``mujoco`` module, or an :class:`InputError` naming the missing extra."""
+    """The ``mujoco`` module, or a :class:`~reachwise.errors.MissingDependency` naming
+    the ``sim`` extra."""
     try:
         import mujoco
     except ImportError:
-        raise InputError("plant", "mujoco", MISSING) from None
+        raise MissingDependency(*_NEEDED) from None
     return mujoco
 
 

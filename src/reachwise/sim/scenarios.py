@@ -47,6 +47,25 @@ objects:                    # clouds not on a robot: scanner, mesh, box or file
     motion: {waypoints: [{t: 0, xyz: [3, -3, 0.9]}, {t: 12, xyz: [3, 3, 0.9],
              rpy_deg: [0, 0, 90]}], loop: false}
   - {name: heap, file: heap0.ply, clouds: [{t: 5, file: heap1.ply}]}  # deforming
+  - {name: walker, mesh: person.obj, scene: false, motion: ...}  # only sensors see it
+sensors:                    # depth cameras (issue 17): each streams its cloud into the
+  - kind: depth             #   scene object `name` at `rate` frames/s of simulated time
+    name: camera            # watch it like an object: environment: [camera]
+    pose: {xyz: [2, 0, 2]}  # camera -> world, optical frame (z forward, x right, y down):
+    look_at: [0, 0, 0.5]    #   rpy, or look_at (image x kept horizontal); or instead
+    # link: {robot: boom, link: link_6, offset: {xyz: [0, 0, 0.1], rpy: [0, 0, 0]}}
+    rate: 30                # frames/s (at most one per tick)
+    latency: 0.03           # s from capture to the scene (the frame keeps its capture stamp)
+    width: 160              # pixels (default 640 x 480; fewer cast faster)
+    height: 120
+    fov_deg: 60             # horizontal field of view (or fov, rad)
+    near: 0.2               # range limits (m)
+    far: 6.0
+    noise: 0.002            # depth noise sigma at 1 m (sigma = noise * z^2)
+    dropout: 0.0            # fraction of pixels lost
+    voxel: 0.02             # optional voxel downsampling of each frame (m)
+    seed: 0
+    self_filter: true       # drop the pixels that see a robot (robot-body filter)
 watch:                      # pairs and their collision margins rho_O
   - {self: boom, margin: 0.3, pairs: [[link_8, link_2]]}
   - {self: {robot: arm, pairs: auto, samples: 10000}, margin: 0.05}   # picked for you
@@ -93,6 +112,7 @@ __all__ = [
     "GoalSpec",
     "JobsSpec",
     "MotionSpec",
+    "MountSpec",
     "ObjectSpec",
     "OcclusionSpec",
     "PlantSpec",
@@ -103,6 +123,7 @@ __all__ = [
     "ScanSpec",
     "Scenario",
     "ScenarioSpec",
+    "SensorSpec",
     "WatchSpec",
     "WaypointSpec",
     "builtin_scenarios",
@@ -382,7 +403,10 @@ class ObjectSpec(BaseModel):
     """A cloud not on a robot: ``scanner`` (a built-in scan scene; ``noise`` m,
     ``occlusion`` fill, ``rescan``), ``mesh`` or ``box`` (``points`` surface samples,
     the box centred on the object frame) or ``file``; placed at ``pose``, moving by
-    ``motion``, its cloud replaced by ``clouds`` at given times."""
+    ``motion``, its cloud replaced by ``clouds`` at given times. ``scene: false``
+    keeps it out of the distance scene (a mesh or box only): no cloud of it reaches a
+    controller, the sensors see its surface and the run judges the robots' clearance
+    on that surface."""
 
     model_config = _STRICT
     name: str = Field(min_length=1)
@@ -398,12 +422,17 @@ class ObjectSpec(BaseModel):
     motion: MotionSpec | None = None
     rescan: RescanSpec | None = None
     clouds: list[CloudAtSpec] = []
+    scene: bool = True
 
     @model_validator(mode="after")
     def _one(self) -> ObjectSpec:
         given = [k for k in ("scanner", "mesh", "file", "box") if getattr(self, k) is not None]
         if len(given) != 1:
             raise ValueError("give exactly one source: scanner, mesh, box or file")
+        if not self.scene and self.mesh is None and self.box is None:
+            raise ValueError(
+                "an object outside the scene (scene: false) needs a surface: mesh or box"
+            )
         if self.box is not None and not min(self.box) > 0:
             raise ValueError("box sizes must be > 0")
         if self.scanner is None:
@@ -498,6 +527,90 @@ class EscapeSpec(BaseModel):
     seed: int = Field(default=1, ge=1, lt=2**32)
 
 
+class MountSpec(BaseModel):
+    """Where a sensor hangs on a robot: ``link`` of ``robot`` (the scenario's robot
+    name), at ``offset`` (its pose in the link frame)."""
+
+    model_config = _STRICT
+    robot: str = Field(min_length=1)
+    link: str = Field(min_length=1)
+    offset: FrameSpec = FrameSpec()
+
+
+class SensorSpec(BaseModel):
+    """A depth camera (:class:`reachwise.geometry.depth_camera.DepthCamera`) that streams
+    its cloud into the scene object ``name`` during a run (:mod:`reachwise.sim.sensors`):
+    fixed at ``pose`` (camera → world, optical frame: z forward, x right, y down; with
+    ``look_at`` only ``pose.xyz`` counts and the optical axis points at ``look_at``,
+    image x horizontal) or on a robot ``link``; ``rate`` frames/s, ``latency`` s from
+    capture to the scene; ``width`` × ``height`` pixels, horizontal field of view
+    ``fov`` (rad) or ``fov_deg``; ``near``/``far`` range limits (m); ``noise`` (σ at
+    1 m, σ = noise·z²); ``dropout`` fraction; ``voxel`` downsampling (m); ``seed``;
+    ``self_filter`` drops the pixels that see a robot."""
+
+    model_config = _STRICT
+    kind: Literal["depth"]
+    name: str = Field(min_length=1)
+    pose: FrameSpec | None = None
+    look_at: V3 | None = None
+    link: MountSpec | None = None
+    rate: float = Field(default=30.0, gt=0.0)
+    latency: float = Field(default=0.0, ge=0.0)
+    width: int = Field(default=640, gt=0)
+    height: int = Field(default=480, gt=0)
+    fov: float | None = Field(default=None, gt=0.0, lt=math.pi)
+    fov_deg: float | None = Field(default=None, gt=0.0, lt=180.0)
+    near: float = Field(default=0.2, ge=0.0)
+    far: float = Field(default=6.0, gt=0.0)
+    noise: float = Field(default=0.0, ge=0.0)
+    dropout: float = Field(default=0.0, ge=0.0, lt=1.0)
+    voxel: float | None = Field(default=None, gt=0.0)
+    seed: int = 0
+    self_filter: bool = True
+
+    @model_validator(mode="after")
+    def _check(self) -> SensorSpec:
+        if (self.pose is None) == (self.link is None):
+            raise ValueError("give the camera a pose or a link to hang on, not both")
+        if self.look_at is not None:
+            if self.pose is None:
+                raise ValueError("look_at is for a camera with a pose")
+            if self.pose.rpy is not None or self.pose.rpy_deg is not None:
+                raise ValueError("give pose rpy or look_at, not both")
+            axis = np.subtract(self.look_at, self.pose.xyz)
+            if not np.linalg.norm(axis) > 1e-9:
+                raise ValueError("look_at must differ from the camera's position")
+            if np.linalg.norm(np.cross(axis, (0.0, 0.0, 1.0))) < 1e-9 * np.linalg.norm(axis):
+                raise ValueError("look_at straight up or down: give pose rpy instead")
+        if self.fov is not None and self.fov_deg is not None:
+            raise ValueError("give fov or fov_deg, not both")
+        if not self.near < self.far:
+            raise ValueError(f"far ({self.far}) must exceed near ({self.near})")
+        return self
+
+    @property
+    def fov_rad(self) -> float:
+        """The horizontal field of view (rad; default 60°)."""
+        if self.fov is not None:
+            return self.fov
+        return math.radians(self.fov_deg if self.fov_deg is not None else 60.0)
+
+    def matrix(self) -> np.ndarray:
+        """The fixed camera → world pose (``pose`` with ``look_at``), or the link
+        offset of a camera on a link."""
+        if self.link is not None:
+            return self.link.offset.matrix()
+        pose = self.pose or FrameSpec()
+        T = pose.matrix()
+        if self.look_at is not None:
+            z = np.subtract(self.look_at, pose.xyz)
+            z = z / np.linalg.norm(z)
+            x = np.cross(z, (0.0, 0.0, 1.0))  # image x horizontal, image y (down) below
+            x = x / np.linalg.norm(x)
+            T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+        return T
+
+
 class JobsSpec(BaseModel):
     model_config = _STRICT
     robots: list[str] = Field(min_length=1)
@@ -519,6 +632,7 @@ class ScenarioSpec(BaseModel):
     jobs: JobsSpec | None = None
     escape: EscapeSpec | None = None
     requires: dict[str, str] = {}
+    sensors: list[SensorSpec] = []
 
     @field_validator("escape", mode="before")
     @classmethod
@@ -533,18 +647,48 @@ class ScenarioSpec(BaseModel):
         objects = [o.name for o in self.objects]
         if len(set(objects)) != len(objects):
             raise ValueError(f"object names must be unique, got {objects}")
+        sensors = self._sensor_names(robots, objects)
+        hidden = {o.name for o in self.objects if not o.scene}
+        clouds = [o for o in objects if o not in hidden] + sensors
         for w in self.watch:
             for r in (w.self_, w.robot, *(w.robots or ())):
                 if r is not None and r not in robots:
                     raise ValueError(f"watch names unknown robot {r!r}; robots: {robots}")
             for o in w.environment or ():
-                if o not in objects:
-                    raise ValueError(f"watch names unknown object {o!r}; objects: {objects}")
+                if o in hidden:
+                    raise ValueError(
+                        f"watch names {o!r}, which is not in the scene (scene: false); "
+                        "watch the sensor that sees it"
+                    )
+                if o not in clouds:
+                    raise ValueError(
+                        f"watch names unknown object {o!r}; objects and sensors: {clouds}"
+                    )
         if self.jobs is not None:
             for r in self.jobs.robots:
                 if r not in robots:
                     raise ValueError(f"jobs name unknown robot {r!r}; robots: {robots}")
         return self
+
+    def _sensor_names(self, robots: list[str], objects: list[str]) -> list[str]:
+        """The sensors' names (the scene objects they feed), checked: unique, no
+        object's name, on a known robot, at most one frame per tick."""
+        names = [s.name for s in self.sensors]
+        if len(set(names)) != len(names):
+            raise ValueError(f"sensor names must be unique, got {names}")
+        for s in self.sensors:
+            if s.name in objects:
+                raise ValueError(f"sensor {s.name!r} has the name of an object")
+            if s.link is not None and s.link.robot not in robots:
+                raise ValueError(
+                    f"sensor {s.name!r} hangs on unknown robot {s.link.robot!r}; robots: {robots}"
+                )
+            if s.rate * self.dt > 1.0 + 1e-9:
+                raise ValueError(
+                    f"sensor {s.name!r}: rate {s.rate:g}/s exceeds one frame per tick "
+                    f"(1/dt = {1.0 / self.dt:g}/s)"
+                )
+        return names
 
 
 class Scenario:

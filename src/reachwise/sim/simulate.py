@@ -4,7 +4,8 @@
 ``dt`` (default 10 ms, P-V §V) in *simulated* time (no clock is read):
 
 1. every robot's joint state, and every moving object's pose and cloud (objects
-   with ``motion``, ``clouds`` or ``rescan``: :mod:`reachwise.sim.motion`), go into
+   with ``motion``, ``clouds`` or ``rescan``: :mod:`reachwise.sim.motion`), and the
+   sensors' frames due by now (depth cameras: :mod:`reachwise.sim.sensors`) go into
    the distance scene, which answers every watched pair (P-IV/P-V collision server);
 2. the answer (sequence number, stamped with the time of that joint state) is
    converted into each robot's avoidance points and fed, with the robot's current
@@ -17,7 +18,10 @@
 avoidance (the conventional controller of P-III Fig. 3b). Either way every pair's
 distance is logged, and the run records when the parts first overlap: a pair's
 signed distance is its cloud distance, or ``−depth`` when a point of one object lies
-inside the solid of a robot part (see :mod:`reachwise.sim.contact`).
+inside the solid of a robot part (see :mod:`reachwise.sim.contact`). Objects only the
+sensors see (``scene: false``) are judged on their true surfaces: every robot link's
+exact distance to them (:func:`reachwise.sim.contact.true_clearance`) is logged
+(``true_distance``) and counts for the first overlap too.
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ from numpy.typing import NDArray
 
 from reachwise.control.controller import ControlStatus
 from reachwise.distance.scene import SceneLike, SceneResult
+from reachwise.sim.contact import true_clearance
 from reachwise.sim.log import Event, GoalRecord, SimulationLog
 from reachwise.sim.plant import PlantName
 from reachwise.sim.scenarios import EscapeSpec, Scenario
@@ -152,6 +157,8 @@ class _Recorder:
         self.state = {a.name: np.empty(ticks, dtype="<U16") for a in agents}
         self.goal_index = {a.name: np.full(ticks, -1, dtype=np.int64) for a in agents}
         self.objects = {m.spec.name: np.empty((ticks, 4, 4)) for m in world.movers if m.trajectory}
+        self.true_distance = np.full((ticks, len(world.truth)), np.inf)
+        self.frames = {s.name: np.zeros(ticks, dtype=np.int64) for s in world.sensors}
         self.first: float | None = None
         self.first_pair: str | None = None
 
@@ -203,6 +210,9 @@ class _Recorder:
             first_collision_pair=self.first_pair,
             object_poses={k_: v[:n] for k_, v in self.objects.items()},
             extras=extras,
+            true_pairs=tuple(f"{a}|{b}" for a, b in world.truth),
+            true_distance=self.true_distance[:n],
+            frames={k_: v[:n] for k_, v in self.frames.items()},
         )
 
 
@@ -276,6 +286,11 @@ def _sense(world: World, seen: SceneLike, t: float) -> tuple[SceneResult, SceneR
     for a in world.agents:
         scene.set_joints(a.name, a.plant.q, stamp=t)
     twists = move_objects(world, t)
+    if world.sensors and world.sight is not None:
+        tick = round(t / world.scenario.spec.dt)
+        qs = {a.name: a.plant.q for a in world.agents}
+        for sensor in world.sensors:
+            sensor.step(scene, tick, world.sight, qs)
     res = scene.query_all()
     if seen is scene:
         return res, res, twists
@@ -316,6 +331,49 @@ def _check_contact(
             events.append(
                 Event(t, "", "collision", f"{rec.first_pair} overlap ({-s * 1e3:.1f} mm)")
             )
+    for sensor in world.sensors:
+        rec.frames[sensor.name][k] = sensor.in_use
+    _check_truth(world, k, t, rec, events)
+
+
+def _check_truth(world: World, k: int, t: float, rec: _Recorder, events: list[Event]) -> None:
+    """The true signed distance of every robot link to every object only the sensors
+    see (``world.truth``), measured on their surfaces when their bounding boxes come
+    within the largest margin plus the monitor range; the first overlap."""
+    sight = world.sight
+    if not world.truth or sight is None:
+        return
+    reach = float(world.margins.max(initial=0.0)) + world.scenario.spec.monitor
+    fk = sight.frames({a.name: a.plant.q for a in world.agents})
+    placed = {name: sight.objects[name].pose_at(t) for name in {o for _, o in world.truth}}
+    for j, (body_name, obj_name) in enumerate(world.truth):
+        body = sight.bodies[body_name]
+        Pb = fk[body.robot][body.index]
+        Po = placed[obj_name]
+        (mesh, solid) = sight.objects[obj_name].shape_at(t)
+        gap = _box_gap(body.mesh[0], Pb, mesh[0], Po)
+        if gap > reach:
+            continue
+        d = true_clearance(body.mesh, body.solid, Pb, mesh, solid, Po)
+        rec.true_distance[k, j] = d
+        if d <= 0.0 and rec.first is None:
+            rec.first = t
+            rec.first_pair = f"{body_name}|{obj_name}"
+            events.append(
+                Event(t, "", "collision", f"{rec.first_pair} overlap ({-d * 1e3:.1f} mm)")
+            )
+
+
+F64 = NDArray[np.float64]
+
+
+def _box_gap(va: F64, Pa: F64, vb: F64, Pb: F64) -> float:
+    """A lower bound of the distance of two meshes (vertices in their frames, placed at
+    ``Pa``, ``Pb``): the gap between the boxes about their world vertices."""
+    wa = va @ Pa[:3, :3].T + Pa[:3, 3]
+    wb = vb @ Pb[:3, :3].T + Pb[:3, 3]
+    lo = np.maximum(wa.min(axis=0) - wb.max(axis=0), wb.min(axis=0) - wa.max(axis=0))
+    return float(np.linalg.norm(np.maximum(0.0, lo)))
 
 
 def _act(

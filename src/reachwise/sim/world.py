@@ -33,6 +33,7 @@ from reachwise.sim.scenarios import (
     WatchSpec,
     load_scenario,
 )
+from reachwise.sim.sensors import BodySurface, DepthSensor, ObjectSurface, Sight
 
 if TYPE_CHECKING:
     from reachwise.server.client.owned import ServerOptions
@@ -78,6 +79,9 @@ class World:
     solids: dict[str, tuple[Solid, str, str]]  # object -> (solid, robot, link)
     jobs: list[tuple[Goal, GoalSpec]]
     movers: list[_Mover] = field(default_factory=list)
+    sensors: list[DepthSensor] = field(default_factory=list)
+    sight: Sight | None = None  # what the sensors see (None: no sensors, no hidden objects)
+    truth: tuple[tuple[str, str], ...] = ()  # (robot link, object outside the scene) pairs
 
 
 def _controller_config(spec: RobotSpec, dt: float, avoidance: bool) -> ControllerConfig:
@@ -101,15 +105,16 @@ def build_world(
     server (:func:`_server_scene`); ``clock`` stamps its inputs and answers.
 
     The steps: the scene (:func:`_make_scene`), the robots and their link clouds
-    (:func:`_add_robots`), the other objects (:func:`_add_objects`), the watched pairs
-    (:func:`_watch_pairs`), one agent per robot (:func:`_make_agent`) and the shared
-    jobs (:func:`_shared_jobs`)."""
+    (:func:`_add_robots`), the other objects (:func:`_add_objects`), the sensors and
+    what they see (:func:`_add_sensors`), the watched pairs (:func:`_watch_pairs`), one
+    agent per robot (:func:`_make_agent`) and the shared jobs (:func:`_shared_jobs`)."""
     plant = check_choice(plant, PLANT_NAMES, source="simulate", kind="plant")
     sc = load_scenario(scenario)
     check_requirements(sc)
     scene = _make_scene(server, clock)
     robots, solids = _add_robots(scene, sc)
     movers = _add_objects(scene, sc, solids)
+    sight, sensors = _add_sensors(scene, sc, robots, movers)
     control = _watch_pairs(scene, sc, robots)
     job_robots = set(sc.spec.jobs.robots) if sc.spec.jobs is not None else set()
     agents = [
@@ -119,7 +124,11 @@ def build_world(
     jobs = _shared_jobs(sc, robots)
     pairs = tuple(f"{p.a}|{p.b}" for p in scene.pairs)
     margins = np.array([control[(p.a, p.b)] for p in scene.pairs], dtype=float)
-    return World(sc, scene, robots, agents, pairs, margins, solids, jobs, movers)
+    hidden = [o.name for o in sc.spec.objects if not o.scene]
+    truth = tuple((b, o) for b in (sight.bodies if sight else {}) for o in hidden)
+    return World(
+        sc, scene, robots, agents, pairs, margins, solids, jobs, movers, sensors, sight, truth
+    )
 
 
 def _make_scene(server: str | ServerOptions | None, clock: Callable[[], float] | None) -> SceneLike:
@@ -188,6 +197,10 @@ def _add_objects(
     movers: list[_Mover] = []
     for os_ in sc.spec.objects:
         mover = _mover(os_, sc)
+        if not os_.scene:  # only the sensors see it
+            if mover is not None:
+                movers.append(mover)
+            continue
         moving = mover is not None and mover.trajectory is not None
         pose = mover.trajectory.pose(0.0) if moving else os_.pose.matrix()  # type: ignore[union-attr]
         scene.add_object(os_.name, _object_cloud(os_, sc), pose, dynamic=moving)
@@ -197,6 +210,121 @@ def _add_objects(
         if mover is not None:
             movers.append(mover)
     return movers
+
+
+def _add_sensors(
+    scene: SceneLike, sc: Scenario, robots: dict[str, Robot], movers: list[_Mover]
+) -> tuple[Sight | None, list[DepthSensor]]:
+    """What the sensors see (:class:`~reachwise.sim.sensors.Sight`: the surfaces of the
+    objects and of the robots' links), and the sensors, each with its object in the
+    scene holding frame 0. Nothing when the scenario has no sensors and no object
+    outside the scene."""
+    spec = sc.spec
+    if not spec.sensors and all(o.scene for o in spec.objects):
+        return None, []
+    trajectories = {m.spec.name: m.trajectory for m in movers}
+    objects = {}
+    for os_ in spec.objects:
+        shapes = [(0.0, os_)] + [(c.t, c) for c in os_.clouds]
+        found = [
+            (t, *_surface(item, sc, f"objects.{os_.name}"))
+            for t, item in shapes
+            if item.mesh is not None or item.box is not None
+        ]
+        if found:
+            objects[os_.name] = ObjectSurface(
+                os_.name, tuple(found), os_.pose.matrix(), trajectories.get(os_.name)
+            )
+    bodies = {}
+    for rs in spec.robots:
+        robot = robots[rs.name]
+        for link in robot.link_names:
+            if link in rs.link_clouds or link in robot.geometry:
+                mesh, solid = _link_surface(sc, rs, robot, link)
+                name = f"{rs.name}/{link}"
+                bodies[name] = BodySurface(name, rs.name, link, robot.link_index(link), mesh, solid)
+    sight = Sight(robots, objects, bodies)
+    qs = {rs.name: np.asarray(rs.q0, dtype=float) for rs in spec.robots}
+    sensors = []
+    for i, ss in enumerate(spec.sensors):
+        if ss.link is not None and ss.link.link not in robots[ss.link.robot].link_names:
+            raise InputError(
+                sc.source,
+                f"sensors[{i}].link.link",
+                f"robot {ss.link.robot!r} has no link {ss.link.link!r}; "
+                f"links: {list(robots[ss.link.robot].link_names)}",
+            )
+        sensor = DepthSensor(ss, spec.dt, robots)
+        _check_outside(sc, i, sensor, sight, qs)
+        sensor.start(scene, sight, qs)
+        sensors.append(sensor)
+    return sight, sensors
+
+
+def _check_outside(
+    sc: Scenario, i: int, sensor: DepthSensor, sight: Sight, qs: dict[str, NDArray[np.float64]]
+) -> None:
+    """A camera inside a robot's link (at the start) would see nothing but that link."""
+    fk = sight.frames(qs)
+    origin = sensor.pose(fk)[:3, 3][None]
+    for b in sight.bodies.values():
+        if b.solid.depth(origin, fk[b.robot][b.index]) > 0.0:
+            raise InputError(
+                sc.source,
+                f"sensors[{i}]",
+                f"the camera {sensor.name!r} sits inside {b.name}: move it out of the link",
+            )
+
+
+def _surface(item: Any, sc: Scenario, where: str) -> tuple[Any, Solid]:
+    """The mesh ``(vertices, faces)`` and solid of a ``mesh`` or ``box`` spec, in the
+    object frame."""
+    import trimesh
+
+    from reachwise.io.meshes import load_mesh
+
+    if item.box is not None:
+        mesh = trimesh.creation.box(extents=item.box)
+        solid = _box_solid(item.box)
+    else:
+        try:
+            mesh = load_mesh(sc.path(item.mesh))
+        except InputError as exc:
+            raise InputError(sc.source, f"{where}.mesh", str(exc)) from None
+        solid = solid_of_mesh(mesh)
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    f = np.asarray(mesh.faces, dtype=np.int64)
+    return (v, f), solid  # type: ignore[return-value]
+
+
+def _link_surface(
+    sc: Scenario, rs: RobotSpec, robot: Robot, link: str
+) -> tuple[tuple[NDArray[np.float64], NDArray[np.int64]], Solid]:
+    """A link's collision surface in the link frame (the scenario's ``link_clouds``
+    mesh, or the union of the robot's shapes of that link) and its solid."""
+    import trimesh
+
+    from reachwise.io.meshes import load_mesh
+    from reachwise.io.robot_clouds import shape_meshes
+
+    over = rs.link_clouds.get(link)
+    if over is not None:
+        try:
+            mesh = load_mesh(sc.path(over.mesh))
+        except InputError as exc:
+            where = f"robots.{rs.name}.link_clouds.{link}.mesh"
+            raise InputError(sc.source, where, str(exc)) from None
+        mesh.apply_transform(over.pose.matrix())
+        solid = solid_of_mesh(mesh)
+    else:
+        parts = shape_meshes(robot, link)
+        solid = solid_of_link(robot.geometry[link], parts)
+        joined = parts[0] if len(parts) == 1 else trimesh.util.concatenate(parts)
+        if not isinstance(joined, trimesh.Trimesh):  # pragma: no cover - meshes join
+            raise InputError(sc.source, f"robots.{rs.name}.links", f"{link}: shapes do not join")
+        mesh = joined
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    return (v, np.asarray(mesh.faces, dtype=np.int64)), solid
 
 
 def _watch_pairs(
@@ -413,6 +541,11 @@ class _Mover:
     next_cloud: int = 0
     scans: int = 0
 
+    @property
+    def in_scene(self) -> bool:
+        """False for an object only the sensors see (``scene: false``)."""
+        return self.spec.scene
+
 
 def _mover(spec: ObjectSpec, sc: Scenario) -> _Mover | None:
     if spec.motion is None and spec.rescan is None and not spec.clouds:
@@ -434,11 +567,15 @@ def _box_solid(box: Any) -> Solid | None:
 def move_objects(world: World, t: float) -> Twists:
     """Per tick, before the distance query: each moving object's pose at ``t``, and
     the clouds due by ``t`` (scheduled, or a re-scan with the next seed). Returns the
-    moving objects' twists ``{name: (v, ω, origin)}`` for the controllers."""
+    moving objects' twists ``{name: (v, ω, origin)}`` for the controllers. Objects
+    outside the scene (``scene: false``) are left to the sensors: no pose, no cloud
+    and no twist of theirs reaches the scene or the controllers."""
     scene = world.scene
     twists = {}
     for m in world.movers:
         name = m.spec.name
+        if not m.in_scene:  # the sensors see it where it is; the controllers do not
+            continue
         if m.trajectory is not None:
             pose = m.trajectory.pose(t)
             scene.set_pose(name, pose, stamp=t)

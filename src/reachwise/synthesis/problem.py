@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from reachwise.errors import InputError
 from reachwise.kinematics.jacobian import jacobians
+from reachwise.kinematics.orientation import axis_error, rotation_error
 from reachwise.kinematics.robot import BASE_PARAMS, DH_PARAMS, Robot
 from reachwise.kinematics.transforms import pose_from_xyz_rpy, xyz_rpy_from_pose
 from reachwise.tasks.task import Task
@@ -135,14 +136,49 @@ class SynthesisProblem:
         return act
 
     @cached_property
-    def bounds(self) -> tuple[Array, Array]:
-        """Lower and upper bounds of every decision variable."""
+    def declared_bounds(self) -> tuple[Array, Array]:
+        """The design section's bounds of the design variables, ``(p,)`` each (the scale
+        of P-I Table 3's normalized values)."""
         d = self.template.design
         lo_d, hi_d = [], []
         for kind, j, p in d.free:
             lo, hi = d.joints[j][p] if kind == "joint" else d.base[p]
             lo_d.append(lo)
             hi_d.append(hi)
+        return np.array(lo_d, dtype=np.float64), np.array(hi_d, dtype=np.float64)
+
+    @cached_property
+    def design_bounds(self) -> tuple[Array, Array]:
+        """Bounds of the design variables the solver keeps: the declared ones, with every
+        free ``a`` and ``d`` kept at least ``design.min_length`` from 0 (a link that can
+        be built). A range that spans 0 keeps the side of the template's value
+        (positive when that is 0); a range narrower than the minimum is an error."""
+        lo, hi = (b.copy() for b in self.declared_bounds)
+        m = self.template.design.min_length
+        if m <= 0:
+            return lo, hi
+        nominal = self.design_vector()
+        for i, (kind, _, p) in enumerate(self.template.design.free):
+            if kind != "joint" or p not in ("a", "d"):
+                continue
+            if lo[i] >= 0 or (hi[i] > 0 and nominal[i] >= 0):
+                lo[i] = max(lo[i], m)
+            else:
+                hi[i] = min(hi[i], -m)
+            if lo[i] > hi[i]:
+                raise InputError(
+                    self.template.name,
+                    f"design.{self.design_names[i]}",
+                    f"min_length {m} m does not fit the bounds {self.declared_bounds[0][i]}"
+                    f"..{self.declared_bounds[1][i]}",
+                )
+        return lo, hi
+
+    @cached_property
+    def bounds(self) -> tuple[Array, Array]:
+        """Lower and upper bounds of every decision variable (``design_bounds``, then
+        the joint limits of every task point)."""
+        lo_d, hi_d = self.design_bounds
         fj = self.free_joints
         lo_q = np.tile(self.template.lower[fj], self.K)
         hi_q = np.tile(self.template.upper[fj], self.K)
@@ -211,11 +247,7 @@ class SynthesisProblem:
         dims = task.dims
         six = np.flatnonzero(dims == 6)
         if six.size:
-            from scipy.spatial.transform import Rotation
-
-            Rd = task.poses[six, :3, :3]
-            E = Rd @ np.swapaxes(T[six, :3, :3], 1, 2)
-            rv = Rotation.from_matrix(E).as_rotvec()
+            rv = rotation_error(T[six, :3, :3], task.poses[six, :3, :3])
             e[six, 3:] = rv
             D[six, 3:] = Pd[six, 3:]
             J[six, 3:] = Jq[six, 3:]
@@ -223,19 +255,12 @@ class SynthesisProblem:
         five = np.flatnonzero(dims == 5)
         if five.size:
             R = T[five, :3, :3]
-            z = R[:, :, 2]
-            zd = task.axes[five]
-            c = np.cross(z, zd)
-            s = np.linalg.norm(c, axis=1)
-            ang = np.arctan2(s, np.sum(z * zd, axis=1))
-            safe = np.where(s > 1e-15, s, 1.0)
-            u = np.where((s > 1e-15)[:, None], c / safe[:, None], R[:, :, 0])
-            ev = u * ang[:, None]
+            ev = axis_error(R, task.axes[five])
             basis = R[:, :, :2]  # tool x and y axes, normal to the tool axis
             e[five, 3:5] = np.einsum("kib,ki->kb", basis, ev)
             D[five, 3:5] = np.einsum("kib,kic->kbc", basis, Pd[five, 3:])
             J[five, 3:5] = np.einsum("kib,kic->kbc", basis, Jq[five, 3:])
-            eo[five] = ang
+            eo[five] = np.linalg.norm(ev, axis=1)
         return Evaluation(
             e=e,
             active=self.active_rows,

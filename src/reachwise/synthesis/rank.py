@@ -14,7 +14,11 @@ Further keys, as P-II §6 suggests ("different performance measures can be used"
   length-scaled Jacobian (higher is better; compare designs on the same task only);
 * ``length`` — total link length ``Σ (|a_i| + |d_i|)`` over the DH rows (prismatic
   offsets included, strokes not), m (lower is better: a smaller, cheaper machine);
-* ``prismatic`` — number of prismatic joints (lower is better).
+* ``prismatic`` — number of prismatic joints (lower is better);
+* ``size``, ``limits``, ``bounds`` — the design objectives of ``objectives`` (lower is
+  better): ``Σ |a| + Σ |d|`` of the free length parameters, the mean squared normalized
+  distance of the joints from mid-range, and the bound-margin penalty. They need the
+  synthesis problem, so ``measures`` leaves them NaN and the sweep fills them in.
 
 Only feasible candidates (the best run reaches every task point) are ranked; the others
 are reported with ``rank = None`` (P-II Table 2's "−": "no solution for the problem").
@@ -44,8 +48,11 @@ from reachwise.kinematics.indices import (
 from reachwise.kinematics.robot import Robot
 
 #: A ranking figure (P-II Table 2): the GCI/KCI mean, GCI, KCI, manipulability, link
-#: length or number of prismatic joints.
-RankKey = Literal["mean", "gci", "kci", "manipulability", "length", "prismatic"]
+#: length, number of prismatic joints, or a design objective (``size``, ``limits``,
+#: ``bounds``; see ``objectives``).
+RankKey = Literal[
+    "mean", "gci", "kci", "manipulability", "length", "prismatic", "size", "limits", "bounds"
+]
 # key -> +1 when higher is better, -1 when lower is better
 RANK_KEYS: dict[RankKey, int] = {
     "mean": 1,
@@ -54,6 +61,9 @@ RANK_KEYS: dict[RankKey, int] = {
     "manipulability": 1,
     "length": -1,
     "prismatic": -1,
+    "size": -1,
+    "limits": -1,
+    "bounds": -1,
 }
 
 
@@ -67,6 +77,9 @@ class Measures:
     manipulability: float
     length: float
     prismatic: int
+    size: float = math.nan
+    limits: float = math.nan
+    bounds: float = math.nan
 
     def value(self, key: RankKey) -> float:
         return float(getattr(self, check_key(key)))
@@ -134,8 +147,9 @@ def _sort_key(c: Candidate, key: RankKey) -> tuple[float | str, ...]:
     m = c.measures
     if m is None:  # pragma: no cover - infeasible ones are sorted separately
         raise InputError("rank", c.name, "no measures")
+    v = m.value(key)
     return (
-        -RANK_KEYS[key] * m.value(key),
+        -RANK_KEYS[key] * (v if math.isfinite(v) else -RANK_KEYS[key] * math.inf),
         -m.mean,
         -m.gci,
         -m.kci,
@@ -159,9 +173,13 @@ def rank(candidates: Sequence[Candidate], key: RankKey = "mean") -> tuple[Ranked
     )
 
 
-def best_run_index(n_reached: Sequence[int], e_obj: Sequence[float]) -> int:
-    """The best of a topology's runs: most points reached, then the smallest objective
-    ``e_obj``, then the first (the rule of ``synthesize``)."""
+def best_run_index(
+    n_reached: Sequence[int], e_obj: Sequence[float], objective: Sequence[float] | None = None
+) -> int:
+    """The best of a set of runs (the rule of ``synthesize`` and of the sweep): most
+    points reached, then the smallest weighted design ``objective`` (when given), then
+    the smallest pose error ``e_obj``, then the first."""
     if not n_reached:
         raise InputError("rank", "runs", "no run")
-    return min(range(len(n_reached)), key=lambda i: (-n_reached[i], e_obj[i], i))
+    obj = [0.0] * len(n_reached) if objective is None else list(objective)
+    return min(range(len(n_reached)), key=lambda i: (-n_reached[i], obj[i], e_obj[i], i))

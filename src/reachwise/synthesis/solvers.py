@@ -8,15 +8,30 @@ block-structured Jacobian (``linalg``) with
 - the σ_min damping schedule of P-I Eq. 14 on the stacked matrix, faded with the
   residual like the IK (quadratic final convergence), plus a Levenberg–Marquardt boost
   when a step fails to lower the cost;
-- dynamic weighting of the columns (P-II Eq. 25–28): a variable at a bound that the
-  step drives outward gets weight 0 and the step is solved again; the iterate is then
-  projected into the bounds, so every design parameter, base coordinate and joint
-  value always lies within its range;
+- dynamic weighting of the columns (P-II Eq. 25–28) with a working set of the bounds
+  (``active_set``): a variable at a bound that the step drives outward gets weight 0
+  and the step is solved again; when the iteration stalls, a fixed variable whose
+  multiplier has the wrong sign is released. The iterate is then projected into the
+  bounds, so every design parameter, base coordinate and joint value always lies
+  within its range;
+- step control: the step is capped per block (the design, and each task point's
+  joints, by their own ratio to the caps), then halved until the cost falls; the
+  Levenberg–Marquardt boost is bounded (``max_boost``);
 - workspace avoidance (P-II Eq. 29–33, P-I Eq. 27–31): link points closer than a margin
   to the workspace boundary (e.g. the tunnel envelope) are pushed back by the Khatib-
   style velocity ``k (margin − distance)`` along the boundary normal, mapped through the
   transposed point Jacobians and projected into the null space of the task (where P-I
-  writes ``Jᵀ`` inside the projector, the pseudo-inverse is used).
+  writes ``Jᵀ`` inside the projector, the pseudo-inverse is used). A step with this
+  motion that does not lower the cost is retried without it;
+- re-seeding: when a window of ``reseed_every`` iterations lowered the cost by less than
+  ``reseed_progress``, the joints of the unreached points are re-solved by IK.
+
+Why runs stalled before (tunnel-87 seeds 4, 8, 9; issue "Design that optimizes"): a
+working set of the bounds built from the step's sign alone, which creates false
+stationary points (``active_set``); a single step ratio for all task points, so one
+point's large joint step shrank every step (and the iteration count grew with the
+number of points); and, near the tunnel walls, a wall motion that raised the cost made
+every step fail while the unbounded boost damped the task step to nothing.
 
 ``trf`` — ``scipy.optimize.least_squares`` (trust-region reflective) with bounds, the
 exact sparse Jacobian and the same workspace penalty as extra residuals: the baseline.
@@ -30,9 +45,10 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from reachwise.kinematics.dls import EPSILON_SOLVER, LAMBDA_MAX, damping_squared
+from reachwise.synthesis.active_set import bounded_step
 from reachwise.synthesis.linalg import (
     BlockSystem,
-    dls_step,
     null_space_project,
     smallest_singular_value,
     weighted,
@@ -53,11 +69,12 @@ class Workspace(Protocol):
 
 @dataclass(frozen=True)
 class SolverOptions:
-    """Tuning of the ``dls`` solver (lengths in m, angles in rad)."""
+    """Tuning of the ``dls`` solver (lengths in m, angles in rad); ``lambda_max`` and
+    ``epsilon``: the damping schedule (``reachwise.kinematics.dls``)."""
 
     max_iter: int = 1000
-    lam_max: float = 0.05
-    eps: float = 0.02
+    lambda_max: float = LAMBDA_MAX
+    epsilon: float = EPSILON_SOLVER
     err_ref: float = 0.05
     max_step_angle: float = 0.3
     max_step_length: float = 0.5
@@ -67,6 +84,9 @@ class SolverOptions:
     stall_iterations: int = 100
     reseed_every: int = 15
     reseed_restarts: int = 8
+    stall_decrease: float = 1e-3
+    reseed_progress: float = 0.5
+    max_boost: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -128,6 +148,8 @@ def solve_dls(
     history = [cost]
     boost = 0.0
     best_cost, since_best = cost, 0
+    release = False  # stalled on the working set of the bounds: check the multipliers
+    window_start = cost  # merit when the current re-seeding window began
     it = 0
     for it in range(1, opt.max_iter + 1):
         if converged(problem, ev) and _workspace_clear(problem, z, workspace, opt):
@@ -143,45 +165,55 @@ def solve_dls(
         Dw, Jw = weighted(D, J, wd, wq)
         sys0 = BlockSystem.build(Dw, Jw, active, 1e-12)
         smin = smallest_singular_value(sys0, active, 1e-12)
-        lam2 = (1.0 - (smin / opt.eps) ** 2) * opt.lam_max**2 if smin < opt.eps else 0.0
+        lam2 = damping_squared(smin, opt.epsilon, opt.lambda_max)
         lam2 *= min(1.0, np.sqrt(2 * cost) / opt.err_ref) ** 2
         lam2 += boost
-        for _ in range(4):
-            sd, sq, _ = dls_step(D, J, active, e, wd, wq, lam2)
-            out_d = ((zd <= lod) & (sd < 0)) | ((zd >= hid) & (sd > 0))
-            out_q = ((zq <= loq) & (sq < 0)) | ((zq >= hiq) & (sq > 0))
-            if not (out_d[wd > 0].any() or out_q[wq > 0].any()):
-                break
-            wd[out_d] = 0.0
-            wq[out_q] = 0.0
+        bs = bounded_step(
+            D,
+            J,
+            active,
+            e,
+            lam2,
+            (zd, zq),
+            (lod, loq),
+            (hid, hiq),
+            (cap_d, np.tile(cap_q, (K, 1))),
+            release,
+        )
+        sd, sq, wd, wq = bs.design, bs.joints, bs.weight_design, bs.weight_joints
+        task_step = np.concatenate([sd, sq.ravel()])
+        steps = [task_step]
         if workspace is not None:
             nd, nq = _workspace_motion(problem, z, workspace, opt)
             if nd is not None and nq is not None:
                 Dw, Jw = weighted(D, J, wd, wq)
                 sysn = BlockSystem.build(Dw, Jw, active, 1e-12)
                 pd, pq = null_space_project(sysn, wd * nd, wq * nq, active)
-                sd = sd + wd * pd
-                sq = sq + wq * pq
-        step = np.concatenate([sd, sq.ravel()])
+                # the wall motion first together with the task step, alone the task step
+                steps.insert(0, task_step + np.concatenate([wd * pd, (wq * pq).ravel()]))
         caps = np.concatenate([cap_d, np.tile(cap_q, K)])
-        ratio = np.max(np.abs(step) / caps)
-        if ratio > 1.0:
-            step /= ratio
         accepted = False
         alpha = 1.0
-        for _ in range(5):
-            z_try = np.clip(z + alpha * step, lo, hi)
-            ev_try = problem.evaluate(z_try)
-            c_try = _weighted_cost(ev_try, wx)
-            if c_try < cost or (workspace is not None and c_try <= cost * 1.000001 + 1e-12):
-                accepted = True
+        c_try = cost
+        for step in steps:
+            step, _ = _capped(step, caps, p, K, nf)
+            alpha = 1.0
+            for _ in range(5):
+                z_try = np.clip(z + alpha * step, lo, hi)
+                ev_try = problem.evaluate(z_try)
+                c_try = _weighted_cost(ev_try, wx)
+                if c_try < cost or (step is not task_step and c_try <= cost * 1.000001 + 1e-12):
+                    accepted = True
+                    break
+                alpha *= 0.5
+            if accepted:
                 break
-            alpha *= 0.5
+        release = not accepted or c_try > cost * (1 - opt.stall_decrease)
         if accepted:
             z, ev, cost = z_try, ev_try, c_try
             boost = boost / 4.0 if alpha == 1.0 else boost
         else:
-            boost = max(4.0 * boost, 1e-6)
+            boost = min(max(4.0 * boost, 1e-6), opt.max_boost)
         history.append(cost)
         if cost < best_cost * (1 - 1e-4):
             best_cost, since_best = cost, 0
@@ -190,14 +222,32 @@ def solve_dls(
             if since_best >= opt.stall_iterations:
                 break
         if opt.reseed_every and it % opt.reseed_every == 0:
-            z2 = reseed_points(problem, z, ev, rng, opt.reseed_restarts)
+            # re-seed only when the window made little progress (a trapped branch), not
+            # while the iteration converges on its own
+            slow = cost > (1.0 - opt.reseed_progress) * window_start
+            z2 = reseed_points(problem, z, ev, rng, opt.reseed_restarts) if slow else None
             if z2 is not None:
-                z = z2
-                ev = problem.evaluate(z)
-                cost = _weighted_cost(ev, wx)
-                best_cost, since_best = cost, 0
+                ev2 = problem.evaluate(z2)
+                c2 = _weighted_cost(ev2, wx)
+                if c2 < cost * (1 - 1e-4):  # a real improvement restarts the stall count
+                    best_cost, since_best = c2, 0
+                z, ev, cost = z2, ev2, c2
+            window_start = cost
     done = converged(problem, ev) and _workspace_clear(problem, z, workspace, opt)
     return SolveOutcome(z, ev, it, done, history)
+
+
+def _capped(step: Array, caps: Array, p: int, K: int, nf: int) -> tuple[Array, float]:
+    """The step within its caps, scaled per block: the design part by its own ratio and
+    each task point's joints by theirs (a trust region per block). One point's large
+    joint step then no longer shrinks every other point's step — with a single global
+    ratio the iteration count grew with the number of task points. Returns the step and
+    the largest ratio."""
+    r = np.abs(step) / caps
+    rd = max(1.0, float(r[:p].max(initial=0.0)))
+    rq = np.maximum(1.0, r[p:].reshape(K, nf).max(axis=1))
+    out = np.concatenate([step[:p] / rd, (step[p:].reshape(K, nf) / rq[:, None]).ravel()])
+    return out, max(rd, float(rq.max(initial=1.0)))
 
 
 def reseed_points(

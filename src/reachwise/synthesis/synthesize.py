@@ -1,14 +1,20 @@
 """``reachwise.synthesize``: multi-start dimensional synthesis (P-I §3–4, P-II §4).
 
 Each run draws its own initial design (``init``), solves the problem with the chosen
-solver (``solvers``) and reports every task point's status. The best run (most points
-reached, then smallest ``e_obj``) gives ``SynthesisResult.robot``. Statistics over the
-runs reproduce P-I Tables 3–4 (normalized design parameters, mean and deviation).
+solver (``solvers``) and reports every task point's status. With an ``objective``
+(weights of named design objectives, ``objectives``; default the template's
+``design.objective``) a run that reaches every pose then improves its design in the
+null space of the task (``improve``), keeping every pose reached; the reach-only
+design stays in the run (``reach_design``) for comparison. The best run (most points
+reached, then the smallest weighted objective, then the smallest ``e_obj``) gives
+``SynthesisResult.robot``. Statistics over the runs reproduce P-I Tables 3–4
+(normalized design parameters, mean and deviation); ``bound_hits`` flags every design
+parameter that ended at a bound.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Literal, get_args
 
@@ -18,8 +24,17 @@ from numpy.typing import NDArray
 from reachwise.errors import InputError, check_choice
 from reachwise.kinematics.indices import lci
 from reachwise.kinematics.robot import Robot
+from reachwise.synthesis.bound_hits import BoundHit, bound_hits
+from reachwise.synthesis.improve import ImproveOptions, improve
 from reachwise.synthesis.init import initial_guess
+from reachwise.synthesis.objectives import (
+    OBJECTIVES,
+    Objective,
+    check_objective,
+    evaluate_terms,
+)
 from reachwise.synthesis.problem import SynthesisProblem, locked_from_spec
+from reachwise.synthesis.rank import best_run_index
 from reachwise.synthesis.solvers import SolverOptions, Workspace, solve_dls, solve_trf
 from reachwise.tasks.task import Task
 
@@ -48,10 +63,21 @@ class RunResult:
     initial_design: Array
     lci_initial: Array
     lci_final: Array
+    reach_design: Array | None = None
+    reach_q: Array | None = None
+    lci_reach: Array | None = None
+    objective_start: dict[str, float] = field(default_factory=dict)
+    objective_final: dict[str, float] = field(default_factory=dict)
+    improve_iterations: int = 0
 
     @property
     def n_reached(self) -> int:
         return int(self.reached.sum())
+
+    @property
+    def improved(self) -> bool:
+        """True when an objective improved this run's reaching design."""
+        return self.reach_design is not None
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,6 +89,7 @@ class SynthesisResult:
     best_index: int
     solver: SolverName = "dls"
     notes: tuple[str, ...] = field(default_factory=tuple)
+    objective: dict[str, float] = field(default_factory=dict)
 
     @property
     def best(self) -> RunResult:
@@ -81,11 +108,15 @@ class SynthesisResult:
         return self.best.reached
 
     def normalized(self, design: Array) -> Array:
-        """Design values scaled to ``[0, 1]`` between their bounds (P-I Table 3)."""
-        lo, hi = self.problem.bounds
-        p = self.problem.p
-        span = np.where(hi[:p] > lo[:p], hi[:p] - lo[:p], 1.0)
-        return np.asarray((design - lo[:p]) / span)
+        """Design values scaled to ``[0, 1]`` between their declared bounds (P-I Table 3)."""
+        lo, hi = self.problem.declared_bounds
+        span = np.where(hi > lo, hi - lo, 1.0)
+        return np.asarray((design - lo) / span)
+
+    def bound_hits(self, run: RunResult | None = None, tolerance: float = 0.01) -> list[BoundHit]:
+        """Design parameters of ``run`` (default the best) at or within ``tolerance`` of
+        the range from a bound (``bound_hits``)."""
+        return bound_hits(self.problem, (run or self.best).design, tolerance)
 
     def table3(self) -> list[dict[str, float | str]]:
         """Initial and optimized normalized design of the best run (P-I Table 3)."""
@@ -113,6 +144,14 @@ def _lci_at(problem: SynthesisProblem, robot: Robot, Q: Array) -> Array:
     return np.asarray(lci(robot, Q))
 
 
+def design_values(problem: SynthesisProblem, z: Array, lcis: Array) -> dict[str, float]:
+    """Every design objective's value at ``z`` (``objectives``), with GCI and KCI as
+    P-II Eq. 38–39 define them (``lcis``: the LCI at every task posture)."""
+    margin = problem.template.design.margin
+    values = evaluate_terms(problem, z, ("size", "limits", "bounds"), margin=margin).values
+    return {"gci": float(np.mean(lcis)), "kci": float(np.min(lcis)), **values}
+
+
 def run_once(
     problem: SynthesisProblem,
     seed: int,
@@ -120,8 +159,11 @@ def run_once(
     init_sets: int = 8,
     options: SolverOptions | None = None,
     workspace: Workspace | None = None,
+    objective: dict[str, float] | None = None,
+    improve_options: ImproveOptions | None = None,
 ) -> RunResult:
-    """One run: Beta/IK initialization from ``seed`` and one solve."""
+    """One run: Beta/IK initialization from ``seed``, one solve and, with an
+    ``objective`` (weights) and every pose reached, the null-space improvement."""
     rng = np.random.default_rng(seed)
     guess = initial_guess(problem, rng, init_sets)
     d0, Q0 = problem.split(guess.z)
@@ -129,10 +171,29 @@ def run_once(
         out = solve_dls(problem, guess.z, options, workspace, rng)
     else:
         out = solve_trf(problem, guess.z, workspace, options)
-    design, Q = problem.split(out.z)
+    z, ev, iterations = out.z, out.evaluation, out.iterations
+    weights = check_objective(objective)
+    extra: dict[str, object] = {}
+    if weights and out.converged:
+        obj = Objective(weights, margin=problem.template.design.margin)
+        better = improve(problem, out.z, obj, workspace, improve_options)
+        reach_d, reach_q = problem.split(out.z)
+        z, ev = better.z, better.evaluation
+        lci_reach = _lci_at(problem, problem.robot_at(reach_d), reach_q)
+        fd, fq = problem.split(z)
+        extra = {
+            "reach_design": reach_d.copy(),
+            "reach_q": reach_q,
+            "lci_reach": lci_reach,
+            "objective_start": design_values(problem, out.z, lci_reach),
+            "objective_final": design_values(
+                problem, z, _lci_at(problem, problem.robot_at(fd), fq)
+            ),
+            "improve_iterations": better.iterations,
+        }
+    design, Q = problem.split(z)
     robot = problem.robot_at(design, name=f"{problem.template.name}-synth")
-    pos_ok, ori_ok, status = problem.point_status(out.evaluation)
-    ev = out.evaluation
+    pos_ok, ori_ok, status = problem.point_status(ev)
     e_obj = float(np.sum(np.hypot(ev.position_error, ev.orientation_error)))
     return RunResult(
         seed=seed,
@@ -144,17 +205,18 @@ def run_once(
         position_error=ev.position_error,
         orientation_error=ev.orientation_error,
         e_obj=e_obj,
-        iterations=out.iterations,
+        iterations=iterations,
         converged=out.converged,
         initial_design=d0.copy(),
         lci_initial=_lci_at(problem, problem.robot_at(d0), Q0),
         lci_final=_lci_at(problem, robot, Q),
+        **extra,  # type: ignore[arg-type]
     )
 
 
 def synthesize(
     task: Task,
-    template: Robot | str,
+    template: Robot,
     *,
     runs: int = 10,
     solver: SolverName = "dls",
@@ -164,20 +226,21 @@ def synthesize(
     workspace: Workspace | str | None = "task",
     options: SolverOptions | None = None,
     on_run: Callable[[RunResult], None] | None = None,
+    objective: Mapping[str, float] | None = None,
+    improve_options: ImproveOptions | None = None,
 ) -> SynthesisResult:
     """Find design parameters, base frame and joint values that reach every task pose.
 
-    ``template`` is a Robot (or built-in name / file) whose ``design`` section lists
-    the free parameters and bounds. Run ``i`` uses seed ``seed + i``; ``on_run`` is
-    called after each run (progress, or keeping finished runs when interrupted).
+    ``template`` is a Robot whose ``design`` section lists the free parameters and
+    bounds (``reachwise.synthesize`` also takes built-in names and files). Run ``i``
+    uses seed ``seed + i``; ``on_run`` is called after each run (progress, or keeping
+    finished runs when interrupted).
     ``workspace="task"`` keeps the links inside the task's envelope (the tunnel of a
     drilling task) when it has one; pass ``None`` to ignore it, or any object with
-    ``signed_distance`` and ``gradient``.
+    ``signed_distance`` and ``gradient``. ``objective`` maps objective names
+    (``objectives.OBJECTIVES``: ``gci``, ``kci``, ``size``, ``limits``, ``bounds``) to
+    weights; ``None`` takes the template's ``design.objective``, ``{}`` none.
     """
-    if isinstance(template, str):
-        from reachwise.io.robot_file import load_robot
-
-        template = load_robot(template)
     solver = check_choice(solver, SOLVERS, source="synthesize", kind="solver")
     if runs < 1:
         raise InputError("synthesize", "runs", "at least one run")
@@ -186,20 +249,52 @@ def synthesize(
         if workspace != "task":
             raise InputError("synthesize", "workspace", "'task', None or a workspace object")
         workspace = task.envelope
+    weights = check_objective(
+        template.design.objective if objective is None else objective, "synthesize"
+    )
     results = []
     for i in range(runs):
-        r = run_once(problem, seed + i, solver, init_sets, options, workspace)
+        r = run_once(
+            problem, seed + i, solver, init_sets, options, workspace, weights, improve_options
+        )
         results.append(r)
         if on_run is not None:
             on_run(r)
-    return result_of(problem, results, solver)
+    return result_of(problem, results, solver, weights)
+
+
+def objective_costs(runs: Sequence[RunResult], weights: Mapping[str, float]) -> list[float]:
+    """The weighted objective of each run's final design on one common scale: each term
+    divided by its median magnitude over the runs' reach-only designs (``objectives``)."""
+    names = [n for n, w in weights.items() if w > 0]
+    if not names:
+        return [0.0] * len(runs)
+    ref = {}
+    for n in names:
+        mags = [abs(r.objective_start[n]) for r in runs if n in r.objective_start]
+        m = float(np.median(mags)) if mags else 1.0
+        ref[n] = m if m > 1e-12 else 1.0
+    out = []
+    for r in runs:
+        if not all(n in r.objective_final for n in names):
+            out.append(float("inf"))
+            continue
+        out.append(
+            float(sum(-OBJECTIVES[n] * weights[n] * r.objective_final[n] / ref[n] for n in names))
+        )
+    return out
 
 
 def result_of(
-    problem: SynthesisProblem, runs: Sequence[RunResult], solver: SolverName = "dls"
+    problem: SynthesisProblem,
+    runs: Sequence[RunResult],
+    solver: SolverName = "dls",
+    objective: Mapping[str, float] | None = None,
 ) -> SynthesisResult:
     """Assemble a result from finished runs (also used for interrupted syntheses)."""
     if not runs:
         raise InputError("synthesize", "runs", "no finished run")
-    best = min(range(len(runs)), key=lambda i: (-runs[i].n_reached, runs[i].e_obj, i))
-    return SynthesisResult(problem, tuple(runs), best, solver)
+    weights = check_objective(objective, "synthesize")
+    costs = objective_costs(runs, weights) if weights else None
+    best = best_run_index([r.n_reached for r in runs], [r.e_obj for r in runs], costs)
+    return SynthesisResult(problem, tuple(runs), best, solver, objective=weights)

@@ -71,6 +71,7 @@ class LiveRun:
         self._last = -math.inf
         self._pending: tuple[Any, ...] | None = None
         self._thread: threading.Thread | None = None
+        self._history: dict[int, dict[str, NDArray[np.float64]]] = {}  # tick -> q (sensors)
         viewer.mode = "live"
         viewer.activate(self)
         viewer.set_info(f"**{self.scenario.name}** ({self.label}), live: starting …")
@@ -90,6 +91,12 @@ class LiveRun:
         self.t = t
         for r, q in qs.items():
             self.paths[r].append(np.asarray(self.world.robots[r].fk(q))[:3, 3])
+        if self.world.sensors:  # the joints since the oldest capture still to be shown
+            tick = round(t / self.scenario.spec.dt)
+            self._history[tick] = {r: np.array(q) for r, q in qs.items()}
+            oldest = min(s.capture_tick(s.frame_in_use(tick)) for s in self.world.sensors)
+            for old in [k for k in self._history if k < oldest]:
+                del self._history[old]
         now = time.monotonic()
         self._pending = (t, qs, res)
         if now - self._last >= 1.0 / self.fps:
@@ -109,6 +116,7 @@ class LiveRun:
             for r, q in qs.items():
                 self.sim.set_robot_q(r, q)
             self.sim.set_objects_at(t, None)
+            self.sim.set_sensor_frames(round(t / self.scenario.spec.dt), self._history.get)
             self.sim.update_lines(res)
             for r, pts in self.paths.items():
                 if len(pts) > 1:

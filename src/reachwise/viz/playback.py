@@ -5,7 +5,10 @@
 (the scene's link clouds — watched links in orange — plus light clouds of its other
 links, the skeleton, the tool frame), the environment clouds, the goals (red until
 reached, then green) and the closest-point lines of the watched pairs (thesis §3.1,
-P-V Fig. 4: red within the collision margin ρ_O, amber in the monitored band).
+P-V Fig. 4: red within the collision margin ρ_O, amber in the monitored band). A depth
+camera's live cloud is its environment cloud, replaced as frames arrive (each frame
+rendered again from the state at its capture, :mod:`reachwise.sim.sensors`); an object
+only the cameras see (``scene: false``) is drawn as grey points on its true surface.
 
 :class:`Playback` replays a :class:`~reachwise.sim.log.SimulationLog`: a play /
 pause button and a time slider (scrub), the speed, the tool paths; at each shown tick
@@ -19,6 +22,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -45,6 +49,7 @@ if TYPE_CHECKING:
 __all__ = ["GoalEntry", "Playback", "SimScene", "goal_reached_at", "goal_table"]
 
 PATH_RGB = (200, 60, 160)
+HIDDEN_RGB = (150, 150, 150)  # the true surface of an object only the sensors see
 
 
 @dataclass(frozen=True)
@@ -156,6 +161,8 @@ class SimScene:
                 pose=poses[obj.name],
             )
         self._cloud_version: dict[str, int] = {}
+        self._frame = {sensor.name: 0 for sensor in getattr(world, "sensors", [])}
+        self.hidden_nodes = self._add_hidden(world)
         self.n_goals = len(self.goals)
         if self.goals:
             P = np.array([g.pose for g in self.goals])
@@ -182,6 +189,11 @@ class SimScene:
                 T = poses[name]
             elif getattr(m, "trajectory", None) is not None:
                 T = m.trajectory.pose(t)
+            if name in self.hidden_nodes:  # not in the scene: only its view moves
+                if T is not None:
+                    h = self.hidden_nodes[name]
+                    h.wxyz, h.position = wxyz_position(T)
+                continue
             if T is not None and name in self.dynamic:
                 self.world.scene.set_pose(name, T)
                 h = self.env_nodes.get(name)
@@ -198,6 +210,46 @@ class SimScene:
                     h.points = np.asarray(cloud.points, dtype=np.float32)
                     h.colors = height_colours(_place(cloud.points, T0))
                 self._cloud_version[name] = v
+
+    def _add_hidden(self, world: World) -> dict[str, Any]:
+        """Grey points on the true surface of each object only the sensors see."""
+        import trimesh
+
+        from reachwise.geometry.cloud import sample_mesh_surface
+
+        sight = getattr(world, "sight", None)
+        out: dict[str, Any] = {}
+        for os_ in world.scenario.spec.objects:
+            if os_.scene or sight is None or os_.name not in sight.objects:
+                continue
+            surface = sight.objects[os_.name]
+            v, f = surface.shape_at(0.0)[0]
+            pts = sample_mesh_surface(trimesh.Trimesh(v, f, process=False), n=1500, seed=0).points
+            out[os_.name] = self.viewer.add_cloud(
+                f"/env/{node_name(os_.name)}", pts, HIDDEN_RGB, pose=surface.pose_at(0.0)
+            )
+        return out
+
+    def set_sensor_frames(
+        self, tick: int, q_at: Callable[[int], dict[str, NDArray[np.float64]] | None]
+    ) -> None:
+        """The sensors' clouds in the scene at ``tick``: each frame in use then,
+        rendered again from the state at its capture (``q_at(capture tick)``: the
+        robots' joints then, or None if unknown), into the view and the viewer's scene
+        (for the closest-point lines)."""
+        sight = getattr(self.world, "sight", None)
+        for sensor in getattr(self.world, "sensors", []):
+            k = sensor.frame_in_use(tick)
+            qs = q_at(sensor.capture_tick(k))
+            if sight is None or k == self._frame.get(sensor.name) or qs is None:
+                continue
+            cloud = sensor.cloud(sensor.render(k, sight, qs))
+            self.world.scene.replace_cloud(sensor.name, cloud, block=True)
+            h = self.env_nodes.get(sensor.name)
+            if h is not None:
+                h.points = np.asarray(cloud.points, dtype=np.float32)
+                h.colors = height_colours(cloud.points)
+            self._frame[sensor.name] = k
 
     def _original(self, name: str) -> Any:
         for o in self.env:
@@ -346,11 +398,18 @@ class Playback:
                 self.sim.set_robot_q(r, log.q[r][k])
             poses = {n: p[k] for n, p in getattr(log, "object_poses", {}).items()}
             self.sim.set_objects_at(t, poses)
+            self.sim.set_sensor_frames(k, self._q_at)
             self.sim.update_lines()
             self.sim.set_goal_status(self.reached_at <= t + 1e-9)
             states = {r: str(log.state[r][k]) for r in log.robots}
             self.status.content = status_text(self.sim, t, float(self.min_distance[k]), states)
             self.index = k
+
+    def _q_at(self, k: int) -> dict[str, NDArray[np.float64]] | None:
+        """The robots' logged joint states at tick ``k`` (None outside the log)."""
+        if not 0 <= k < self.T:
+            return None
+        return {r: self.log.q[r][k] for r in self.log.robots}
 
     def _slid(self, ev: Any) -> None:
         k = self.tick_of(ev.target.value)

@@ -1,0 +1,162 @@
+"""The approach guard of a tick (``controller``, items 5–6; our addition beyond the
+thesis): every active pair's distance rate must stay above the velocity damper
+``−ξ (ρ − ρ_s)/(ρ_O − ρ_s)`` (plus a moving obstacle's approach speed). Tool parts
+deflect the goal velocity; then the goal part of the task is scaled by the largest
+``s ∈ [0, 1]`` that keeps every pair within its bound, and if even ``s = 0`` does not,
+the whole motion is slowed down."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from reachwise.control.tick.joints import limit_scale
+from reachwise.control.tick.task import task_velocity
+
+
+@njit(cache=True)
+def moving_bound(rho, rho0, rho_stop, xi, u):  # type: ignore[no-untyped-def]
+    """Lowest rate ``n_iᵀ J_Oi q̇`` allowed against an obstacle approaching at ``u``:
+    the velocity damper on the true distance rate, ``u − ξ (ρ − ρ_s)/(ρ_O − ρ_s)``,
+    continued below ``ρ_s`` (down to ``u + ξ`` at ``2ρ_s − ρ_O``) so that a point the
+    obstacle pushed inside ``ρ_s`` must open the gap again, not only hold it."""
+    span = max(rho0 - rho_stop, 1e-9)
+    frac = min(max((rho - rho_stop) / span, -1.0), 1.0)
+    return u - xi * frac
+
+
+@njit(cache=True)
+def deflect_for_tool_parts(pG, pR, rows, pts, settings):  # type: ignore[no-untyped-def]
+    """Remove from the goal velocity ``pG`` (in place) the part that would close a tool
+    part's gap faster than the velocity damper allows, and keep the part along the
+    obstacle: the tool slides around it instead of stopping."""
+    rho_stop = settings.stop_distance
+    xi = settings.approach_speed
+    normal = rows.normal
+    rho0 = rows.margin
+    task_space = rows.task_space
+    active = pts.active
+    deff = pts.deff
+    approach = pts.approach
+    m = rows.distance.shape[0]
+    for _ in range(3):
+        for i in range(m):
+            if not (active[i] and task_space[i]):
+                continue
+            span = max(rho0[i] - rho_stop, 1e-9)
+            frac = min(max((deff[i] - rho_stop) / span, 0.0), 1.0)
+            rate = 0.0
+            for j in range(3):
+                rate += normal[i, j] * (pG[j] + pR[j])
+            lo = -xi * frac
+            if approach[i] > 0.0:
+                lo = moving_bound(deff[i], rho0[i], rho_stop, xi, approach[i])
+            if rate < lo:
+                for j in range(3):
+                    pG[j] += (lo - rate) * normal[i, j]
+
+
+@njit(cache=True)
+def guard_scales(sol, w, rec, xrec, pG, pR, wG, six, q, limits, rows, pts, gains, settings):  # type: ignore[no-untyped-def]
+    """The task scale ``s`` (bisection on feasibility), the guard scale (≤ 1: the whole
+    motion slowed down when even ``s = 0`` closes a pair in too fast) and the joint
+    velocity for ``s``. Returns ``(s, guard, q̇)``."""
+    rho_stop = settings.stop_distance
+    xi = settings.approach_speed
+    normal = rows.normal
+    rho0 = rows.margin
+    active = pts.active
+    approach = pts.approach
+    deff = pts.deff
+    JO = pts.JO
+    M = sol.M
+    unull = sol.unull
+    n, r = M.shape
+    m = rows.distance.shape[0]
+    xd = np.empty(r)
+    qd1 = np.empty(n)
+    s = 1.0
+    guard = 1.0
+    g = np.zeros((m, n))
+    lo_rate = np.zeros(m)
+    lo_static = np.zeros(m)
+    for i in range(m):
+        if not active[i]:
+            continue
+        for k in range(n):
+            acc = 0.0
+            for j in range(3):
+                acc += normal[i, j] * JO[i, j, k]
+            g[i, k] = acc
+        span = max(rho0[i] - rho_stop, 1e-9)
+        frac = min(max((deff[i] - rho_stop) / span, 0.0), 1.0)
+        lo_static[i] = -xi * frac
+        lo_rate[i] = lo_static[i]
+        if approach[i] > 0.0:
+            lo_rate[i] = moving_bound(deff[i], rho0[i], rho_stop, xi, approach[i])
+    qs = np.empty(n)
+    moving = False
+    for i in range(m):
+        if active[i] and approach[i] > 0.0:
+            moving = True
+    # feasibility of a task scale: every active pair's rate above its bound
+    lo_s = 0.0
+    hi_s = 1.0
+    for it in range(16):
+        trial = 1.0 if it == 0 else (0.0 if it == 1 else 0.5 * (lo_s + hi_s))
+        task_velocity(trial, pG, pR, wG, six, gains, xd)
+        for k in range(n):
+            acc = 0.0
+            for j in range(r):
+                acc += M[k, j] * (xd[j] - xrec[j])
+            qs[k] = w[k] * (acc + unull[k]) + rec[k]
+        ok = True
+        # a moving obstacle's pair is checked on the command actually sent, after
+        # the joint-speed scaling (scaling slows a retreat down as well)
+        a_s = limit_scale(qs, 1.0, rec, q, limits, gains.k_limit) if moving else 1.0
+        for i in range(m):
+            if not active[i]:
+                continue
+            rate = 0.0
+            for k in range(n):
+                rate += g[i, k] * qs[k]
+            if rate < lo_rate[i] - 1e-12:
+                ok = False
+                break
+            if approach[i] > 0.0 and a_s * rate < lo_rate[i] - 1e-12:
+                ok = False
+                break
+        if it == 0:
+            if ok:
+                s = 1.0
+                break
+        elif it == 1:
+            if not ok:
+                s = 0.0
+                break
+            lo_s = 0.0
+        else:
+            if ok:
+                lo_s = trial
+            else:
+                hi_s = trial
+        s = lo_s
+    task_velocity(s, pG, pR, wG, six, gains, xd)
+    for k in range(n):
+        acc = 0.0
+        for j in range(r):
+            acc += M[k, j] * (xd[j] - xrec[j])
+        qd1[k] = w[k] * (acc + unull[k]) + rec[k]
+    # still closing in too fast with no task left: slow the whole motion down. Only
+    # the robot's own approach can be slowed (the static damper); a robot too slow
+    # to outrun an approaching obstacle keeps retreating as fast as it can
+    for i in range(m):
+        if not active[i]:
+            continue
+        rate = 0.0
+        for k in range(n):
+            rate += g[i, k] * qd1[k]
+        if rate < lo_static[i]:
+            f = lo_static[i] / rate if rate < 0.0 else 0.0
+            guard = min(guard, max(f, 0.0))
+    return s, guard, qd1

@@ -1,0 +1,54 @@
+"""Joint limits in a tick: which joints take part, which recover into their range
+(P-II Eq. 25–28), and the one factor that scales the whole command within every
+joint's bounds (see ``reachwise.control.limits`` for the same rules in numpy)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def joint_weights(q, limits, k_limit):  # type: ignore[no-untyped-def]
+    """Weights ``w`` (1 for a usable joint inside its range, else 0) and the recovery
+    velocities ``rec`` of usable joints outside their range (inward, at most ``vmax``)."""
+    n = q.shape[0]
+    lower = limits.lower
+    upper = limits.upper
+    vmax = limits.vmax
+    usable = limits.usable
+    rec = np.zeros(n)
+    w = np.zeros(n)
+    for k in range(n):
+        if not usable[k]:
+            continue
+        if q[k] < lower[k]:
+            rec[k] = min(k_limit * (lower[k] - q[k]), vmax[k])
+        elif q[k] > upper[k]:
+            rec[k] = -min(k_limit * (q[k] - upper[k]), vmax[k])
+        else:
+            w[k] = 1.0
+    return w, rec
+
+
+@njit(cache=True)
+def limit_scale(qd, guard, rec, q, limits, k_limit):  # type: ignore[no-untyped-def]
+    """The factor ``α ≤ guard`` that brings ``guard · qd`` within every joint's speed
+    bound and position-limit damper (a recovering joint may only move inward)."""
+    lower = limits.lower
+    upper = limits.upper
+    vmax = limits.vmax
+    alpha = guard
+    for k in range(qd.shape[0]):
+        v = qd[k] * guard
+        if rec[k] != 0.0:
+            hi = vmax[k] if rec[k] > 0.0 else 0.0
+            lo = -vmax[k] if rec[k] < 0.0 else 0.0
+        else:
+            hi = min(vmax[k], max(k_limit * (upper[k] - q[k]), 0.0))
+            lo = max(-vmax[k], min(k_limit * (lower[k] - q[k]), 0.0))
+        if v > hi:
+            alpha = min(alpha, guard * hi / v if v > 0.0 else 0.0)
+        elif v < lo:
+            alpha = min(alpha, guard * lo / v if v < 0.0 else 0.0)
+    return max(alpha, 0.0)

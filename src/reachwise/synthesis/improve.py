@@ -1,0 +1,278 @@
+"""Improving a reaching design in the null space of the task (P-I §3.2, Eq. 23–25, 32).
+
+P-I keeps constraints satisfied by "internal motions": a secondary velocity projected
+into the null space of the task Jacobian, ``(I − Φ⁺Φ) ζ̇₀``, changes the decision vector
+without changing the task poses to first order (Eq. 23–24); the thesis uses it for the
+parameter bounds (Eq. 25–26) and the tunnel walls (Eq. 31–32). Here the same mechanism
+improves the design once every pose is reached: the secondary motion is the steepest
+descent of a weighted objective (``objectives``), and the stacked task Jacobian ``Φ``
+couples each design change with the joint motion of every task point that compensates
+it. One iteration:
+
+1. gradient ``g`` of the objective plus a barrier that keeps every sampled link point
+   ``workspace_margin`` inside the workspace (the tunnel), where it is closer;
+2. scaled, bound-aware direction ``Δz = −W (I − Φ_w⁺ Φ_w) W g``, ``Φ_w = Φ W`` with ``W`` the
+   variables' ranges and 0 for a variable at a bound that ``g`` pushes outward
+   (P-II Eq. 25–28; the projection is the block-sparse one of ``linalg``, linear in K);
+3. a trial ``z + α Δz`` (``α`` from a trust radius on the scaled step), projected into the
+   bounds, then restored onto the reaching set by Gauss–Newton steps (the bounded DLS
+   step of ``active_set`` with ``λ → 0``): the null-space step leaves a second-order
+   residual only;
+4. the trial is accepted only if every pose is within tolerance (position and
+   orientation), every link point is inside the workspace and the objective decreased;
+   the radius then grows, otherwise it shrinks.
+
+So every accepted iterate reaches every pose: the result is never worse than the
+reach-only design it started from. The loop ends when the radius or the relative
+decrease over ``window`` accepted steps falls below its tolerance.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from reachwise.synthesis.active_set import bounded_step
+from reachwise.synthesis.linalg import BlockSystem, null_space_project, weighted
+from reachwise.synthesis.objectives import Objective, Terms
+from reachwise.synthesis.problem import Evaluation, SynthesisProblem
+from reachwise.synthesis.solvers import Workspace, converged, row_weights
+from reachwise.synthesis.workspace_points import link_points
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ImproveOptions:
+    """Tuning of the null-space improvement (step sizes are fractions of each variable's
+    range; ``restore_tolerance`` is a fraction of the task tolerances)."""
+
+    max_iter: int = 500
+    radius: float = 0.02
+    max_radius: float = 0.2
+    min_radius: float = 1e-4
+    window: int = 8
+    tolerance: float = 1e-4
+    restore_iter: int = 6
+    restore_tolerance: float = 1e-3
+    workspace_margin: float = 0.1
+    workspace_weight: float = 1.0
+    samples_per_link: int = 4
+    active_band: float = 1e-3
+    max_passes: int = 30
+
+
+@dataclass(frozen=True)
+class ImproveOutcome:
+    """The improved vector, its evaluation, the objective's terms at the start and the end,
+    and how many steps were tried and accepted."""
+
+    z: Array
+    evaluation: Evaluation
+    start: Terms
+    final: Terms
+    objective: Objective
+    iterations: int
+    accepted: int
+    cost_history: list[float] = field(default_factory=list)
+
+
+def _spans(problem: SynthesisProblem) -> Array:
+    lo, hi = problem.bounds
+    return np.asarray(np.maximum(hi - lo, 0.0))
+
+
+def _wall(
+    problem: SynthesisProblem, z: Array, ws: Workspace | None, opt: ImproveOptions
+) -> tuple[float, Array, bool]:
+    """Barrier ``Σ max(0, m − d)² / m²`` over link points, its gradient, and whether
+    every link point is inside the workspace (``d >= 0``)."""
+    g = np.zeros(problem.size)
+    if ws is None:
+        return 0.0, g, True
+    pts, Jd, Jq, owner = link_points(problem, z, opt.samples_per_link)
+    flat = pts.reshape(-1, 3)
+    sd = ws.signed_distance(flat)
+    inside = bool(np.all(sd >= 0.0))
+    m = opt.workspace_margin
+    near = np.flatnonzero(sd < m)
+    if near.size == 0 or opt.workspace_weight <= 0:
+        return 0.0, g, inside
+    depth = m - sd[near]
+    value = opt.workspace_weight * float(np.sum(depth * depth)) / (m * m)
+    n = ws.gradient(flat[near])  # (k, 3): increasing signed distance
+    c = (-2.0 * opt.workspace_weight / (m * m)) * depth[:, None] * n  # d value / d point
+    p, nf = problem.p, problem.n_free_joints
+    g[:p] = np.einsum("kia,ki->a", Jd.reshape(-1, 3, p)[near], c)
+    gq = np.zeros((problem.K, nf))
+    np.add.at(gq, owner.reshape(-1)[near], np.einsum("kia,ki->ka", Jq.reshape(-1, 3, nf)[near], c))
+    g[p:] = gq.ravel()
+    return value, g, inside
+
+
+def _reached(problem: SynthesisProblem, ev: Evaluation, fraction: float = 1.0) -> bool:
+    task = problem.task
+    pos = ev.position_error <= fraction * task.tol_position
+    ori = (ev.orientation_error <= fraction * task.tol_orientation) | (task.dims == 3)
+    return bool(pos.all() and ori.all())
+
+
+def restore(
+    problem: SynthesisProblem, z: Array, iterations: int = 6, fraction: float = 0.25
+) -> tuple[Array, Evaluation]:
+    """Gauss–Newton steps (bounded DLS, ``λ → 0``) from ``z`` until every pose is within
+    ``fraction`` of its tolerance (or ``iterations`` are spent). The joints alone are
+    moved first — the design stays what the improvement chose — and the design too
+    only if the joints cannot restore the poses. Returns the last iterate."""
+    lo, hi = problem.bounds
+    p, K, nf = problem.p, problem.K, problem.n_free_joints
+    wx = row_weights(problem)
+    span = _spans(problem)
+    ev = problem.evaluate(z)
+    for i in range(2 * iterations):
+        if _reached(problem, ev, fraction):
+            break
+        D, J = ev.D * wx[:, :, None], ev.J * wx[:, :, None]
+        if i < iterations:
+            D = np.zeros_like(D)
+        bs = bounded_step(
+            D, J, problem.active_rows, ev.e * wx, 1e-12,
+            (z[:p], z[p:].reshape(K, nf)), (lo[:p], lo[p:].reshape(K, nf)),
+            (hi[:p], hi[p:].reshape(K, nf)), (span[:p], span[p:].reshape(K, nf)),
+        )  # fmt: skip
+        z = np.clip(z + np.concatenate([bs.design, bs.joints.ravel()]), lo, hi)
+        ev = problem.evaluate(z)
+    return z, ev
+
+
+def _project(sysn: BlockSystem, w: Array, v: Array, p: int, active: NDArray[np.bool_]) -> Array:
+    """``(I − Φ_w⁺ Φ_w) v`` (``sysn`` factorizes ``Φ_w``), 0 on fixed variables (``w = 0``)."""
+    K, nf = active.shape[0], (v.size - p) // active.shape[0]
+    vd, vq = null_space_project(sysn, v[:p], v[p:].reshape(K, nf), active)
+    return np.concatenate([vd, vq.ravel()]) * (w > 0)
+
+
+def _two_loop(g: Array, pairs: list[tuple[Array, Array]]) -> Array:
+    """L-BFGS: ``H g`` from the stored ``(s, y)`` pairs (Nocedal & Wright, Alg. 7.4)."""
+    q = g.copy()
+    alphas = []
+    for s, y in reversed(pairs):
+        a = float(s @ q) / float(y @ s)
+        alphas.append(a)
+        q -= a * y
+    if pairs:
+        s, y = pairs[-1]
+        q *= float(s @ y) / float(y @ y)
+    for (s, y), a in zip(pairs, reversed(alphas), strict=True):
+        b = float(y @ q) / float(y @ s)
+        q += (a - b) * s
+    return q
+
+
+def improve(
+    problem: SynthesisProblem,
+    z0: Array,
+    objective: Objective,
+    workspace: Workspace | None = None,
+    options: ImproveOptions | None = None,
+) -> ImproveOutcome:
+    """Lower ``objective`` from the reaching vector ``z0`` while every pose stays reached
+    (module docstring). ``objective`` without reference magnitudes is referenced to
+    ``z0``. If ``z0`` does not reach every pose it is returned unchanged."""
+    opt = options or ImproveOptions()
+    lo, hi = problem.bounds
+    p, K, nf = problem.p, problem.K, problem.n_free_joints
+    span = _spans(problem)
+    # coordinates x = z / scale: each variable in units of its range; a posture's joints
+    # weigh sqrt(K) more, since each posture carries 1/K of a mean over the task
+    scale = np.where(span > 0, span, 1.0)
+    scale[p:] *= np.sqrt(K)
+    z = np.clip(np.asarray(z0, dtype=np.float64), lo, hi)
+    ev = problem.evaluate(z)
+    if converged(problem, ev):  # every iterate from here on lies well inside the tolerance
+        z1, ev1 = restore(problem, z, opt.restore_iter, opt.restore_tolerance)
+        if converged(problem, ev1):
+            z, ev = z1, ev1
+    start = objective.terms(problem, z)
+    obj = objective if objective.reference else objective.referenced(start)
+    terms = start
+    wall, gwall, inside = _wall(problem, z, workspace, opt)
+    if not (converged(problem, ev) and inside):
+        return ImproveOutcome(z, ev, start, start, obj, 0, 0, [])
+    cost = obj.cost(terms) + wall
+    history = [cost]
+    wx = row_weights(problem)
+    active = problem.active_rows
+    pairs: list[tuple[Array, Array]] = []
+    last: tuple[Array, Array] | None = None  # (x, reduced gradient) of the last iterate
+    radius = opt.radius
+    accepted = 0
+    it = 0
+    Dx, Jx = ev.D * wx[:, :, None], ev.J * wx[:, :, None]
+    while it < opt.max_iter:
+        it += 1
+        g = obj.gradient(terms) + gwall
+        x = z / scale
+        near = opt.active_band * span  # this close to a bound counts as at it
+        lo_z, hi_z = z <= lo + near, z >= hi - near
+        # a variable at a bound that the descent −g pushes outward stays (weight 0)
+        w = scale * ~((lo_z & (g > 0)) | (hi_z & (g < 0)))
+        D, J = weighted(Dx, Jx, w[:p], w[p:].reshape(K, nf))
+        gx = _project(BlockSystem.build(D, J, active, 1e-12), w, w * g, p, active)
+        if last is not None:  # the curvature pair of the last accepted step
+            s_, y_ = x - last[0], gx - last[1]
+            if float(s_ @ y_) > 1e-10 * float(np.linalg.norm(s_) * np.linalg.norm(y_)):
+                pairs = [*pairs[-7:], (s_, y_)]
+        for _ in range(opt.max_passes):  # each pass fixes at least one more variable
+            D, J = weighted(Dx, Jx, w[:p], w[p:].reshape(K, nf))
+            sysn = BlockSystem.build(D, J, active, 1e-12)
+            gw = _project(sysn, w, w * g, p, active)
+            d = _project(sysn, w, -_two_loop(gw, pairs), p, active)
+            if float(gw @ d) >= 0:  # not a descent direction: steepest descent
+                d, pairs = -gw, []
+            step = w * d
+            out = (lo_z & (step < 0)) | (hi_z & (step > 0))
+            if not out.any():
+                break
+            w = np.where(out, 0.0, w)  # coupling through Φ pushes it out: fix it too
+        last = (x, gx)
+        biggest = float(np.max(np.abs(d)))
+        if biggest <= 0 or not np.isfinite(biggest):
+            break
+        alpha = 1.0 if pairs else radius / biggest
+        alpha = min(alpha, opt.max_radius / biggest)
+        # ratio test: stop where the first free variable meets its bound (it joins the
+        # working set next iteration) instead of clipping the step out of the null space
+        with np.errstate(divide="ignore", invalid="ignore"):
+            room = np.where(step < 0, (lo - z) / step, np.where(step > 0, (hi - z) / step, np.inf))
+        alpha = min(alpha, float(np.min(np.maximum(room, 0.0))))
+        ok = False
+        while alpha * biggest >= opt.min_radius:
+            z_try, ev_try = restore(
+                problem, np.clip(z + alpha * step, lo, hi), opt.restore_iter, opt.restore_tolerance
+            )
+            if converged(problem, ev_try):
+                t_try = obj.terms(problem, z_try)
+                w_try, gw_try, in_try = _wall(problem, z_try, workspace, opt)
+                c_try = obj.cost(t_try) + w_try
+                if in_try and c_try < cost:
+                    ok = True
+                    break
+            alpha *= 0.5
+        if not ok:
+            if not pairs:
+                break
+            pairs, last = [], None  # retry along the steepest descent
+            continue
+        radius = min(2.0 * alpha * biggest, opt.max_radius)
+        z, ev, terms, cost, gwall = z_try, ev_try, t_try, c_try, gw_try
+        Dx, Jx = ev.D * wx[:, :, None], ev.J * wx[:, :, None]
+        accepted += 1
+        history.append(cost)
+        if len(history) > opt.window:
+            ref = history[-1 - opt.window]
+            if ref - cost <= opt.tolerance * max(abs(ref), 1.0):
+                break
+    return ImproveOutcome(z, ev, start, terms, obj, it, accepted, history)

@@ -1,0 +1,109 @@
+"""Design that optimizes: the improved design beats the reach-only one and reaches every
+pose (checked by forward kinematics, independently of the solver's own residual)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import reachwise
+from reachwise.benchmarks.synthesis import hard_instance
+from reachwise.kinematics.indices import gci, kci
+from reachwise.kinematics.robot import Robot
+from reachwise.synthesis.improve import improve
+from reachwise.synthesis.objectives import Objective
+from reachwise.synthesis.pareto import dominated, pareto_sweep
+from reachwise.synthesis.problem import SynthesisProblem
+from reachwise.tasks.task import Task
+
+
+def reaches_every_pose(robot: Robot, q: np.ndarray, task: Task) -> bool:
+    """Forward kinematics of the design at every posture against the task, within the
+    task's tolerances (6-D points: position and the rotation angle between the frames)."""
+    T = robot.fk(q)
+    pos = np.linalg.norm(T[:, :3, 3] - task.positions, axis=1)
+    ang = Rotation.from_matrix(task.poses[:, :3, :3] @ np.swapaxes(T[:, :3, :3], 1, 2))
+    return bool(
+        np.all(pos <= task.tol_position) and np.all(ang.magnitude() <= task.tol_orientation)
+    )
+
+
+def free_lengths(problem: SynthesisProblem, design: np.ndarray) -> np.ndarray:
+    return np.array([abs(v) for v, n in zip(design, problem.design_names, strict=True)
+                     if n[0] in "ad"])  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def hard() -> SynthesisProblem:
+    return hard_instance()
+
+
+def test_the_fk_check_can_fail(hard: SynthesisProblem) -> None:
+    probe = hard.robot_at(hard.design_vector())
+    q = np.zeros((hard.K, probe.n))
+    assert not reaches_every_pose(probe, q, hard.task)
+
+
+def test_gci_objective_conditions_the_design_and_keeps_every_pose(hard: SynthesisProblem) -> None:
+    tmpl = replace(hard.template, design=replace(hard.template.design, min_length=0.1))
+    res = reachwise.synthesize(hard.task, tmpl, runs=1, seed=0, objective={"gci": 1.0})
+    best = res.best
+    assert best.improved and best.lci_reach is not None
+    assert gci(best.lci_final) >= 1.25 * gci(best.lci_reach)
+    assert kci(best.lci_final) >= kci(best.lci_reach)
+    assert reaches_every_pose(best.robot, best.q, hard.task)
+    assert free_lengths(res.problem, best.design).min() >= 0.1 - 1e-12
+    assert res.problem.within_bounds(res.problem.pack(best.design, best.q))
+
+
+def test_size_objective_shrinks_the_design_and_keeps_every_pose(hard: SynthesisProblem) -> None:
+    res = reachwise.synthesize(hard.task, hard.template, runs=1, seed=0, objective={"size": 1})
+    best = res.best
+    assert best.reach_design is not None
+    before = free_lengths(res.problem, best.reach_design).sum()
+    after = free_lengths(res.problem, best.design).sum()
+    assert after <= 0.8 * before
+    assert reaches_every_pose(best.robot, best.q, hard.task)
+
+
+def test_improve_never_worsens_and_returns_a_non_reaching_start_unchanged(
+    hard: SynthesisProblem,
+) -> None:
+    z = hard.pack(hard.design_vector(), np.zeros((hard.K, hard.template.n)))
+    out = improve(hard, z, Objective({"gci": 1.0}))
+    assert out.accepted == 0 and np.array_equal(out.z, np.clip(z, *hard.bounds))
+    res = reachwise.synthesize(hard.task, hard.template, runs=1, seed=1)
+    z = hard.pack(res.best.design, res.best.q)
+    out = improve(hard, z, Objective({"limits": 1.0, "bounds": 0.5}))
+    assert out.cost_history == sorted(out.cost_history, reverse=True)
+    assert out.final.values["limits"] <= out.start.values["limits"]
+
+
+def test_dominance_against_brute_force(rng: np.random.Generator) -> None:
+    for _ in range(20):
+        v = rng.integers(0, 4, size=(9, 2)).astype(float)  # ties and duplicates
+        senses = (1, -1)
+        got = dominated(v, senses)
+        s = v * np.array(senses)
+        for i in range(len(v)):
+            beaten = any(
+                np.all(s[j] >= s[i]) and np.any(s[j] > s[i]) for j in range(len(v)) if j != i
+            )
+            duplicate = any(np.array_equal(v[j], v[i]) for j in range(i))
+            assert got[i] == (beaten or duplicate)
+
+
+def test_pareto_front_of_gci_and_size(hard: SynthesisProblem) -> None:
+    res = reachwise.synthesize(hard.task, hard.template, runs=1, seed=0)
+    z0 = hard.pack(res.best.design, res.best.q)
+    front = pareto_sweep(hard, z0, ("gci", "size"), points=8)
+    designs = front.front
+    assert len(designs) >= 5
+    for p in designs:
+        assert reaches_every_pose(p.robot, p.q, hard.task)
+    vals = np.array([[p.values["gci"], p.values["size"]] for p in designs])
+    assert not dominated(vals, (1, -1)).any()
+    assert np.all(np.diff(vals[:, 0]) > 0) and np.all(np.diff(vals[:, 1]) > 0)  # a trade-off

@@ -1,0 +1,127 @@
+"""Design objectives: exact gradients (central differences), weights, parsing, bound flags."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from reachwise import load_robot, load_task
+from reachwise.errors import InputError
+from reachwise.kinematics.indices import gci, kci, lci
+from reachwise.synthesis.bound_hits import bound_hits
+from reachwise.synthesis.objectives import (
+    OBJECTIVES,
+    Objective,
+    check_objective,
+    evaluate_terms,
+    parse_objective,
+)
+from reachwise.synthesis.problem import SynthesisProblem
+
+H = 1e-6
+
+
+def small_problem(min_length: float = 0.0) -> SynthesisProblem:
+    robot = load_robot("sb60")
+    robot = replace(robot, design=replace(robot.design, min_length=min_length))
+    task = load_task("tunnel-87").subset(np.arange(0, 87, 15), name="tunnel-87")
+    return SynthesisProblem(robot, task)
+
+
+def some_z(problem: SynthesisProblem, rng: np.random.Generator) -> np.ndarray:
+    """A vector inside the bounds; a few design parameters inside the bound margin band
+    (where the ``bounds`` term is active), none on a kink of it."""
+    lo, hi = problem.bounds
+    u = rng.uniform(0.2, 0.8, problem.size)
+    u[[0, 3]] = (0.021, 0.973)
+    return lo + (hi - lo) * u
+
+
+def central(f, z: np.ndarray) -> np.ndarray:  # type: ignore[no-untyped-def]
+    g = np.empty_like(z)
+    for i in range(z.size):
+        e = np.zeros_like(z)
+        e[i] = H
+        g[i] = (f(z + e) - f(z - e)) / (2 * H)
+    return g
+
+
+@pytest.mark.parametrize("name", list(OBJECTIVES))
+def test_each_objective_gradient_equals_central_differences(
+    name: str, rng: np.random.Generator
+) -> None:
+    prob = small_problem()
+    z = some_z(prob, rng)
+    terms = evaluate_terms(prob, z, [name])
+    grad = terms.gradients[name]
+
+    def f(x: np.ndarray) -> float:
+        return evaluate_terms(prob, x, [name]).values[name]
+
+    num = central(f, z)
+    assert np.abs(num).max() > 0  # the term depends on z here
+    assert np.abs(grad - num).max() <= 1e-6 * np.abs(num).max(), name
+
+
+def test_weighted_objective_gradient_and_sign(rng: np.random.Generator) -> None:
+    prob = small_problem()
+    z = some_z(prob, rng)
+    obj = Objective({"gci": 1.0, "kci": 0.5, "size": 0.2, "limits": 0.1, "bounds": 0.3})
+    obj = obj.referenced(obj.terms(prob, z))
+    num = central(lambda x: obj.cost(obj.terms(prob, x)), z)
+    grad = obj.gradient(obj.terms(prob, z))
+    assert np.abs(grad - num).max() <= 1e-6 * np.abs(num).max()
+    # referenced at z: each term counts -1 (maximize) or +1 (minimize) times its weight
+    assert obj.cost(obj.terms(prob, z)) == pytest.approx(-1.0 - 0.5 + 0.2 + 0.1 + 0.3)
+
+
+def test_terms_agree_with_the_indices(rng: np.random.Generator) -> None:
+    prob = small_problem()
+    z = some_z(prob, rng)
+    design, Q = prob.split(z)
+    lcis = lci(prob.robot_at(design), Q)
+    t = evaluate_terms(prob, z, list(OBJECTIVES), kci_temperature=1e-5)
+    assert t.values["gci"] == pytest.approx(gci(lcis), rel=1e-12)
+    # the smooth minimum lies between the minimum and the minimum + τ log K
+    assert kci(lcis) - 1e-12 <= t.values["kci"] <= kci(lcis) + 1e-5 * np.log(len(lcis))
+    size = sum(abs(design[i]) for i, n in enumerate(prob.design_names) if n[0] in "ad")
+    assert t.values["size"] == pytest.approx(size, abs=1e-3)
+
+
+def test_parse_and_check() -> None:
+    assert parse_objective("gci:1,size:0.2") == {"gci": 1.0, "size": 0.2}
+    assert parse_objective("kci") == {"kci": 1.0}
+    assert check_objective(None) == {} == check_objective({})
+    with pytest.raises(InputError, match=r"speed.*valid: bounds, gci"):
+        parse_objective("speed:1")
+    with pytest.raises(InputError, match="not a number"):
+        parse_objective("gci:x")
+    with pytest.raises(InputError, match=">= 0"):
+        check_objective({"gci": -1})
+    with pytest.raises(InputError, match="positive"):
+        check_objective({"gci": 0.0})
+    with pytest.raises(InputError, match="margin"):
+        Objective({"gci": 1.0}, margin=0.6)
+
+
+def test_min_length_tightens_the_kept_bounds_and_flags() -> None:
+    prob = small_problem(min_length=0.2)
+    lo, hi = prob.design_bounds
+    decl_lo, decl_hi = prob.declared_bounds
+    for i, name in enumerate(prob.design_names):
+        if name[0] in "ad":
+            assert lo[i] == max(decl_lo[i], 0.2)
+        else:
+            assert lo[i] == decl_lo[i]
+    assert np.array_equal(hi, decl_hi)
+    with pytest.raises(InputError, match="min_length"):
+        small_problem(min_length=0.7).design_bounds  # noqa: B018  (a2 lies in [0, 0.5])
+    # a design on its bounds is flagged by side; one inside is not
+    d = 0.5 * (lo + hi)
+    d[0], d[1], d[-1] = lo[0], lo[1] + 0.004 * (decl_hi[1] - decl_lo[1]), hi[-1]
+    hits = {h.parameter: h.side for h in bound_hits(prob, d)}
+    assert hits == {"a1": "min_length", "a2": "min_length", "base.z": "upper"}
+    d[1] = lo[1] + 0.02 * (decl_hi[1] - decl_lo[1])  # 2 % inside: not flagged
+    assert "a2" not in {h.parameter for h in bound_hits(prob, d)}
