@@ -23,11 +23,9 @@ from reachwise.server.client import SceneClient, ServerInputError, ServerSceneRe
 from reachwise.server.service import SceneService
 from reachwise.server.state import StateStore
 
-from .conftest import LINKS, MAX_CLOUD_POINTS, box_points, crane_q, start_server
+from .conftest import HANG_GUARD, LINKS, MAX_CLOUD_POINTS, box_points, crane_q, start_server
 
 E = P.ErrorCode
-#: Reply deadline (s) of the clients of a healthy test server: only a hang guard.
-HANG_GUARD = 60.0
 CAMERA = "camera"
 
 
