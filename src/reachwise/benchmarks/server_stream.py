@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from reachwise.benchmarks._harness import BenchReport, Target
 from reachwise.benchmarks.server_setup import MARGIN, ServerProcess, crane_q
+from reachwise.io.atomic import atomic_write
 from reachwise.kinematics.robot import Robot
 from reachwise.server.client import SceneClient
 
@@ -65,6 +66,7 @@ _CAMERA = """
 import json, sys, time
 from pathlib import Path
 from reachwise.benchmarks.server_stream import CAMERA, camera_frame
+from reachwise.io.atomic import atomic_write
 from reachwise.server.client import SceneClient
 ep, work = sys.argv[1], Path(sys.argv[2])
 n, rate, count = int(sys.argv[3]), float(sys.argv[4]), int(sys.argv[5])
@@ -72,7 +74,7 @@ frames = [camera_frame(n, k) for k in range(count)]
 calls, versions, failures = [], [], []
 with SceneClient(ep, setup_deadline=5.0) as c:
     c.replace_cloud(CAMERA, frames[0])
-    (work / "camera-ready").write_text("1")
+    atomic_write(work / "camera-ready", b"1")
     start = time.perf_counter()
     k = 0
     while not (work / "camera-stop").exists() and time.perf_counter() - start < 600:
@@ -87,7 +89,7 @@ with SceneClient(ep, setup_deadline=5.0) as c:
             failures.append(f"{type(exc).__name__}: {exc}")
         k += 1
     span = time.perf_counter() - start
-(work / "camera.json").write_text(json.dumps(
+atomic_write(work / "camera.json", json.dumps(
     {"calls_us": calls, "versions": versions, "failures": failures, "span_s": span}))
 """
 
@@ -127,7 +129,7 @@ def stream(
             server.endpoint, robot, query_hz, seconds
         )
     finally:
-        (work / "camera-stop").write_text("1")
+        atomic_write(work / "camera-stop", b"1")
         try:
             cam.wait(timeout=60.0)
         except subprocess.TimeoutExpired:
