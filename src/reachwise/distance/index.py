@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from reachwise.distance import _kernels as K
+import reachwise.distance._kernels as K
 from reachwise.distance._build import build_tree
 from reachwise.errors import InputError
 from reachwise.geometry.boxes import AABB
