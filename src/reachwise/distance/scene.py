@@ -315,6 +315,12 @@ class Scene:
         """The worker that indexes handed-over clouds (its counters, errors, ``wait``)."""
         return self._ingest
 
+    def swap_in(self) -> None:
+        """Swap in the clouds indexed since the last swap now (:meth:`query_all` does
+        this first); e.g. a server that waited for a cloud puts it in use at once."""
+        for ready in self._ingest.take_ready():
+            self._install(ready)
+
     def add_robot(
         self, robot: RobotLike, q: ArrayLike | None = None, *, stamp: float | None = None
     ) -> None:
@@ -421,7 +427,8 @@ class Scene:
         self._object(name)
         t = self._stamp(stamp, f"object {name!r}")
         version = self._issued[name] + 1
-        points = cloud if isinstance(cloud, PointCloud) else np.asarray(cloud, dtype=np.float64)
+        # no dtype here: a float32 frame is converted on the worker, not on this thread
+        points = cloud if isinstance(cloud, PointCloud) else np.asarray(cloud)
         if block:
             self._install(ready_cloud(name, version, points, t))
             self._issued[name] = version
