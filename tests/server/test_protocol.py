@@ -37,6 +37,7 @@ def sample_requests(crane: Robot) -> list[P.Request]:
         P.AddObject("part", cloud, _pose(), "hiab-xs033", "link_2"),
         P.AddObject("probe", cloud, None, None, None, True),
         P.ReplaceCloud("environment", cloud),
+        P.ReplaceCloud("camera", cloud.astype(np.float32), 2.5, True),
         P.SetJoints("hiab-xs033", np.linspace(0, 1, crane.n), 3.0),
         P.SetPose("probe", _pose()),
         P.Watch("a", "b", math.inf, "custom"),
@@ -71,7 +72,9 @@ def test_every_request_round_trips(crane: Robot) -> None:
     reqs = sample_requests(crane)
     assert {type(r).OP for r in reqs} == set(P.REQUESTS)
     for k, req in enumerate(reqs):
-        rid, back = P.decode_request(P.encode_request(k, req))
+        frames = [bytes(f) for f in P.encode_frames(k, req)]
+        assert len(frames) == 1 + type(req).DATA_FRAMES
+        rid, back = P.decode_frames(frames)
         assert rid == k
         assert _equal(back, req), req.OP
 
@@ -358,7 +361,7 @@ def test_fuzz_structured_messages(op: str, body: dict[str, Any], v: Any, rid: An
 @_FUZZ
 @given(data=st.data())
 def test_fuzz_mutated_valid_requests(crane: Robot, data: st.DataObject) -> None:
-    reqs = sample_requests(crane)
+    reqs = [r for r in sample_requests(crane) if not type(r).DATA_FRAMES]
     raw = bytearray(P.encode_request(1, data.draw(st.sampled_from(reqs))))
     for _ in range(data.draw(st.integers(1, 4))):
         i = data.draw(st.integers(0, len(raw) - 1))

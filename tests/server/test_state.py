@@ -64,8 +64,11 @@ def test_restore_gives_the_same_scene_and_answers(
     moved[:3, 3] = [2.2, 0.4, 0.9]
     svc.handle(P.SetPose("probe", moved, 6.0))
     svc.handle(P.SetJoints(crane.name, crane_q(crane, 40), 7.0))
-    svc.handle(P.ReplaceCloud("environment", clouds["environment"][::2]))
+    scan = clouds["environment"][::2]
+    hand_over = svc.handle(P.ReplaceCloud("environment", scan, 6.5, block=True))
+    assert isinstance(hand_over, P.ObjectReply) and hand_over.version == 1
     svc.flush_live(force=True)
+    svc.flush_clouds(force=True)
     before = svc.handle(P.Describe(True))
     answer = _query(svc)
     last_sequence = svc.sequence.last
@@ -87,6 +90,14 @@ def test_restore_gives_the_same_scene_and_answers(
     re = _query(again)
     np.testing.assert_array_equal(re.rows, answer.rows)
     assert re.measured_at == 6.0  # the oldest restored input (the probe's pose)
+    # the handed-over scan comes back with its version and stamp; the rest do not age
+    assert re.objects == answer.objects and re.objects is not None
+    assert re.clouds is not None and answer.clouds is not None
+    np.testing.assert_array_equal(re.clouds, answer.clouds)
+    table = dict(zip(re.objects, re.clouds.tolist(), strict=True))
+    assert table["environment"] == [1.0, 6.5]
+    assert all(v == [0.0, math.inf] for k, v in table.items() if k != "environment")
+    assert again.handle(P.ReplaceCloud("environment", scan)).version == 2  # goes on
     assert re.sequence > last_sequence  # sequence numbers never repeat across restarts
     # exactly the referenced clouds are left: the replaced scan's file is gone
     files = {p.name for p in (tmp_path / "clouds").iterdir()}
@@ -177,7 +188,7 @@ def test_state_errors_name_the_file_and_field(tmp_path: Path) -> None:
     with pytest.raises(StateError, match="object 'x'"):
         store.read()
     np.save(tmp_path / "clouds" / ("0" * 32 + ".npy"), np.zeros((2, 3)))
-    with pytest.raises(StateError, match=r"expected float64 \(3, 3\)"):
+    with pytest.raises(StateError, match=r"expected float64 or float32 \(3, 3\)"):
         store.read()
     (tmp_path / "sequence.json").write_text('{"version": 1, "reserved": -5}')
     with pytest.raises(StateError, match="reserved"):

@@ -1,36 +1,44 @@
-"""``reachwise bench server``: the collision server against the same scene in process (issue 7).
+"""``reachwise bench server``: the collision server against the same scene in process
+(issue 7), and keeping up with a depth camera while a 1 kHz loop queries it (issue 17).
 
 The thesis's collision server answered the control system every 10 ms cycle (P-V §V:
 all pairs in 1.0 ms on average, σ 1.7 ms, on a laptop; P-IV §5: 8 ms). Here the server
 runs as a separate process (``reachwise serve``, loopback TCP, a state
 directory, as deployed) and this process is its client.
 
-Workload: the ``hiab-xs033`` loader crane with four 1000-point parts (the L-bracket of
-``reachwise bench distance``, P-V's 1000 points per part) on its main boom, outer boom,
-telescope and grabber, and a 5500-point scan-like environment (floor, box obstacle,
-noise, occlusion shadow; P-V §IV) 3.5 m out: four watched pairs with a 1 m margin. The
-crane slews and luffs along a smooth path sampled at 100 Hz, so pairs come in and out
-of the margin and the warm starts work as in a control loop.
+Workload: the crane scene of :mod:`reachwise.benchmarks.server_setup` (four 1000-point
+parts on the ``hiab-xs033`` crane, a 5500-point scan 3.5 m out, four pairs with a 1 m
+margin), moving along a smooth path.
 
 1. **Round trip.** Query by query, interleaved (same machine load at the same moment):
    ``inprocess`` — :meth:`reachwise.distance.Scene.query_all` here; ``remote`` —
    :meth:`reachwise.server.client.SceneClient.query_all` of the same scene on the
-   server, after the same joint state. Both scenes see the same joint sequence, and
-   every remote answer is compared with the in-process one (must be identical).
-   ``network overhead`` = remote median − in-process median. ``zmq_echo`` is a bare
-   pyzmq REQ/ROUTER echo of similar message sizes in another child process, timed in
-   the same loop: the transport's own floor on this machine; ``protocol_overhead`` is
-   the network overhead above it (encoding, checking, Python). ``.paired_median``
-   figures are medians of the per-query differences (remote − in-process, and minus
-   the echo of the same iteration), which cancel load swings that hit all three at
-   once. Also the whole tick (joint state + query): ``tick_inprocess`` and
-   ``tick_batched`` (the joint state rides on the query: one round trip).
+   server, after the same joint state (the binary tick path: the client holds the
+   layout after its first query). Both scenes see the same joint sequence, and every
+   remote answer is compared with the in-process one (must be identical, cloud
+   versions and stamps included). ``network overhead`` = remote median − in-process
+   median. ``zmq_echo`` is a bare pyzmq REQ/ROUTER echo of similar message sizes in
+   another child process, timed in the same loop: the transport's own floor on this
+   machine; ``protocol_overhead`` is the network overhead above it (encoding,
+   checking, Python). ``.paired_median`` figures are medians of the per-query
+   differences (remote − in-process, and minus the echo of the same iteration), which
+   cancel load swings that hit all three at once; the target is on the paired one.
+   ``remote_pairs`` is reading the remote result's pairs (built lazily), and
+   ``protocol_overhead_with_pairs`` counts it in. Also the whole tick (joint state +
+   query): ``tick_inprocess`` and ``tick_batched`` (the joint state rides on the
+   query: one round trip).
 2. **Soak.** 10 000 ticks at 100 Hz (absolute schedule): each tick sends the joint
    state and queries all pairs (one round trip); a scanner thread with its own
    client replaces the environment with a fresh scan every 100 ticks, concurrently,
    as a scanner process would. Figures: tick time percentiles, lost replies (no
    reply within 100 ms or an invalid result), failed scans, and the server's
    resident memory from the start of the soak (after 200 warm-up ticks) to its end.
+3. **Streaming** (:mod:`reachwise.benchmarks.server_stream`): a camera process hands
+   over 300 000-point clouds at 30 Hz while this process queries at 1 kHz;
+   :func:`streaming_figures` runs the round trip and this part alone (the
+   ``reachwise bench realtime`` server section).
+4. **Stages** (:mod:`reachwise.benchmarks.server_stages`): where the request path's
+   microseconds go, stage by stage, for the full msgpack path and the binary tick.
 
 Times in microseconds unless the key says otherwise.
 """
@@ -39,204 +47,44 @@ from __future__ import annotations
 
 import math
 import os
-import signal
-import subprocess
-import sys
 import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from reachwise.benchmarks._harness import BenchReport, Target
 from reachwise.benchmarks.distance import environment_points, part_points
+from reachwise.benchmarks.server_setup import (
+    RATE_HZ,
+    ROBOT,
+    EchoProcess,
+    ServerProcess,
+    build_scene,
+    crane_q,
+    rss_bytes,
+)
+from reachwise.benchmarks.server_stages import stage_costs
+from reachwise.benchmarks.server_stream import stream
 from reachwise.distance import Scene
 from reachwise.io.robot_file import load_robot
 from reachwise.kinematics.robot import Robot
-from reachwise.server.client import SceneClient, SceneLike, ServerSceneResult
+from reachwise.server.client import SceneClient, ServerSceneResult
 
-ROBOT = "hiab-xs033"
-LINKS = ("link_2", "link_3", "link_4", "link_6")
-MARGIN = 1.0  # m
-ENV_X = 3.5  # m, environment offset along world x
-RATE_HZ = 100.0
+__all__ = ["EchoProcess", "ServerProcess", "run", "streaming_figures"]
+
 SCAN_EVERY = 100  # ticks
 WARMUP_TICKS = 200
 LOST_DEADLINE = 0.1  # s: a reply later than this counts as lost
-
-
-def crane_q(robot: Robot, k: int, rate_hz: float = RATE_HZ) -> NDArray[np.float64]:
-    """Joint state at tick ``k``: slewing ±0.4 rad, main boom 0.15–0.45 rad, outer boom
-    and telescope moving slowly, the grabber hanging (q5 = q2 + q3, q6 = 0)."""
-    t = k / rate_hz
-    q = np.zeros(robot.n)
-    q[0] = 0.4 * math.sin(0.5 * t)
-    q[1] = 0.3 + 0.15 * math.sin(0.31 * t)
-    q[2] = -0.9 + 0.2 * math.sin(0.23 * t)
-    q[3] = 0.6 + 0.5 * math.sin(0.17 * t)
-    q[4] = q[1] + q[2]
-    return q
-
-
-def build_scene(
-    scene: SceneLike, robot: Robot, part: NDArray[np.float64], env: NDArray[np.float64]
-) -> None:
-    """The benchmark scene on ``scene`` (in process or on a server)."""
-    scene.add_robot(robot, crane_q(robot, 0))
-    for link in LINKS:
-        scene.add_object(link, part, robot=robot.name, link=link)
-    pose = np.eye(4)
-    pose[0, 3] = ENV_X
-    scene.add_object("environment", env, pose)
-    scene.watch_environment(robot.name, MARGIN)
-
-
-class ServerProcess:
-    """``reachwise serve`` as a child process: loopback ``bind`` (a free
-    port by default), a state directory in ``workdir``, its log in
-    ``workdir/server.log``. Entering starts it and waits for its endpoint; leaving
-    stops it (SIGTERM, then SIGKILL after ``stop_timeout`` s). The server also stops by
-    itself after ``max_runtime`` s, so none outlives its user."""
-
-    def __init__(
-        self,
-        workdir: Path,
-        max_runtime: float,
-        *,
-        bind: str = "tcp://127.0.0.1:*",
-        extra: tuple[str, ...] = (),
-        stop_timeout: float = 10.0,
-    ) -> None:
-        self.workdir = workdir
-        self.stop_timeout = stop_timeout
-        self.endpoint_file = workdir / "endpoint"
-        self.cmd = [
-            sys.executable,
-            "-c",  # not -m: reachwise.cli imports the module before runpy would run it
-            "from reachwise.cli.serve import main; main()",
-            "--bind",
-            bind,
-            "--state",
-            str(workdir / "state"),
-            "--endpoint-file",
-            str(self.endpoint_file),
-            "--max-runtime",
-            str(max_runtime),
-            *extra,
-        ]
-        self.proc: subprocess.Popen[bytes] | None = None
-        self.endpoint = ""
-
-    def __enter__(self) -> ServerProcess:
-        self.endpoint_file.unlink(missing_ok=True)
-        with open(self.workdir / "server.log", "ab") as log:
-            self.proc = subprocess.Popen(self.cmd, stdout=log, stderr=log)
-        end = time.monotonic() + 60.0
-        while not self.endpoint_file.exists():
-            if self.proc.poll() is not None or time.monotonic() > end:
-                self.kill()
-                raise RuntimeError(f"the server did not start: see {self.workdir / 'server.log'}")
-            time.sleep(0.02)
-        self.endpoint = self.endpoint_file.read_text().strip()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
-
-    def stop(self) -> int | None:
-        """SIGTERM and wait (SIGKILL if it does not stop in time); the exit status."""
-        if self.proc is None:
-            return None
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
-            try:
-                self.proc.wait(timeout=self.stop_timeout)
-            except subprocess.TimeoutExpired:
-                self.kill()
-        return self.proc.returncode
-
-    def kill(self) -> None:
-        """SIGKILL, as a crash would, and reap the process."""
-        if self.proc is not None and self.proc.poll() is None:
-            self.proc.kill()
-            self.proc.wait()
-
-    @property
-    def pid(self) -> int:
-        if self.proc is None:
-            raise RuntimeError("not started")
-        return self.proc.pid
-
-
-#: A bare pyzmq ROUTER echo: the transport's own round trip on this machine, as a floor.
-_ECHO = """
-import sys, time, zmq
-ctx = zmq.Context(); s = ctx.socket(zmq.ROUTER); s.linger = 0
-s.bind("tcp://127.0.0.1:*")
-open(sys.argv[1], "w").write(s.getsockopt_string(zmq.LAST_ENDPOINT))
-reply = b"r" * int(sys.argv[2]); end = time.monotonic() + float(sys.argv[3])
-while time.monotonic() < end:
-    if s.poll(100):
-        f = s.recv_multipart()
-        s.send_multipart([*f[:-1], reply])
-        if f[-1] == b"stop":
-            break
-"""
-ECHO_REQUEST_BYTES = 100
-ECHO_REPLY_BYTES = 600
-
-
-class EchoProcess:
-    """The bare echo server of :data:`_ECHO` in a child process, and a REQ socket to it."""
-
-    def __init__(self, workdir: Path, max_runtime: float) -> None:
-        import zmq
-
-        path = workdir / "echo-endpoint"
-        self.proc = subprocess.Popen(
-            [sys.executable, "-c", _ECHO, str(path), str(ECHO_REPLY_BYTES), str(max_runtime)]
-        )
-        end = time.monotonic() + 30.0
-        while not path.exists() or not path.read_text():
-            if self.proc.poll() is not None or time.monotonic() > end:
-                self.proc.kill()
-                raise RuntimeError("the echo server did not start")
-            time.sleep(0.01)
-        self.ctx = zmq.Context()
-        self.sock = self.ctx.socket(zmq.REQ)
-        self.sock.linger = 0
-        self.sock.connect(path.read_text())
-        self.request = b"q" * ECHO_REQUEST_BYTES
-
-    def round_trip(self) -> None:
-        self.sock.send(self.request)
-        if not self.sock.poll(5000):
-            raise RuntimeError("the echo server stopped answering")
-        self.sock.recv()
-
-    def close(self) -> None:
-        self.sock.send(b"stop")
-        self.sock.poll(1000)
-        self.sock.close(linger=0)
-        self.ctx.term()
-        try:
-            self.proc.wait(timeout=5.0)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait()
-
-
-def rss_bytes(pid: int) -> float:
-    """Resident memory of process ``pid`` (Linux /proc), NaN where unavailable."""
-    try:
-        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-            if line.startswith("VmRSS:"):
-                return float(line.split()[1]) * 1024.0
-    except OSError:
-        pass
-    return math.nan
+#: Protocol overhead target beyond the bare echo (µs, p50; issue 17).
+PROTOCOL_OVERHEAD_LIMIT_US = 30.0
+#: Streaming workload of issue 17: a 640 x 480 depth camera at 30 Hz, a 1 kHz loop.
+STREAM_POINTS = 300_000
+STREAM_HZ = 30.0
+QUERY_HZ = 1000.0
 
 
 def _same(a: ServerSceneResult, b: object) -> float:
@@ -246,6 +94,8 @@ def _same(a: ServerSceneResult, b: object) -> float:
 
     if not isinstance(b, SceneResult) or not a.valid or len(a.pairs) != len(b.pairs):
         return math.inf
+    if dict(a.versions) != dict(b.versions) or dict(a.cloud_stamps) != dict(b.cloud_stamps):
+        return math.inf
     worst = 0.0
     for pa, pb in zip(a.pairs, b.pairs, strict=True):
         ra, rb = pa.result, pb.result
@@ -253,7 +103,7 @@ def _same(a: ServerSceneResult, b: object) -> float:
             return math.inf
         if ra.no_risk:
             continue
-        if (ra.index_a, ra.index_b) != (rb.index_a, rb.index_b):
+        if (ra.index_a, ra.index_b) != (rb.index_a, rb.index_b) or pa.versions != pb.versions:
             return math.inf
         for x, y in (
             (ra.point_a, rb.point_a),
@@ -287,6 +137,7 @@ def _round_trip(
         within = 0
         t_in = np.empty(n)
         t_re = np.empty(n)
+        t_pairs = np.empty(n)
         t_echo = np.empty(n)
         warm = 50
         try:
@@ -301,10 +152,13 @@ def _round_trip(
                 t2 = clock()
                 echo.round_trip()
                 t3 = clock()
+                a.pairs  # noqa: B018 - built on first reading: timed apart
+                t4 = clock()
                 if k >= 0:
                     t_in[k] = (t1 - t0) * 1e-3
                     t_re[k] = (t2 - t1) * 1e-3
                     t_echo[k] = (t3 - t2) * 1e-3
+                    t_pairs[k] = (t4 - t3) * 1e-3
                 diff = max(diff, _same(a, b))
                 within += sum(not p.result.no_risk for p in b.pairs)
         finally:
@@ -312,6 +166,7 @@ def _round_trip(
         rep.add_samples("zmq_echo", t_echo)
         rep.add_samples("inprocess", t_in)
         rep.add_samples("remote", t_re)
+        rep.add_samples("remote_pairs", t_pairs)
         rep.metrics["remote_vs_inprocess.max_abs_diff_m"] = diff
         rep.notes.append(
             f"round trip: {n} queries of {len(b.pairs)} pairs, {within / (n + warm):.2f} "
@@ -342,7 +197,11 @@ def _round_trip(
     rep.metrics["network_overhead.p99"] = rep.metrics["remote.p99"] - rep.metrics["inprocess.p99"]
     rep.metrics["protocol_overhead.median"] = overhead - rep.metrics["zmq_echo.median"]
     rep.metrics["network_overhead.paired_median"] = float(np.median(t_re - t_in))
-    rep.metrics["protocol_overhead.paired_median"] = float(np.median(t_re - t_in - t_echo))
+    paired = float(np.median(t_re - t_in - t_echo))
+    rep.metrics["protocol_overhead.paired_median"] = paired
+    rep.metrics["protocol_overhead_with_pairs.paired_median"] = float(
+        np.median(t_re + t_pairs - t_in - t_echo)
+    )
     rep.notes.append(
         "read network_overhead against zmq_echo (a bare pyzmq REQ/ROUTER round trip between "
         "two processes, timed in the same loop): the overhead cannot fall below that floor; "
@@ -350,6 +209,7 @@ def _round_trip(
     )
     rep.ratio("remote", "inprocess")
     rep.targets["network_overhead_p50_us"] = Target(overhead, 100.0)
+    rep.targets["protocol_overhead_p50_us"] = Target(paired, PROTOCOL_OVERHEAD_LIMIT_US)
     rep.targets["remote_identical_to_inprocess_m"] = Target(diff, 0.0)
 
 
@@ -438,6 +298,51 @@ def _soak(
         rep.notes.append(f"failed scans, first: {scan_failures[:3]}")
 
 
+def _stream_options(quick: bool) -> dict[str, Any]:
+    return {
+        "points": STREAM_POINTS,
+        "stream_hz": STREAM_HZ,
+        "query_hz": QUERY_HZ,
+        "seconds": 3.0 if quick else 10.0,
+    }
+
+
+def streaming_figures(
+    *, quick: bool = False, round_trips: int | None = None, seconds: float | None = None
+) -> dict[str, Any]:
+    """The server figures of issue 17 in one run, for ``reachwise bench realtime``: a
+    server process, the round trip against the bare ZeroMQ echo (``round_trips``
+    queries; protocol overhead), then a camera process streaming 300 000-point clouds
+    at 30 Hz while this process queries at 1 kHz (``seconds``).
+
+    Returns the benchmark JSON schema's parts (DESIGN.md): ``{"metrics": {...},
+    "ratios": {...}, "targets": {name: {"value", "limit", "met"}}, "notes": [...]}``,
+    times in µs unless a key says otherwise."""
+    rep = BenchReport("server-streaming")
+    robot = load_robot(ROBOT)
+    n_rt = round_trips if round_trips is not None else (300 if quick else 3000)
+    opts = _stream_options(quick)
+    if seconds is not None:
+        opts["seconds"] = float(seconds)
+    _load_note(rep)
+    with tempfile.TemporaryDirectory(prefix="reachwise-bench-stream-") as tmp:
+        with ServerProcess(Path(tmp), opts["seconds"] + 900.0) as server:
+            with SceneClient(server.endpoint) as c:
+                c.wait_ready(60.0)
+            part, env = part_points(1000, seed=1), environment_points(5500, seed=2)
+            _round_trip(rep, Path(tmp), server.endpoint, robot, part, env, n_rt)
+            stream(rep, server, robot, **opts)
+    d = rep.to_dict()
+    return {k: d[k] for k in ("metrics", "ratios", "targets", "notes")}
+
+
+def _load_note(rep: BenchReport) -> None:
+    rep.notes.append(
+        f"server: separate process on tcp://127.0.0.1 with a state directory; load average "
+        f"at start {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs"
+    )
+
+
 def run(quick: bool = False) -> BenchReport:
     rep = BenchReport("server")
     robot = load_robot(ROBOT)
@@ -446,17 +351,17 @@ def run(quick: bool = False) -> BenchReport:
     n_rt = 300 if quick else 3000
     ticks = 1000 if quick else 10_000
     scans = [environment_points(5500, seed=10 + i) for i in range(5)]
-    rep.notes.append(
-        f"server: separate process on tcp://127.0.0.1 with a state directory; load average "
-        f"at start {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs"
-    )
+    opts = _stream_options(quick)
+    _load_note(rep)
     with tempfile.TemporaryDirectory(prefix="reachwise-bench-server-") as tmp:
         soak_s = (WARMUP_TICKS + ticks) / RATE_HZ
-        with ServerProcess(Path(tmp), soak_s + 900.0) as server:
+        with ServerProcess(Path(tmp), soak_s + opts["seconds"] + 900.0) as server:
             with SceneClient(server.endpoint) as c:
                 c.wait_ready(60.0)
             _round_trip(rep, Path(tmp), server.endpoint, robot, part, env, n_rt)
             _soak(rep, server, robot, ticks, scans)
+            stream(rep, server, robot, **opts)
+    stage_costs(rep, robot, 500 if quick else 3000)
     rep.notes.append(
         f"soak: {ticks} ticks at {RATE_HZ:g} Hz after {WARMUP_TICKS} warm-up ticks, scan "
         f"replaced every {SCAN_EVERY} ticks by a concurrent scanner client; a reply later "
@@ -464,7 +369,7 @@ def run(quick: bool = False) -> BenchReport:
     )
     if quick:
         rep.notes.append(
-            f"quick mode: {n_rt} round trips and a {ticks}-tick soak instead of 3000 and "
-            "10 000 (the issue's soak is 10 000 ticks)"
+            f"quick mode: {n_rt} round trips, a {ticks}-tick soak and {opts['seconds']:g} s "
+            "of streaming instead of 3000, 10 000 (the issue's soak) and 10 s"
         )
     return rep

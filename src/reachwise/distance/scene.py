@@ -464,6 +464,7 @@ class Scene:
         self._object(name)
         t = self._stamp(stamp, f"object {name!r}")
         version = self._issued[name] + 1
+        # no dtype here: a float32 frame is converted on the worker, not on this thread
         points = cloud if isinstance(cloud, PointCloud) else np.asarray(cloud)
         if block:
             self._install(ready_cloud(name, version, points, t, self._ingest.voxel))

@@ -4,10 +4,11 @@ restarts with a state directory)."""
 
 from __future__ import annotations
 
-import bisect
 import math
 import threading
 from collections import Counter
+
+import numpy as np
 
 import reachwise.server.protocol as P
 from reachwise.server.state import StateStore
@@ -18,18 +19,26 @@ SEQUENCE_BLOCK = 1_000_000
 LATENCY_EDGES_US: tuple[float, ...] = tuple(
     float(m * 10**e) for e in range(0, 7) for m in (1, 2, 5) if m * 10**e <= 1_000_000
 )
+_EDGES = np.asarray(LATENCY_EDGES_US)
+#: Query times are binned into the histograms in batches of this many.
+BIN_EVERY = 256
 
 
 class Metrics:
-    """Request and error counts and the query latency histograms (thread-safe)."""
+    """Request and error counts and the query latency histograms (thread-safe).
+
+    A query's times are appended to a list (the cheapest thing to do per tick) and
+    binned into the histograms in batches of :data:`BIN_EVERY`, and whenever a
+    snapshot is taken."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self._requests: Counter[str] = Counter()
         self._errors: Counter[str] = Counter()
         n = len(LATENCY_EDGES_US) + 1
-        self._compute = [0] * n
-        self._handling = [0] * n
+        self._compute = np.zeros(n, dtype=np.int64)
+        self._handling = np.zeros(n, dtype=np.int64)
+        self._pending: list[tuple[float, float]] = []
 
     def request(self, op: str) -> None:
         with self._lock:
@@ -40,11 +49,25 @@ class Metrics:
             self._errors[code.value] += 1
 
     def query(self, compute_s: float, handling_s: float) -> None:
+        """Record one query: its computation and its handling from receipt to reply (s)."""
+        pending = self._pending
+        pending.append((compute_s, handling_s))  # atomic: no lock per tick
+        if len(pending) >= BIN_EVERY:
+            self._bin()
+
+    def _bin(self) -> None:
         with self._lock:
-            self._compute[bisect.bisect_right(LATENCY_EDGES_US, compute_s * 1e6)] += 1
-            self._handling[bisect.bisect_right(LATENCY_EDGES_US, handling_s * 1e6)] += 1
+            pending, self._pending = self._pending, []
+            if not pending:
+                return
+            t = np.asarray(pending, dtype=np.float64) * 1e6
+            n = self._compute.size
+            for hist, col in ((self._compute, t[:, 0]), (self._handling, t[:, 1])):
+                idx = np.searchsorted(_EDGES, col, side="right")
+                hist += np.bincount(idx, minlength=n)
 
     def snapshot(self, uptime: float, sequence: int) -> P.MetricsReply:
+        self._bin()
         with self._lock:
             return P.MetricsReply(
                 uptime,
@@ -52,8 +75,8 @@ class Metrics:
                 dict(self._requests),
                 dict(self._errors),
                 LATENCY_EDGES_US,
-                tuple(self._compute),
-                tuple(self._handling),
+                tuple(int(c) for c in self._compute),
+                tuple(int(c) for c in self._handling),
             )
 
 

@@ -9,12 +9,24 @@ scene side; :mod:`reachwise.server.transport` puts it on the wire.
 :class:`SceneService` — the scene behind the wire (:class:`reachwise.distance.Scene`):
 validated requests in (:mod:`reachwise.server.protocol`), replies or typed errors out.
 The *initialization phase* of P-V Table 1 (robots, clouds and their spatial indices,
-pair rules) happens in ``add_robot``, ``add_object``, ``replace_cloud`` and ``watch*``;
-the *calculation phase* in ``set_joints`` (link poses by forward kinematics on the
-server), ``set_pose`` and ``query``; ``clear`` empties the scene (a simulator that
-owns it starts each run from an empty one). With a state directory every change of the
-initialization phase is persisted before it is acknowledged, and restored at start
+pair rules) happens in ``add_robot``, ``add_object`` and ``watch*``; the *calculation
+phase* in ``set_joints`` (link poses by forward kinematics on the server), ``set_pose``
+and ``query``; ``clear`` empties the scene (a simulator that owns it starts each run
+from an empty one). With a state directory every change of the initialization phase is
+persisted before it is acknowledged, and restored at start
 (:mod:`reachwise.server.state`).
+
+New clouds (``replace_cloud``: a scan, a depth camera's frames at 30 Hz) are handed to
+the scene as the in-process scene takes them (:meth:`reachwise.distance.Scene.
+replace_cloud` with ``block=False``): the reply, with the cloud's version, goes out at
+once; the scene's worker thread indexes the cloud, and the first query after that
+swaps it in, so a query never waits for a build. With ``block`` the reply waits until
+that version is indexed (:class:`CloudWait`; the transport parks it without holding
+up anything else). Every query reply carries the version and the stamp of each cloud
+it used. With a state directory the newest cloud of each object is saved lazily, at
+most every :data:`CLOUD_INTERVAL` seconds and once it has been indexed, with its
+version and stamp; a restart resumes from it (versions handed out after the last save
+before a crash may be handed out again; the stamps tell the clouds apart).
 
 Until the state directory has been restored the server answers ``health`` with
 ``ready: false`` and refuses scene requests with ``not_ready``. A bad request of any kind
@@ -29,11 +41,14 @@ skip, never repeat).
 
 from __future__ import annotations
 
+import functools
 import logging
+import math
+import secrets
 import threading
 import time
 import uuid
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -67,6 +82,10 @@ log = logging.getLogger("reachwise.server")
 
 #: How often the writer thread saves the latest joint states and poses (s).
 LIVE_INTERVAL = 0.2
+#: How often the writer thread saves the newest streamed cloud of each object (s).
+CLOUD_INTERVAL = 1.0
+#: Longest a ``block`` hand-over waits for its cloud to be indexed (s).
+BLOCK_LIMIT = 120.0
 
 ALWAYS_ALLOWED = frozenset({"hello", "health", "metrics"})
 
@@ -84,11 +103,30 @@ def _names(names: Iterable[str], shown: int = 10) -> str:
 
 @dataclass(frozen=True)
 class _ObjectMeta:
-    """What the server keeps beside the scene's object: its cloud file and whose time
-    stamp its pose carries (``("robot", name)``, ``("object", name)`` or None)."""
+    """What the server keeps beside the scene's object: its saved cloud (file, point
+    count, version and stamp; None: does not age) and whose time stamp its pose carries
+    (``("robot", name)``, ``("object", name)`` or None)."""
 
     cloud_file: str | None
     stamp_of: tuple[str, str] | None
+    points: int = 0
+    version: int = 0
+    stamp: float | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class CloudWait:
+    """A handed-over cloud: object ``name``, its ``version`` on the wire and in the
+    ``scene`` (the scene it was handed to: a ``clear`` replaces it), its ``points``
+    and ``stamp``; ``deadline`` (monotonic s) for a ``block`` reply."""
+
+    name: str
+    version: int
+    scene_version: int
+    scene: Scene
+    points: NDArray[Any]
+    stamp: float
+    deadline: float = math.inf
 
 
 class SceneService:
@@ -121,8 +159,19 @@ class SceneService:
         self._runtime: dict[str, tuple[NDArray[np.float64], float]] = {}
         self._meta: dict[str, _ObjectMeta] = {}
         self._live_dirty = False
+        # layout keys: a random tag of this start in the high half, a counter below
+        self._layout_tag = secrets.randbelow(2**31 - 1) + 1
         self._layout_count = 0
-        self._layout: tuple[str, tuple[P.PairInfo, ...]] | None = None
+        self._layout: P.Layout | None = None
+        self._all_sources: tuple[tuple[str, str], ...] = ()  # of the layout's pairs
+        # the cloud table of the answers, kept while neither the versions nor the
+        # layout change (one per swap, not one per query)
+        self._clouds: tuple[object, int, NDArray[np.float64]] | None = None
+        # wire version = scene version + base (non-zero after a restore)
+        self._version_base: dict[str, int] = {}
+        # per object the newest handed-over cloud not saved yet
+        self._unsaved: dict[str, CloudWait] = {}
+        self._clouds_saved_at = time.monotonic()
         self._handlers: dict[type[P.Request], Callable[[Any], P.Reply]] = {
             P.Hello: self._hello,
             P.Health: self._health,
@@ -244,7 +293,9 @@ class SceneService:
     def _store_joints(self, robot: str, q: NDArray[np.float64], stamp: float) -> None:
         """Apply checked joint values (call under the lock)."""
         self.scene.set_joints(robot, q)
-        self._joints[robot] = (np.array(q, dtype=np.float64), stamp)
+        # a decoded array is a read-only view of its message: kept as it is
+        kept = q if not q.flags.writeable and q.dtype == np.float64 else q.copy()
+        self._joints[robot] = (kept, stamp)
         self._live_dirty = True
 
     def _store_pose(self, name: str, pose: NDArray[np.float64], stamp: float) -> None:
@@ -299,42 +350,129 @@ class SceneService:
             pairs = tuple(res.pairs)
             if wanted is not None:
                 pairs = tuple(p for p in pairs if frozenset((p.a, p.b)) in wanted)
-            measured = self._measured_at(pairs, stamp)
+            layout = self._current_layout()
+            measured = self._measured_at(
+                pairs if wanted is not None else None, stamp, self._all_sources
+            )
             seq = self.sequence.take()
+            clouds = self._cloud_table(res.versions, res.cloud_stamps, layout)
             if wanted is None:
-                layout, infos = self._current_layout()
-                sent: tuple[P.PairInfo, ...] | None = None if req.layout == layout else infos
+                if req.layout == layout.name:  # the per-tick answer: every field made here
+                    reply: P.QueryReply = P.unchecked(
+                        P.QueryReply,
+                        sequence=seq,
+                        measured_at=measured,
+                        compute_time=compute,
+                        layout=layout.name,
+                        pairs=None,
+                        rows=_rows(pairs),
+                        objects=None,
+                        robots=None,
+                        clouds=clouds,
+                    )
+                    return reply
+                name, infos = layout.name, layout.pairs
             else:
-                layout, sent = "", tuple(P.PairInfo(p.a, p.b, p.margin, p.kind) for p in pairs)
-        return _query_reply(seq, measured, compute, layout, sent, pairs)
+                name, infos = "", tuple(P.PairInfo(p.a, p.b, p.margin, p.kind) for p in pairs)
+            return P.QueryReply(
+                seq,
+                measured,
+                compute,
+                name,
+                infos,
+                _rows(pairs),
+                layout.objects,
+                layout.robots,
+                clouds,
+            )
 
-    def _current_layout(self) -> tuple[str, tuple[P.PairInfo, ...]]:
-        """Name and list of the watched pairs (call under the lock)."""
+    def tick(self, raw: P.Buffer, limits: P.Limits) -> tuple[bytes, P.QueryReply | None]:
+        """Answer one binary tick (:mod:`reachwise.server.protocol.tick`): the reply
+        frame (a tick, or a typed error frame) and the reply. The layout is held (the
+        lock) from decoding to answering, so the indices mean what the client meant."""
+        try:
+            with self.lock:
+                if not self.ready:
+                    why = f": {self.reason}" if self.reason else ""
+                    raise _err(P.ErrorCode.NOT_READY, "op", f"the server is {self.state}{why}")
+                layout = self._current_layout()
+                rid, req = P.decode_tick(raw, layout, limits)
+                self.metrics.request(req.OP)
+                reply = self.handle(req)
+        except P.ProtocolError as exc:
+            self.metrics.error(exc.code)
+            return P.encode_error(exc.request_id, P.ErrorReply.of(exc)), None
+        if not isinstance(reply, P.QueryReply):  # handle() answers a Query so
+            raise TypeError(f"a query was answered with {type(reply).__name__}")
+        return P.encode_tick_reply(rid, reply, layout), reply
+
+    def _current_layout(self) -> P.Layout:
+        """The layout of the answers: watched pairs, objects, robots (call under the lock)."""
         if self._layout is None:
             infos = tuple(P.PairInfo(p.a, p.b, p.margin, p.kind) for p in self.scene.pairs)
-            self._layout = (f"{self.instance}-{self._layout_count}", infos)
+            key = (self._layout_tag << 32) | (self._layout_count & 0xFFFFFFFF)
+            self._layout = P.Layout(key, infos, tuple(self._meta), tuple(self._robots))
+            self._all_sources = self._sources(infos)
         return self._layout
 
     def _pairs_changed(self) -> None:
-        """A pair, margin or the order changed: the next reply sends a new layout."""
+        """A pair, margin, the order, an object or a robot changed: the next reply sends
+        a new layout."""
         self._layout_count += 1
         self._layout = None
+        self._clouds = None
 
-    def _measured_at(self, pairs: tuple[Any, ...], stamp: float) -> float:
+    def _cloud_table(
+        self, versions: Mapping[str, int], stamps: Mapping[str, float], layout: P.Layout
+    ) -> NDArray[np.float64]:
+        """Version and stamp of each object's cloud in layout order (call under the
+        lock); the scene replaces its version map at every swap, so one table serves
+        every answer until the next swap or layout change."""
+        cached = self._clouds
+        if cached is not None and cached[0] is versions and cached[1] == layout.key:
+            return cached[2]
+        base = self._version_base
+        table = np.array(
+            [
+                (versions.get(n, 0) + base.get(n, 0), stamps.get(n, math.nan))
+                for n in layout.objects
+            ],
+            dtype=np.float64,
+        ).reshape(len(layout.objects), P.CLOUD_COLUMNS)
+        table.setflags(write=False)
+        self._clouds = (versions, layout.key, table)
+        return table
+
+    def _measured_at(
+        self,
+        pairs: tuple[Any, ...] | None,
+        stamp: float,
+        every: tuple[tuple[str, str], ...] = (),
+    ) -> float:
+        """The oldest of ``stamp`` and the stamps of the inputs the poses of ``pairs``'
+        objects come from (``pairs`` None: those of every watched pair, ``every``)."""
+        sources = every if pairs is None else self._sources(pairs)
         oldest = stamp
+        for kind, key in sources:
+            entry = self._joints.get(key) if kind == "robot" else self._runtime.get(key)
+            if entry is not None and entry[1] < oldest:
+                oldest = entry[1]
+        return oldest
+
+    def _sources(self, pairs: Iterable[Any]) -> tuple[tuple[str, str], ...]:
+        """The inputs (``("robot", name)`` or ``("object", name)``) the poses of the
+        pairs' objects come from, each once."""
+        out: dict[tuple[str, str], None] = {}
         for p in pairs:
             for name in (p.a, p.b):
                 src = self._meta[name].stamp_of
-                if src is None:
-                    continue
-                kind, key = src
-                entry = self._joints.get(key) if kind == "robot" else self._runtime.get(key)
-                if entry is not None and entry[1] < oldest:
-                    oldest = entry[1]
-        return oldest
+                if src is not None:
+                    out[src] = None
+        return tuple(out)
 
     def _describe(self, req: P.Describe) -> P.Reply:
         with self.lock:
+            self.scene.swap_in()  # the clouds in use: those indexed so far
             objects = []
             for name, obj in self.scene.objects.items():
                 src = obj.source
@@ -361,6 +499,7 @@ class SceneService:
 
     def _poses(self, req: P.Poses) -> P.Reply:
         with self.lock:
+            self.scene.swap_in()
             return P.PosesReply(self.scene.poses())
 
     # ------------------------------------------------------------------ initialization phase
@@ -383,6 +522,7 @@ class SceneService:
             self.scene.add_robot(robot)
             self._robots[robot.name] = robot
             self._models[robot.name] = req.robot
+            self._pairs_changed()  # the robots of the layout
             if req.q is not None:
                 self._store_joints(
                     robot.name, req.q, self.clock() if req.stamp is None else req.stamp
@@ -440,7 +580,8 @@ class SceneService:
                 elif req.dynamic:
                     stamp_of = ("object", req.name)
                     self._runtime[req.name] = (check_pose(req.pose, "body.pose"), self.clock())
-                self._meta[req.name] = _ObjectMeta(cloud_file, stamp_of)
+                self._meta[req.name] = _ObjectMeta(cloud_file, stamp_of, len(cloud))
+                self._pairs_changed()  # the objects of the layout
                 manifest = self._manifest()
         except BaseException:
             self._drop_file(cloud_file)
@@ -449,24 +590,99 @@ class SceneService:
         return P.ObjectReply(req.name, len(cloud))
 
     def _replace_cloud(self, req: P.ReplaceCloud) -> P.Reply:
+        """Hand the cloud over and reply with its version; with ``block`` wait here (up
+        to :data:`BLOCK_LIMIT`) until it is indexed. The transport does not call this
+        for ``block``: it parks the :class:`CloudWait` instead (:meth:`settle`)."""
+        wait = self.hand_over(req)
+        if not req.block:
+            return P.ObjectReply(wait.name, len(wait.points), wait.version)
+        wait.scene.ingest.wait(wait.name, wait.scene_version, BLOCK_LIMIT)
+        reply = self.settle(wait)
+        if reply is None:
+            raise _err(
+                P.ErrorCode.INTERNAL,
+                "cloud",
+                f"version {wait.version} of {wait.name!r} was not indexed in {BLOCK_LIMIT:g} s",
+            )
+        return reply
+
+    def hand_over(self, req: P.ReplaceCloud) -> CloudWait:
+        """Give the scene the new cloud (no copy, no build here: its worker indexes it)
+        and remember it for the state directory; raises for an unknown object."""
+        if not self.ready:
+            raise _err(P.ErrorCode.NOT_READY, "op", f"the server is {self.state}")
+        stamp = self.clock() if req.stamp is None else req.stamp
         with self.lock:
             self._object(req.name, "body.name")
-            frame = self.scene.objects[req.name].cloud.frame
-        cloud = _cloud(req.cloud, req.name, frame)
-        cloud_file = self.store.write_cloud(cloud.points) if self.store is not None else None
-        try:
+            scene = self.scene
+            v = scene.replace_cloud(req.name, req.cloud, block=False, stamp=stamp)
+            wait = CloudWait(
+                req.name,
+                v + self._version_base.get(req.name, 0),
+                v,
+                scene,
+                req.cloud,
+                stamp,
+                time.monotonic() + BLOCK_LIMIT if req.block else math.inf,
+            )
+            if self.store is not None:
+                self._unsaved[req.name] = wait
+        return wait
+
+    def settle(self, wait: CloudWait) -> P.ObjectReply | None:
+        """The reply to a ``block`` hand-over once its version (or a newer one) is
+        indexed, None while it is not; raises ``invalid`` for a cloud whose points were
+        refused, ``unknown_id`` when the scene was cleared meanwhile."""
+        if not wait.scene.ingest.wait(wait.name, wait.scene_version, 0.0):
+            return None
+        with self.lock:
+            if wait.scene is not self.scene:
+                raise _err(P.ErrorCode.UNKNOWN_ID, "body.name", "the scene was cleared meanwhile")
+            failed = wait.scene.ingest.errors().get(wait.name)
+            if failed is not None and failed[0] == wait.scene_version:
+                raise _err(P.ErrorCode.INVALID, "cloud", str(failed[1]))
+            self.scene.swap_in()  # in use from now on, not only from the next query
+        return P.ObjectReply(wait.name, len(wait.points), wait.version)
+
+    def flush_clouds(self, force: bool = False, timeout: float = 0.0) -> None:
+        """Save the newest handed-over cloud of each object (writer thread), at most
+        every :data:`CLOUD_INTERVAL` s unless ``force``; only indexed clouds are saved
+        (``timeout`` s to wait for builds in progress), never refused ones."""
+        if self.store is None or not self._unsaved or not self.ready:
+            return
+        now = time.monotonic()
+        if not force and now - self._clouds_saved_at < CLOUD_INTERVAL:
+            return
+        self._clouds_saved_at = now
+        with self.lock:
+            pending = list(self._unsaved.values())
+        for w in pending:
+            if not w.scene.ingest.wait(w.name, w.scene_version, timeout):
+                continue  # still being indexed: the next round
+            failed = w.scene.ingest.errors().get(w.name)
+            refused = failed is not None and failed[0] == w.scene_version
+            cloud_file = None if refused else self.store.write_cloud(w.points)
             with self.lock:
-                self._object(req.name, "body.name")
-                self.scene.replace_cloud(req.name, cloud, block=True)
-                old = self._meta[req.name]
-                self._meta[req.name] = _ObjectMeta(cloud_file, old.stamp_of)
-                manifest = self._manifest()
-        except BaseException:
-            self._drop_file(cloud_file)
-            raise
-        self._persist(manifest)
-        self._drop_file(old.cloud_file)
-        return P.ObjectReply(req.name, len(cloud))
+                current = self._unsaved.get(w.name) is w
+                if current:
+                    del self._unsaved[w.name]
+                old = self._meta.get(w.name)
+                if cloud_file is None or w.scene is not self.scene or old is None:
+                    manifest = None
+                else:
+                    self._meta[w.name] = _ObjectMeta(
+                        cloud_file, old.stamp_of, len(w.points), w.version, w.stamp
+                    )
+                    manifest = self._manifest()
+            if manifest is None:
+                self._drop_file(cloud_file)
+                continue
+            try:
+                self._persist(manifest)
+            except P.ProtocolError:
+                continue  # reported in health; the next change retries
+            if old is not None:
+                self._drop_file(old.cloud_file)
 
     def _watch(self, req: P.Watch) -> P.Reply:
         with self.lock:
@@ -523,12 +739,15 @@ class SceneService:
     def _clear(self, req: P.Clear) -> P.Reply:
         with self.lock:
             dropped = [m.cloud_file for m in self._meta.values()]
+            old_scene = self.scene
             self.scene = Scene(strategy=self.strategy)
             self._models, self._robots, self._meta = {}, {}, {}
             self._joints, self._runtime = {}, {}
+            self._unsaved, self._version_base = {}, {}
             self._pairs_changed()
             self._live_dirty = True
             manifest = self._manifest()
+        old_scene.close()  # its indexing worker
         self._persist(manifest)
         for f in dropped:
             self._drop_file(f)
@@ -555,11 +774,13 @@ class SceneService:
                 ObjectState(
                     name=name,
                     cloud=str(meta.cloud_file),
-                    points=len(obj.cloud),
+                    points=meta.points,
                     source=source,
                     pose=matrix4(pose),
                     robot=robot,
                     link=link,
+                    version=meta.version,
+                    stamp=meta.stamp,
                 )
             )
         return Manifest(
@@ -609,6 +830,10 @@ class SceneService:
             self._live_dirty = False
         self.store.write_live(live)
 
+    def close(self) -> None:
+        """Stop the scene's cloud-indexing worker."""
+        self.scene.close()
+
     def load(self) -> None:
         """Restore the state directory into a fresh scene, then become ready. A bad
         state leaves the server ``failed`` (not ready) with the reason."""
@@ -636,6 +861,7 @@ class SceneService:
         joints: dict[str, tuple[NDArray[np.float64], float]] = {}
         runtime: dict[str, tuple[NDArray[np.float64], float]] = {}
         meta: dict[str, _ObjectMeta] = {}
+        base: dict[str, int] = {}
         for rs in m.robots:
             robot = robot_from_dict(rs.model, f"{where}: robot {rs.name!r}")
             scene.add_robot(robot)
@@ -648,6 +874,7 @@ class SceneService:
         for o in m.objects:
             cloud = _cloud(snap.clouds[o.name], o.name, o.link or "world")
             pose = np.array(o.pose, dtype=np.float64)
+            saved = (o.cloud, o.points, o.version, o.stamp)
             if o.source == "runtime":
                 ps = live.poses.get(o.name)
                 stamp = self.clock()
@@ -655,27 +882,35 @@ class SceneService:
                     pose, stamp = np.array(ps.pose, dtype=np.float64), ps.stamp
                 scene.add_object(o.name, cloud, pose, dynamic=True)
                 runtime[o.name] = (check_pose(pose, o.name), stamp)
-                meta[o.name] = _ObjectMeta(o.cloud, ("object", o.name))
+                meta[o.name] = _ObjectMeta(saved[0], ("object", o.name), *saved[1:])
             elif o.source == "link":
                 scene.add_object(o.name, cloud, pose, robot=o.robot, link=o.link)
-                meta[o.name] = _ObjectMeta(o.cloud, ("robot", str(o.robot)))
+                meta[o.name] = _ObjectMeta(saved[0], ("robot", str(o.robot)), *saved[1:])
             else:
                 scene.add_object(o.name, cloud, pose)
-                meta[o.name] = _ObjectMeta(o.cloud, None)
+                meta[o.name] = _ObjectMeta(saved[0], None, *saved[1:])
+            if o.version > 0:  # a handed-over cloud: its version and stamp go on
+                cloud_stamp = math.inf if o.stamp is None else o.stamp
+                base[o.name] = o.version - scene.replace_cloud(
+                    o.name, cloud, block=True, stamp=cloud_stamp
+                )
         for p in m.pairs:
             scene.watch(p.a, p.b, p.margin, kind=p.kind)
         removed = store.remove_unreferenced(m)
         if removed:
             log.info("removed %d unreferenced state files", len(removed))
         with self.lock:
-            self.scene = scene
+            old_scene, self.scene = self.scene, scene
             self.strategy = m.strategy
             self._robots = robots
             self._models = {rs.name: rs.model for rs in m.robots}
             self._joints = joints
             self._runtime = runtime
             self._meta = meta
+            self._version_base = base
+            self._unsaved = {}
             self._pairs_changed()
+        old_scene.close()
 
 
 def _cloud(points: NDArray[np.float64], name: str, frame: str) -> PointCloud:
@@ -689,39 +924,45 @@ def _pairs_reply(pairs: tuple[Any, ...]) -> P.PairsReply:
     return P.PairsReply(tuple(P.PairInfo(p.a, p.b, p.margin, p.kind) for p in pairs))
 
 
-def _query_reply(
-    seq: int,
-    measured: float,
-    compute: float,
-    layout: str,
-    infos: tuple[P.PairInfo, ...] | None,
-    pairs: tuple[Any, ...],
-) -> P.QueryReply:
-    flat: list[float] = []
-    for p in pairs:
+def _rows(pairs: tuple[Any, ...]) -> NDArray[np.float64]:
+    """The pairs' answers as the rows of :class:`~reachwise.server.protocol.QueryReply`:
+    every row starts as the no-risk row (one copy), the pairs within their margins are
+    written over it."""
+    out = _no_risk_rows(len(pairs)).copy()
+    for k, p in enumerate(pairs):
         r = p.result
-        if r.no_risk:
-            flat += _NO_RISK_ROW
-        else:
-            flat.append(r.distance)
-            flat += r.point_a.tolist()
-            flat += r.point_b.tolist()
-            flat += r.direction.tolist()
-            flat += (r.index_a, r.index_b, 0.0)
-    rows = np.array(flat, dtype=np.float64).reshape(len(pairs), P.ROW_COLUMNS)
-    return P.QueryReply(seq, measured, compute, layout, infos, rows)
+        if not r.no_risk:
+            row = out[k]
+            row[0] = r.distance
+            row[1:4] = r.point_a
+            row[4:7] = r.point_b
+            row[7:10] = r.direction
+            row[10] = r.index_a
+            row[11] = r.index_b
+            row[12] = 0.0
+    return out
 
 
 #: The row of a pair beyond its margin (as the in-process ``NO_RISK`` result).
-_NO_RISK_ROW = [
-    NO_RISK.distance,
-    *NO_RISK.point_a.tolist(),
-    *NO_RISK.point_b.tolist(),
-    *NO_RISK.direction.tolist(),
-    float(NO_RISK.index_a),
-    float(NO_RISK.index_b),
-    1.0,
-]
+_NO_RISK_ROW = np.array(
+    [
+        NO_RISK.distance,
+        *NO_RISK.point_a.tolist(),
+        *NO_RISK.point_b.tolist(),
+        *NO_RISK.direction.tolist(),
+        float(NO_RISK.index_a),
+        float(NO_RISK.index_b),
+        1.0,
+    ]
+)
+
+
+@functools.lru_cache(maxsize=64)
+def _no_risk_rows(n: int) -> NDArray[np.float64]:
+    """``n`` no-risk rows (read-only; an answer copies them)."""
+    rows = np.tile(_NO_RISK_ROW, (n, 1))
+    rows.setflags(write=False)
+    return rows
 
 
 def answer(service: SceneService, rid: int, req: P.Request) -> tuple[bytes, P.Reply | None]:

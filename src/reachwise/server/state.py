@@ -9,7 +9,8 @@ everything again, so it is written to a state directory and read back at start:
 ```
 STATE/
   scene.json      robots (YAML mappings), objects (cloud file, pose source), pairs
-  clouds/*.npy    one float64 (N, 3) array per object cloud (np.save, no pickle)
+  clouds/*.npy    one float64 or float32 (N, 3) array per object cloud (np.save, no
+                  pickle): the newest saved one of each object
   live.json       last joint states and run-time poses, with their time stamps
   sequence.json   the highest sequence number the server may have handed out
 ```
@@ -22,7 +23,9 @@ under a fresh name before the manifest that refers to it; files no manifest refe
 
 ``live.json`` is written at most every few hundred milliseconds (the server batches it):
 after a crash the restored joint states may be that much older, and their time stamps
-say so (the controller's age check sees it).
+say so (the controller's age check sees it). The same holds for streamed clouds
+(``replace_cloud``): the newest one of each object is saved at most once a second,
+with its version and the stamp of its measurement.
 
 Every file is validated on load; a bad one is a :class:`StateError` naming the file and
 the field, and the server stays not-ready rather than starting with half a scene.
@@ -30,7 +33,6 @@ the field, and the server stays not-ready rather than starting with half a scene
 
 from __future__ import annotations
 
-import io
 import json
 import math
 import os
@@ -46,7 +48,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from reachwise.distance.engine import StrategyName
 from reachwise.distance.scene import PairKind
 from reachwise.errors import InputError
-from reachwise.io.atomic import TEMP_SUFFIX, atomic_write
+from reachwise.io.atomic import TEMP_SUFFIX, atomic_open, atomic_write
 from reachwise.io.validation import input_error
 
 #: Version of the state files; another version is refused (not guessed at).
@@ -82,7 +84,9 @@ class RobotState(BaseModel):
 class ObjectState(BaseModel):
     """A registered object: cloud file (in ``clouds/``), point count and pose source.
     ``pose`` is the world pose (``fixed``), the link offset (``link``) or the initial
-    pose (``runtime``; the latest one is in ``live.json``)."""
+    pose (``runtime``; the latest one is in ``live.json``). ``version`` and ``stamp``
+    are those of the saved cloud: 0 and None (does not age) for the cloud the object
+    was added with, else those of the handed-over cloud (``replace_cloud``)."""
 
     model_config = _STRICT
     name: str = Field(min_length=1)
@@ -92,6 +96,8 @@ class ObjectState(BaseModel):
     pose: Matrix4
     robot: str | None = None
     link: str | None = None
+    version: int = Field(default=0, ge=0)
+    stamp: float | None = None
 
 
 class PairState(BaseModel):
@@ -183,12 +189,16 @@ class StateStore:
             ) from None
 
     # ------------------------------------------------------------------ writing
-    def write_cloud(self, points: NDArray[np.float64]) -> str:
-        """Save a cloud under a fresh file name (returned); the manifest refers to it."""
+    def write_cloud(self, points: NDArray[Any]) -> str:
+        """Save a cloud (float32 kept as float32, anything else as float64) under a
+        fresh file name (returned); the manifest refers to it. Written straight to the
+        file, without a copy in memory (``np.save`` releases the GIL while it writes)."""
         name = f"{uuid.uuid4().hex}.npy"
-        buf = io.BytesIO()
-        np.save(buf, np.ascontiguousarray(points, dtype=np.float64), allow_pickle=False)
-        atomic_write(self.root / CLOUDS / name, buf.getvalue())
+        arr = np.asarray(points)
+        if arr.dtype != np.float32:
+            arr = np.asarray(arr, dtype=np.float64)
+        with atomic_open(self.root / CLOUDS / name, "wb") as fh:
+            np.save(fh, np.ascontiguousarray(arr), allow_pickle=False)
         return name
 
     def write_manifest(self, manifest: Manifest) -> None:
@@ -240,13 +250,13 @@ class StateStore:
             raise StateError(
                 str(path), f"object {obj.name!r}", f"unreadable cloud: {exc}"
             ) from None
-        if arr.dtype != np.float64 or arr.shape != (obj.points, 3):
+        if arr.dtype not in (np.float64, np.float32) or arr.shape != (obj.points, 3):
             raise StateError(
                 str(path),
                 f"object {obj.name!r}",
-                f"expected float64 ({obj.points}, 3), got {arr.dtype} {arr.shape}",
+                f"expected float64 or float32 ({obj.points}, 3), got {arr.dtype} {arr.shape}",
             )
-        return np.asarray(arr)
+        return np.asarray(arr, dtype=np.float64)
 
 
 _M = TypeVar("_M", bound=BaseModel)

@@ -6,14 +6,21 @@ Threads, so that one request never blocks another longer than its own work:
 
 - the *I/O thread* (the one running :meth:`CollisionServer.serve_forever`) receives,
   checks the size, decodes and answers at once everything that is short: hello, health,
-  metrics, joint states, poses, queries, descriptions. The scene lock is held only for
-  the scene work itself.
-- the *writer thread* does, in arrival order, everything that builds or persists:
+  metrics, joint states, poses, queries (binary ticks and full ones), descriptions, and
+  handed-over clouds. A cloud arrives as a raw frame received without a copy
+  (``copy=False``) and goes to the scene's indexing worker as a view of that frame; the
+  reply with its version goes out at once. A ``block`` hand-over's reply is parked
+  until the cloud is indexed (checked between messages), holding up nothing else.
+  The scene lock is held only for the scene work itself.
+- the scene's *indexing worker* (:class:`reachwise.distance.ingest.CloudIngest`) checks
+  and indexes handed-over clouds; the first query after a build swaps the new cloud in.
+- the *writer thread* does, in arrival order, everything that registers or persists:
   restoring the state directory at start, registering robots and clouds (the cloud and
-  its k-d tree are built *outside* the lock and swapped in under it), replacing scans,
-  pair rules, and the batched write of the latest joint states and poses. Its replies go
-  back to the I/O thread over an ``inproc://`` socket. The distance kernels release the
-  GIL (numba ``nogil``), so an index being built does not stall queries.
+  its k-d tree are built *outside* the lock and swapped in under it), pair rules, the
+  batched write of the latest joint states and poses, and the lazy save of the newest
+  streamed clouds. Its replies go back to the I/O thread over an ``inproc://`` socket.
+  The distance kernels release the GIL (numba ``nogil``), so an index being built does
+  not stall queries.
 """
 
 from __future__ import annotations
@@ -28,6 +35,7 @@ import uuid
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 import zmq
 import zmq.auth.thread
@@ -35,7 +43,7 @@ import zmq.auth.thread
 import reachwise.server.protocol as P
 from reachwise.distance.engine import StrategyName
 from reachwise.server.security import DEFAULT_BIND, BindPlan, plan_bind, secure_server_socket
-from reachwise.server.service import LIVE_INTERVAL, SceneService, answer
+from reachwise.server.service import LIVE_INTERVAL, CloudWait, SceneService, answer
 from reachwise.server.state import StateStore
 
 log = logging.getLogger("reachwise.server")
@@ -43,20 +51,37 @@ log = logging.getLogger("reachwise.server")
 
 @dataclass(frozen=True)
 class _Job:
-    route: list[bytes]
+    route: list[zmq.Frame]
     request_id: int
     request: P.Request
 
 
+@dataclass(frozen=True, eq=False)
+class _Parked:
+    """A ``block`` hand-over whose reply waits until its cloud is indexed."""
+
+    route: list[zmq.Frame]
+    request_id: int
+    wait: CloudWait
+
+
 _STOP = object()
+#: How often parked replies are looked at while there are any (ms).
+PARKED_POLL_MS = 2
+#: At a clean stop, how long to wait for clouds still being indexed before saving (s).
+CLOSE_BUILD_WAIT = 5.0
+
+_F = TypeVar("_F", bytes, zmq.Frame)
 
 
-def split_frames(frames: list[bytes]) -> tuple[list[bytes], list[bytes]]:
+def split_frames(frames: list[_F]) -> tuple[list[_F], list[_F]]:
     """(routing envelope, body frames) of a ROUTER message: the envelope runs up to
     and including the first empty delimiter frame (REQ peers), else it is the peer
     identity alone (DEALER peers)."""
+    if len(frames) == 3 and len(frames[1]) == 0:  # a REQ peer's one-frame request
+        return frames[:2], frames[2:]
     for k in range(1, len(frames)):
-        if not frames[k]:
+        if len(frames[k]) == 0:
             return frames[: k + 1], frames[k + 1 :]
     return frames[:1], frames[1:]
 
@@ -97,6 +122,7 @@ class CollisionServer:
         self._replies: zmq.Socket[bytes] | None = None
         self._auth: zmq.auth.thread.ThreadAuthenticator | None = None
         self._writer: threading.Thread | None = None
+        self._parked: list[_Parked] = []
         self._inproc = f"inproc://reachwise-replies-{uuid.uuid4().hex}"
 
     # ------------------------------------------------------------------ life cycle
@@ -162,6 +188,8 @@ class CollisionServer:
         if self._ctx is not None:
             self._ctx.term()
             self._ctx = None
+        self._parked = []
+        self.service.close()
 
     def __enter__(self) -> CollisionServer:
         return self
@@ -193,7 +221,7 @@ class CollisionServer:
         poller.register(replies, zmq.POLLIN)
         end = math.inf if max_runtime is None else time.monotonic() + max_runtime
         while not self._stop.is_set() and time.monotonic() < end:
-            events = dict(poller.poll(100))
+            events = dict(poller.poll(PARKED_POLL_MS if self._parked else 100))
             if replies in events:
                 while True:
                     try:
@@ -203,31 +231,41 @@ class CollisionServer:
             if router in events:
                 for _ in range(256):  # then look at the replies again
                     try:
-                        frames = router.recv_multipart(zmq.NOBLOCK)
+                        # no copy: a cloud's points are used where ZeroMQ received them
+                        frames = router.recv_multipart(zmq.NOBLOCK, copy=False)
                     except zmq.Again:
                         break
                     self._on_message(router, frames)
                     if not int(router.get(zmq.EVENTS)) & zmq.POLLIN:
                         break
+            if self._parked:
+                self._settle_parked(router)
 
-    def _on_message(self, router: zmq.Socket[bytes], frames: list[bytes]) -> None:
+    def _on_message(self, router: zmq.Socket[bytes], frames: list[zmq.Frame]) -> None:
         t0 = time.perf_counter()
         route, body = split_frames(frames)
-        if len(body) != 1:
-            self._send_error(
-                router,
-                route,
-                P.ProtocolError(
-                    P.ErrorCode.BAD_MESSAGE, "frames", f"expected one body frame, got {len(body)}"
-                ),
-            )
+        data = [f.buffer for f in body]
+        if len(data) == 1 and P.is_tick(data[0]):
+            payload, answered = self.service.tick(data[0], self.limits)
+            router.send_multipart([*route, payload])
+            if answered is not None:
+                self.service.metrics.query(answered.compute_time, time.perf_counter() - t0)
             return
         try:
-            rid, req = P.decode_request(body[0], self.limits)
+            rid, req = P.decode_frames(data, self.limits)
         except P.ProtocolError as exc:
             self._send_error(router, route, exc)
             return
         self.service.metrics.request(req.OP)
+        if isinstance(req, P.ReplaceCloud) and req.block:
+            try:
+                wait = self.service.hand_over(req)
+            except P.ProtocolError as exc:
+                exc.request_id = rid
+                self._send_error(router, route, exc)
+                return
+            self._parked.append(_Parked(route, rid, wait))
+            return
         if req.STRUCTURAL:
             if not self.service.ready:
                 why = P.ProtocolError(
@@ -242,8 +280,32 @@ class CollisionServer:
         if isinstance(reply, P.QueryReply):
             self.service.metrics.query(reply.compute_time, time.perf_counter() - t0)
 
+    def _settle_parked(self, router: zmq.Socket[bytes]) -> None:
+        """Send the replies of the parked ``block`` hand-overs whose clouds are indexed
+        (or refused, or too late)."""
+        keep = []
+        now = time.monotonic()
+        for p in self._parked:
+            try:
+                reply = self.service.settle(p.wait)
+                if reply is None and now > p.wait.deadline:
+                    raise P.ProtocolError(
+                        P.ErrorCode.INTERNAL,
+                        "cloud",
+                        f"version {p.wait.version} of {p.wait.name!r} was not indexed in time",
+                    )
+            except P.ProtocolError as exc:
+                exc.request_id = p.request_id
+                self._send_error(router, p.route, exc)
+                continue
+            if reply is None:
+                keep.append(p)
+            else:
+                router.send_multipart([*p.route, P.encode_reply(p.request_id, reply)])
+        self._parked = keep
+
     def _send_error(
-        self, router: zmq.Socket[bytes], route: list[bytes], exc: P.ProtocolError
+        self, router: zmq.Socket[bytes], route: list[zmq.Frame], exc: P.ProtocolError
     ) -> None:
         self.service.metrics.error(exc.code)
         router.send_multipart([*route, P.encode_error(exc.request_id, P.ErrorReply.of(exc))])
@@ -272,11 +334,14 @@ class CollisionServer:
         finally:
             with contextlib.suppress(Exception):
                 self.service.flush_live(force=True)
+            with contextlib.suppress(Exception):
+                self.service.flush_clouds(force=True, timeout=CLOSE_BUILD_WAIT)
             push.close(linger=0)
 
     def _housekeeping(self) -> None:
         try:
             self.service.flush_live()
+            self.service.flush_clouds()
             if self.service.store is not None and self.service.sequence.wants_extension:
                 self.service.sequence.extend()
         except Exception:  # the writer thread must live on; the next round retries

@@ -5,6 +5,13 @@ ZeroMQ REQ sockets cannot tell a slow server from a dead one, so after a missed
 deadline the channel closes the socket and makes a new one (the ZeroMQ guide's *Lazy
 Pirate*): the next call goes out on a fresh connection, which reaches a restarted
 server by itself. A channel belongs to one thread.
+
+A request with data frames (a streamed cloud) is sent without copying its array
+(``copy=False``: ZeroMQ reads the caller's memory). A query goes out as a binary tick
+(:mod:`reachwise.server.protocol.tick`) when the channel holds the scene's layout
+(:attr:`Channel.layout`, set by the remote scene from a full reply); should the server
+have moved on to another layout (``stale_layout``), the channel drops it and sends the
+same query in full within the same deadline.
 """
 
 from __future__ import annotations
@@ -39,6 +46,12 @@ class Channel:
         self._poller = zmq.Poller()  # one per socket, not one per call
         self._next_id = 0
         self._reconnects = 0
+        #: The layout binary ticks are sent under (None: queries go in full).
+        self.layout: P.Layout | None = None
+        #: Queries answered as binary ticks, and ticks the server refused for a stale
+        #: layout (each then sent in full).
+        self.ticks = 0
+        self.stale_ticks = 0
 
     @property
     def reconnects(self) -> int:
@@ -73,13 +86,43 @@ class Channel:
         :class:`ServerInputError` (the request's content was rejected) or
         :class:`ServerError` (any other typed error or an invalid reply).
         """
-        reply_type = P.REPLIES[request.OP]
-        sock = self._socket()
-        self._next_id += 1
-        rid = self._next_id
         end = time.monotonic() + deadline
+        layout = self.layout
+        if layout is not None and type(request) is P.Query:
+            rid = self._next_id = self._next_id + 1
+            tick = P.encode_tick(rid, request, layout)
+            if tick is not None:
+                raw = self._exchange(request, [tick], end, deadline)
+                if P.is_tick_reply(raw):
+                    try:
+                        got, reply = P.decode_tick_reply(raw, layout)
+                    except P.ProtocolError as exc:
+                        self.reset()
+                        raise ServerError(
+                            f"invalid reply to {request.OP}: {exc}", exc.code, exc.field
+                        ) from None
+                    self._check_id(got, rid)
+                    self.ticks += 1
+                    return reply
+                decoded = self._decode(request, raw, rid)
+                if decoded.error is None or decoded.error.code != P.ErrorCode.STALE_LAYOUT:
+                    return self._result(request, decoded)
+                self.layout = None  # the server moved on: the query again, in full
+                self.stale_ticks += 1
+        rid = self._next_id = self._next_id + 1
+        raw = self._exchange(request, P.encode_frames(rid, request), end, deadline)
+        return self._result(request, self._decode(request, raw, rid))
+
+    def _exchange(
+        self, request: P.Request, frames: list[P.Buffer], end: float, deadline: float
+    ) -> bytes:
+        """Send ``frames`` and receive the reply frame before ``end`` (monotonic s)."""
+        sock = self._socket()
         try:
-            sock.send(P.encode_request(rid, request), zmq.NOBLOCK)
+            if len(frames) == 1:
+                sock.send(frames[0], zmq.NOBLOCK)
+            else:  # data frames: ZeroMQ reads the arrays where they are
+                sock.send_multipart(frames, zmq.NOBLOCK, copy=False)
         except zmq.Again:
             self.reset()
             raise ServerUnavailable(f"cannot send {request.OP} to {self.address}") from None
@@ -89,21 +132,29 @@ class Channel:
             raise ServerUnavailable(
                 f"no reply to {request.OP} from {self.address} within {deadline * 1e3:.1f} ms"
             )
-        raw = sock.recv()
+        return sock.recv()
+
+    def _check_id(self, got: int | None, rid: int) -> None:
+        if got not in (rid, None):
+            self.reset()
+            raise ServerError(
+                f"reply to request {got} received for request {rid}",
+                P.ErrorCode.BAD_MESSAGE,
+                "id",
+            )
+
+    def _decode(self, request: P.Request, raw: bytes, rid: int) -> P.DecodedReply:
         try:
-            decoded = P.decode_reply(raw, reply_type, CLIENT_LIMITS)
+            decoded = P.decode_reply(raw, P.REPLIES[request.OP], CLIENT_LIMITS)
         except P.ProtocolError as exc:
             self.reset()
             raise ServerError(
                 f"invalid reply to {request.OP}: {exc}", exc.code, exc.field
             ) from None
-        if decoded.request_id not in (rid, None):
-            self.reset()
-            raise ServerError(
-                f"reply to request {decoded.request_id} received for request {rid}",
-                P.ErrorCode.BAD_MESSAGE,
-                "id",
-            )
+        self._check_id(decoded.request_id, rid)
+        return decoded
+
+    def _result(self, request: P.Request, decoded: P.DecodedReply) -> P.Reply:
         if decoded.error is not None:
             err = decoded.error
             if err.code in P.INPUT_CODES:

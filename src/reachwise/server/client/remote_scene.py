@@ -25,10 +25,23 @@ What the network adds, and how the client reports it:
   (registering robots and clouds, pair rules) raise :class:`ServerUnavailable`
   instead: nothing sensible follows them.
 - **Time stamps** (seconds, this client's ``clock``, :func:`time.monotonic` by
-  default): ``set_joints``/``set_pose`` stamp their measurement (``stamp=``, default
-  now); a result carries ``measured_at`` (the oldest input it depends on),
-  ``computed_at`` (when its reply arrived, an upper bound of the end of the
-  computation) and ``compute_time`` (the server's computation, s).
+  default): ``set_joints``/``set_pose``/``replace_cloud`` stamp their measurement
+  (``stamp=``, default now); a result carries ``measured_at`` (the oldest input it
+  depends on), ``computed_at`` (when its reply arrived, an upper bound of the end of
+  the computation), ``compute_time`` (the server's computation, s) and, per object,
+  the ``versions`` of the clouds it used and their ``cloud_stamps``. The server passes
+  every stamp back as the sending client gave it, so clients whose stamps meet in one
+  answer (a camera process and a control process) share one clock: the default
+  :func:`time.monotonic` does on one host (see :mod:`reachwise.server.protocol`).
+- **Streamed clouds.** :meth:`SceneClient.replace_cloud` sends the points as a raw
+  frame straight from the caller's contiguous float32 or float64 array (no copy) and
+  returns the version the server gave the cloud; the server indexes it off its request
+  thread. ``block=True`` returns once that version is indexed (every later answer uses
+  it).
+- **The per-tick query** goes out as one binary frame once the client holds the
+  scene's layout (from its first full reply), and its answer is one float64 array
+  whose :class:`~reachwise.server.client.results.ServerSceneResult` builds its pair
+  results the first time they are read.
 - **Errors** the server reports for bad input raise :class:`ServerInputError`, an
   :class:`~reachwise.errors.InputError` (as the in-process scene raises), carrying the
   typed ``code`` and the ``field``.
@@ -52,7 +65,7 @@ import math
 import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import TYPE_CHECKING, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -71,7 +84,7 @@ from reachwise.distance.scene import (
     SceneObject,
     WatchedPair,
 )
-from reachwise.errors import InputError, check_choice
+from reachwise.errors import CloudError, InputError, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_file import robot_from_dict, robot_to_dict
 from reachwise.kinematics.robot import Robot
@@ -80,7 +93,6 @@ from reachwise.server.client.errors import ServerError, ServerInputError, Server
 from reachwise.server.client.results import (
     ServerSceneResult,
     missing_result,
-    pair_results,
     scene_object,
     watched_pair,
 )
@@ -103,6 +115,20 @@ def _vector(q: ArrayLike, robot: str) -> NDArray[np.float64]:
         raise InputError(f"robot {robot!r}", "q", f"not numeric: {exc}") from None
     if not np.isfinite(arr).all():
         raise InputError(f"robot {robot!r}", "q", "contains NaN or inf")
+    return arr
+
+
+def _cloud_array(cloud: ArrayLike, name: str) -> NDArray[np.floating[Any]]:
+    """``cloud`` as an (N, 3) array to send: the caller's own array when it is a
+    C-contiguous float32/float64 one (no copy), else a float64 copy."""
+    arr = cloud if isinstance(cloud, np.ndarray) else np.asarray(cloud)
+    if arr.dtype not in (np.float32, np.float64) or not arr.flags.c_contiguous:
+        try:
+            arr = np.ascontiguousarray(arr, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise CloudError(f"cloud {name!r}", "points", f"not numeric: {exc}") from None
+    if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] == 0:
+        raise CloudError(f"cloud {name!r}", "points", f"expected shape (N, 3), got {arr.shape}")
     return arr
 
 
@@ -142,17 +168,21 @@ class SceneClient:
         self._lost: str | None = None
         self._last_sequence = 0
         self._last_measured = math.nan
-        self._layout: tuple[str, tuple[P.PairInfo, ...]] | None = None
+        self._layout: P.Layout | None = None
         self._last_pairs: tuple[P.PairInfo, ...] = ()
         self._robot_cache: dict[str, Robot] = {}
         self._mirror: Scene | None = Scene() if mirror else None
-        self._cloud_versions: dict[str, int] = {}
 
     # ------------------------------------------------------------------ channel
     @property
     def reconnects(self) -> int:
         """How many times the socket was recreated after a lost reply."""
         return self._channel.reconnects
+
+    @property
+    def ticks(self) -> int:
+        """How many queries were answered through the binary tick path."""
+        return self._channel.ticks
 
     def call(self, request: P.Request, deadline: float | None = None) -> P.Reply:
         """Send one request and wait for its reply until ``deadline`` seconds (default
@@ -168,8 +198,10 @@ class SceneClient:
         return rep
 
     def close(self) -> None:
-        """Close the socket and the client's ZeroMQ context."""
+        """Close the socket and the client's ZeroMQ context (and the mirror's worker)."""
         self._channel.close()
+        if self._mirror is not None:
+            self._mirror.close()
 
     def __enter__(self) -> SceneClient:
         return self
@@ -249,6 +281,7 @@ class SceneClient:
         """Every object with its cloud and pose source (downloads the clouds; with
         ``mirror``: the local copy)."""
         if self._mirror is not None:
+            self._mirror.swap_in()
             return self._mirror.objects
         return {o.name: scene_object(o) for o in self.describe(clouds=True).objects}
 
@@ -377,18 +410,29 @@ class SceneClient:
         stamp: float | None = None,
         deadline: float | None = None,
     ) -> int:
-        """Swap object ``name``'s cloud (e.g. a new scan); returns its version (1, 2, …
-        per object, counted here in the order the server applies them). The server
-        indexes the cloud before it replies, so the call returns once the new cloud is
-        in use whatever ``block`` says; ``stamp`` is not sent (the server stamps the
-        cloud when it arrives)."""
-        c = as_cloud(cloud, name)
-        self._setup(P.ReplaceCloud(name, c.points), P.ObjectReply, deadline)
-        version = self._cloud_versions.get(name, 0) + 1
-        self._cloud_versions[name] = version
-        if self._mirror is not None:
-            self._mirror.replace_cloud(name, c, block=True, stamp=stamp)
-        return version
+        """Hand over a new cloud for object ``name`` (a new scan, a camera frame)
+        measured at ``stamp`` (s, this client's clock; default now); returns the version
+        the server gave it (1, 2, … per object; the cloud it was added with is 0).
+
+        The points travel as a raw frame: a C-contiguous float32 or float64 (N, 3)
+        array (or a :class:`PointCloud`) is sent from its own memory, without a copy
+        (do not write into it until the call returns); anything else is converted to
+        float64 first. The server replies at once and indexes the cloud off its request
+        thread; until it is swapped in, answers use the previous cloud and say so
+        (:attr:`SceneResult.versions`). ``block=True`` returns once this version (or a
+        newer one) is indexed, so that every later answer uses it; bad points then
+        raise :class:`ServerInputError` (without ``block`` such a cloud is never swapped
+        in, as in process)."""
+        if not isinstance(name, str) or not name:
+            raise InputError("scene", "object name", "must be a non-empty string")
+        points = cloud.points if isinstance(cloud, PointCloud) else _cloud_array(cloud, name)
+        t = self.clock() if stamp is None else float(stamp)
+        rep = self._setup(P.ReplaceCloud(name, points, t, block), P.ObjectReply, deadline)
+        if self._mirror is not None:  # a copy (the caller may reuse its array), indexed
+            # on the mirror's worker, not here: the local copy only serves ``objects``
+            copy = np.array(points, dtype=np.float64)
+            self._mirror.replace_cloud(name, copy, block=False, stamp=t)
+        return rep.version
 
     def watch(
         self,
@@ -413,10 +457,11 @@ class SceneClient:
         state): for a client that owns the scene, before it registers its own."""
         self._setup(P.Clear(), P.Ack, deadline)
         self._robot_cache = {}
-        self._layout = None
+        self._layout = self._channel.layout = None
         self._last_pairs = ()
         self._pending_joints, self._pending_poses = {}, {}
         if self._mirror is not None:
+            self._mirror.close()
             self._mirror = Scene()
 
     def _watched(self, rep: P.PairsReply) -> tuple[WatchedPair, ...]:
@@ -467,6 +512,7 @@ class SceneClient:
     def robot_objects(self, robot: str) -> tuple[SceneObject, ...]:
         """Objects attached to ``robot``'s links, base to tool."""
         if self._mirror is not None:
+            self._mirror.swap_in()
             return self._mirror.robot_objects(robot)
         d = self.describe(clouds=True)
         model = d.robots.get(robot)
@@ -494,15 +540,22 @@ class SceneClient:
     ) -> ServerSceneResult:
         """Answer every watched pair (or the watched ``pairs`` given) at the current
         joint states and poses; missing data gives an invalid result, never raises."""
-        now = self.clock()
+        stamp = self.clock()
         joints, poses = self._pending_joints, self._pending_poses
-        stamp = min([now, *(t for _, t in joints.values()), *(t for _, t in poses.values())])
-        req = P.Query(
-            stamp,
-            {k: q for k, (q, _) in joints.items()} or None,
-            {k: p for k, (p, _) in poses.items()} or None,
-            None if pairs is None else tuple((str(a), str(b)) for a, b in pairs),
-            None if self._layout is None or pairs is not None else self._layout[0],
+        for _, t in joints.values():
+            if t < stamp:
+                stamp = t
+        for _, t in poses.values():
+            if t < stamp:
+                stamp = t
+        held = self._layout
+        req: P.Query = P.unchecked(  # every field made here, as Query would check it
+            P.Query,
+            stamp=stamp,
+            joints={k: q for k, (q, _) in joints.items()} if joints else None,
+            poses={k: p for k, (p, _) in poses.items()} if poses else None,
+            pairs=None if pairs is None else tuple((str(a), str(b)) for a, b in pairs),
+            layout=None if held is None or pairs is not None else held.name,
         )
         try:
             rep = self.call(req, self.deadline if deadline is None else deadline)
@@ -519,40 +572,38 @@ class SceneClient:
         if not isinstance(rep, P.QueryReply):
             return self._missing(f"unexpected reply {type(rep).__name__} to query")
         arrived = self.clock()
-        if rep.pairs is not None:
-            infos = rep.pairs
-            if rep.layout:
-                self._layout = (rep.layout, infos)
-        elif self._layout is not None and self._layout[0] == rep.layout:
-            infos = self._layout[1]
+        layout = P.Layout.of(rep)
+        if layout is not None:
+            if layout.key:
+                self._layout = self._channel.layout = layout
+        elif held is not None and held.name == rep.layout:
+            layout = held
         else:  # the server left out a pair list this client does not hold
-            self._layout = None
+            self._layout = self._channel.layout = None
             self._channel.reset()
             return self._missing(f"reply without the pair list of layout {rep.layout!r}")
+        infos = layout.pairs
         if len(infos) != rep.rows.shape[0]:
-            self._layout = None
+            self._layout = self._channel.layout = None
             return self._missing("reply rows do not match the pair list")
         if self._mirror is not None and pairs is None and infos is not self._last_pairs:
             mine = tuple(P.PairInfo(w.a, w.b, w.margin, w.kind) for w in self._mirror.pairs)
             if infos != mine:
-                self._layout = None
+                self._layout = self._channel.layout = None
                 return self._missing(
                     f"the server watches {len(infos)} pairs that differ from the "
                     f"{len(mine)} this client registered (was its state lost?)"
                 )
-        self._pending_joints, self._pending_poses = {}, {}
+        if joints:
+            self._pending_joints = {}
+        if poses:
+            self._pending_poses = {}
         self._last_sequence = rep.sequence
         self._last_measured = rep.measured_at
         self._last_pairs = infos
         lost, self._lost = self._lost, None
-        return ServerSceneResult(
-            rep.sequence,
-            pair_results(infos, rep),
-            measured_at=rep.measured_at,
-            computed_at=arrived,
-            compute_time=rep.compute_time,
-            valid=lost is None,
-            reason=lost or "",
+        return ServerSceneResult.of_reply(
+            rep, layout, computed_at=arrived, valid=lost is None, reason=lost or ""
         )
 
     def _missing(self, reason: str) -> ServerSceneResult:

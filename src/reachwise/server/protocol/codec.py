@@ -1,10 +1,11 @@
 """Frames on the wire: the size-checked msgpack envelope, encoding and decoding of
-requests and replies, and the hand-checked fast path of the per-tick messages."""
+requests (with their raw data frames) and replies, and the hand-checked fast path of
+the per-tick msgpack messages (the binary ticks are :mod:`~reachwise.server.protocol.tick`)."""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -19,6 +20,7 @@ from reachwise.server.protocol.fields import (
     MAX_NAME_LENGTH,
     PROTOCOL_VERSION,
     SUPPORTED_VERSIONS,
+    Buffer,
     ErrorCode,
     Limits,
     ProtocolError,
@@ -26,6 +28,7 @@ from reachwise.server.protocol.fields import (
     check_text,
 )
 from reachwise.server.protocol.replies import (
+    CLOUD_COLUMNS,
     ROW_COLUMNS,
     ErrorReply,
     QueryReply,
@@ -104,11 +107,18 @@ _REPLY_KEYS = frozenset({"v", "id", "ok", "body", "error"})
 
 
 def encode_request(request_id: int, request: Request) -> bytes:
-    """One request frame."""
+    """The envelope frame of a request (the whole request unless it has data frames:
+    :func:`encode_frames`)."""
     return msgpack.packb(
         {"v": PROTOCOL_VERSION, "id": request_id, "op": request.OP, "body": request.body()},
         use_bin_type=True,
     )
+
+
+def encode_frames(request_id: int, request: Request) -> list[Buffer]:
+    """Every frame of a request: the envelope, then its data frames (views of the
+    request's arrays, not copies: send them with ``copy=False``)."""
+    return [encode_request(request_id, request), *request.data()]
 
 
 # --------------------------------------------------------------------------- hot path
@@ -123,6 +133,7 @@ _F8 = np.dtype(FLOAT)
 _QUERY_FAST_KEYS = frozenset({"stamp", "joints", "layout"})
 _SET_JOINTS_FAST_KEYS = frozenset({"robot", "q", "stamp"})
 _QUERY_REPLY_FAST_KEYS = frozenset({"sequence", "measured_at", "compute_time", "layout", "rows"})
+_QUERY_REPLY_CLOUD_KEYS = _QUERY_REPLY_FAST_KEYS | {"clouds"}
 
 
 def _fast_name(v: object) -> bool:
@@ -189,8 +200,34 @@ _FAST_REQUESTS: dict[str, Callable[[object], Request | None]] = {
 }
 
 
+def _fast_clouds(v: object) -> NDArray[np.float64] | None:
+    """A cloud table ``[dtype, [m, 2], bytes]`` with whole versions >= 0, or None."""
+    if type(v) is not list or len(v) != 3:
+        return None
+    dt, shp, data = v
+    if dt != FLOAT or type(shp) is not list or len(shp) != 2 or type(data) is not bytes:
+        return None
+    m, c = shp
+    if type(m) is not int or m < 0 or c != CLOUD_COLUMNS or len(data) != 8 * CLOUD_COLUMNS * m:
+        return None
+    arr = np.frombuffer(data, dtype=_F8).reshape(m, CLOUD_COLUMNS)
+    ver = arr[:, 0]
+    if not bool(np.all((ver >= 0.0) & (ver == np.floor(ver)) & (ver < 2.0**53))):
+        return None
+    return arr
+
+
 def _fast_query_reply(body: object) -> QueryReply | None:
-    if type(body) is not dict or not body.keys() == _QUERY_REPLY_FAST_KEYS:
+    if type(body) is not dict:
+        return None
+    keys = body.keys()
+    if keys == _QUERY_REPLY_CLOUD_KEYS:
+        clouds = _fast_clouds(body["clouds"])
+        if clouds is None:
+            return None
+    elif keys == _QUERY_REPLY_FAST_KEYS:
+        clouds = None
+    else:
         return None
     seq, measured, compute, layout, rows = (
         body["sequence"],
@@ -219,17 +256,34 @@ def _fast_query_reply(body: object) -> QueryReply | None:
             return None
         if flag != 0.0 and flag != 1.0:
             return None
-    return QueryReply(seq, measured, compute, layout, None, arr)
+    return QueryReply(seq, measured, compute, layout, None, arr, clouds=clouds)
 
 
 def decode_request(raw: bytes | memoryview, limits: Limits = DEFAULT_LIMITS) -> tuple[int, Request]:
-    """Check and decode one request frame; raises :class:`ProtocolError` (with the
+    """Check and decode a request of one frame; raises :class:`ProtocolError` (with the
     request id when it could be read)."""
+    return decode_frames([raw], limits)
+
+
+def decode_frames(frames: Sequence[Buffer], limits: Limits = DEFAULT_LIMITS) -> tuple[int, Request]:
+    """Check and decode the body frames of one request: the msgpack envelope and as
+    many data frames as its op takes (:attr:`Request.DATA_FRAMES`); raises
+    :class:`ProtocolError` (with the request id when it could be read)."""
+    if not frames:
+        raise ProtocolError(ErrorCode.BAD_MESSAGE, "frames", "no body frame")
+    raw, data = frames[0], frames[1:]
+    total = sum(len(f) if isinstance(f, bytes) else f.nbytes for f in frames)
+    if total > limits.max_message_bytes:
+        raise ProtocolError(
+            ErrorCode.TOO_LARGE,
+            "message",
+            f"{total} bytes exceed the cap of {limits.max_message_bytes}",
+        )
     obj, rid = _envelope(_unpack(raw, limits), _REQUEST_KEYS)
     if rid is None:
         raise ProtocolError(ErrorCode.BAD_MESSAGE, "id", "missing or not an integer in [0, 2**63)")
     op = obj.get("op")
-    fast = _FAST_REQUESTS.get(op) if type(op) is str else None
+    fast = _FAST_REQUESTS.get(op) if type(op) is str and not data else None
     if fast is not None:
         req_fast = fast(obj.get("body"))
         if req_fast is not None:
@@ -239,11 +293,18 @@ def decode_request(raw: bytes | memoryview, limits: Limits = DEFAULT_LIMITS) -> 
         raise ProtocolError(
             ErrorCode.UNKNOWN_OP, "op", f"unknown op {op!r}; known: {sorted(REQUESTS)}", rid
         )
+    if len(data) != cls.DATA_FRAMES:
+        raise ProtocolError(
+            ErrorCode.BAD_MESSAGE,
+            "frames",
+            f"{op} takes {cls.DATA_FRAMES} data frame(s) after its header, got {len(data)}",
+            rid,
+        )
     if "body" not in obj:
         raise ProtocolError(ErrorCode.MISSING_FIELD, "body", "required field is missing", rid)
     try:
         r = Reader(obj["body"])
-        req = cls.parse(r, limits)
+        req = cls.parse_frames(r, limits, data) if data else cls.parse(r, limits)
         r.done()
     except ProtocolError as exc:
         exc.request_id = rid

@@ -37,6 +37,8 @@ INT = "<i8"
 BOOL = "|b1"
 
 Body = dict[str, Any]
+#: One ZeroMQ frame's memory: bytes, or a view of a frame or an array (no copy).
+Buffer = bytes | memoryview
 
 
 class ErrorCode(StrEnum):
@@ -57,6 +59,7 @@ class ErrorCode(StrEnum):
     EXISTS = "exists"  # a robot or object of that name is already registered
     INVALID = "invalid"  # well-formed but rejected by the scene (bad robot file, pose …)
     NOT_READY = "not_ready"  # the server is still restoring its state
+    STALE_LAYOUT = "stale_layout"  # a binary tick names a layout the server no longer has
     INTERNAL = "internal"  # a server fault; the server keeps serving
 
 
@@ -365,6 +368,20 @@ class Reader:
                 self.path(extra[0]),
                 f"unknown field; known: {sorted(self._used)}",
             )
+
+
+_D = TypeVar("_D")
+
+
+def unchecked(cls: type[_D], /, **fields: Any) -> _D:
+    """An instance of the frozen dataclass ``cls`` holding ``fields`` as given, made
+    without its generated ``__init__`` (which sets each field through
+    ``object.__setattr__``): half the cost, for the per-tick messages whose decoders
+    have checked every field. ``fields`` must name every field of ``cls``, and ``cls``
+    must have no ``__post_init__``."""
+    obj = object.__new__(cls)
+    obj.__dict__.update(fields)
+    return obj
 
 
 def omit_none(body: Body) -> Body:

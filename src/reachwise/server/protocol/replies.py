@@ -192,19 +192,22 @@ class RobotReply(Reply):
 
 @dataclass(frozen=True)
 class ObjectReply(Reply):
-    """An object after ``add_object``/``replace_cloud``: its point count."""
+    """An object after ``add_object`` (``version`` 0) or ``replace_cloud`` (the version
+    the server gave the handed-over cloud: 1, 2, … per object): its point count."""
 
     name: str
     points: int
+    version: int = 0
 
     def body(self) -> Body:
-        return {"name": self.name, "points": self.points}
+        return {"name": self.name, "points": self.points, "version": self.version}
 
     @classmethod
     def parse(cls, r: Reader) -> Self:
         return cls(
             check_name(r.get("name"), r.path("name")),
             check_int(r.get("points"), r.path("points"), minimum=1),
+            check_int(r.get("version"), r.path("version"), minimum=0),
         )
 
 
@@ -257,6 +260,11 @@ class PairsReply(Reply):
 ROW_COLUMNS = 13
 
 
+#: Columns of :attr:`QueryReply.clouds`: the version of each object's cloud the answer
+#: used, and the time stamp (s, sender's clock) of that cloud's measurement.
+CLOUD_COLUMNS = 2
+
+
 @dataclass(frozen=True, eq=False)
 class QueryReply(Reply):
     """Every answered pair, in watch order, one row of :data:`ROW_COLUMNS` float64 per
@@ -271,10 +279,17 @@ class QueryReply(Reply):
     and the query's own stamp (sender's clock, s); ``compute_time`` the server's
     computation time (s).
 
-    ``layout`` names the list of watched pairs (it changes whenever a pair, its
-    margin or the order changes, and at every server start; empty for a query of
-    chosen pairs). ``pairs`` is None when the request named the current layout: the
-    rows are then in the order of the list the client holds.
+    ``layout`` names the list of watched pairs, the objects and the robots (it changes
+    whenever one of them changes, and at every server start; empty for a query of
+    chosen pairs): a decimal number, the key binary ticks carry
+    (:mod:`~reachwise.server.protocol.tick`). ``pairs``, ``objects`` and ``robots``
+    are None when the request named the current layout: the rows are then in the order
+    of the lists the client holds.
+
+    ``clouds`` has one row of :data:`CLOUD_COLUMNS` per object, in the order of
+    ``objects``: the version of the object's cloud the answer used (0 for the cloud it
+    was added with) and the time stamp of that cloud's measurement (+inf for a cloud
+    that does not age, as the in-process scene reports).
     """
 
     sequence: int
@@ -283,6 +298,9 @@ class QueryReply(Reply):
     layout: str
     pairs: tuple[PairInfo, ...] | None
     rows: NDArray[np.float64]
+    objects: tuple[str, ...] | None = None
+    robots: tuple[str, ...] | None = None
+    clouds: NDArray[np.float64] | None = None
 
     @property
     def values(self) -> NDArray[np.float64]:
@@ -306,13 +324,18 @@ class QueryReply(Reply):
                 "compute_time": self.compute_time,
                 "layout": self.layout,
                 "pairs": None if self.pairs is None else [p.wire() for p in self.pairs],
+                "objects": None if self.objects is None else list(self.objects),
+                "robots": None if self.robots is None else list(self.robots),
                 "rows": encode_array(self.rows),
+                "clouds": None if self.clouds is None else encode_array(self.clouds),
             }
         )
 
     @classmethod
     def parse(cls, r: Reader) -> Self:
         pairs = None if r.opt("pairs") is None else _pairs(r)
+        objects = _names(r, "objects")
+        robots = _names(r, "robots")
         where = r.path("rows")
         rows = check_array(r.get("rows"), where, shape=(None, ROW_COLUMNS), finite=False)
         n = rows.shape[0]
@@ -329,6 +352,17 @@ class QueryReply(Reply):
                 raise ProtocolError(
                     ErrorCode.WRONG_TYPE, where, "column 12 (no_risk) must be 0 or 1"
                 )
+        cv = r.opt("clouds")
+        clouds = None
+        if cv is not None:
+            clouds = check_array(cv, r.path("clouds"), shape=(None, CLOUD_COLUMNS), finite=False)
+            check_cloud_table(clouds, r.path("clouds"))
+            if objects is not None and len(objects) != clouds.shape[0]:
+                raise ProtocolError(
+                    ErrorCode.WRONG_SHAPE,
+                    r.path("clouds"),
+                    f"{clouds.shape[0]} rows for {len(objects)} objects",
+                )
         return cls(
             check_int(r.get("sequence"), r.path("sequence"), minimum=0),
             check_float(r.get("measured_at"), r.path("measured_at")),
@@ -336,7 +370,26 @@ class QueryReply(Reply):
             check_text(r.get("layout"), r.path("layout"), MAX_NAME_LENGTH),
             pairs,
             rows,
+            objects,
+            robots,
+            clouds,
         )
+
+
+def check_cloud_table(clouds: NDArray[np.float64], where: str) -> None:
+    """Versions (column 0) must be whole numbers >= 0; stamps (column 1) may be any
+    number, +inf (does not age) or NaN (unknown)."""
+    v = clouds[:, 0]
+    if not bool(np.all((v >= 0.0) & (v == np.floor(v)) & (v < 2.0**53))):
+        raise ProtocolError(ErrorCode.WRONG_TYPE, where, "column 0 (version) must be integers >= 0")
+
+
+def _names(r: Reader, key: str) -> tuple[str, ...] | None:
+    v = r.opt(key)
+    if v is None:
+        return None
+    lst = check_list(v, r.path(key))
+    return tuple(check_name(x, f"{r.path(key)}[{i}]") for i, x in enumerate(lst))
 
 
 @dataclass(frozen=True, eq=False)

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar, Self
 
@@ -11,10 +12,12 @@ from numpy.typing import NDArray
 
 from reachwise.distance.scene import PAIR_KINDS, PairKind
 from reachwise.server.protocol.fields import (
+    FLOAT,
     MAX_LIST,
     MAX_NAME_LENGTH,
     SUPPORTED_VERSIONS,
     Body,
+    Buffer,
     ErrorCode,
     Limits,
     ProtocolError,
@@ -46,12 +49,25 @@ class Request:
     #: thread and persisted before the reply); the rest are answered at once.
     STRUCTURAL: ClassVar[bool] = False
 
+    #: Raw binary frames that follow the msgpack envelope (arrays sent without msgpack).
+    DATA_FRAMES: ClassVar[int] = 0
+
     def body(self) -> Body:
         return {}
+
+    def data(self) -> list[Buffer]:
+        """The raw frames after the envelope (:attr:`DATA_FRAMES` of them)."""
+        return []
 
     @classmethod
     def parse(cls, r: Reader, limits: Limits) -> Self:
         return cls()
+
+    @classmethod
+    def parse_frames(cls, r: Reader, limits: Limits, data: Sequence[Buffer]) -> Self:
+        """Parse a request whose envelope is followed by ``data`` frames (their number
+        is checked by the codec: :attr:`DATA_FRAMES`)."""
+        return cls.parse(r, limits)
 
 
 @dataclass(frozen=True)
@@ -163,27 +179,97 @@ class AddObject(Request):
         )
 
 
+#: Element types a streamed cloud may travel in: little-endian float32 or float64.
+CLOUD_DTYPES: tuple[str, ...] = ("<f4", FLOAT)
+
+
+def _wire_cloud(cloud: object) -> NDArray[np.floating[Any]]:
+    """``cloud`` as it travels: the array itself when it is already a C-contiguous
+    little-endian float32 or float64 array (sent without a copy), else a float64 copy."""
+    if (
+        isinstance(cloud, np.ndarray)
+        and cloud.dtype.str in CLOUD_DTYPES
+        and cloud.flags.c_contiguous
+    ):
+        return cloud
+    return np.ascontiguousarray(np.asarray(cloud, dtype=np.float64), dtype=FLOAT)
+
+
 @dataclass(frozen=True, eq=False)
 class ReplaceCloud(Request):
-    """Swap an object's cloud, e.g. the environment after a new scan (index rebuilt)."""
+    """Hand over a new cloud for an object (a new scan, a depth camera frame), measured
+    at ``stamp``; the server indexes it off its request thread and replies at once
+    with the cloud's version, or with ``block`` once that version is indexed (every
+    later query uses it).
+
+    The message has two frames: the msgpack envelope, whose body is a small header —
+    ``name``, ``points`` (N), ``dtype`` (:data:`CLOUD_DTYPES`), ``stamp``, ``block`` —
+    and the N x 3 values themselves, raw, in C order (no per-point msgpack). Both ends
+    pass the array's memory to ZeroMQ as it is: sent from the caller's contiguous
+    array and viewed in the received frame, never copied on the way.
+    """
 
     OP: ClassVar[str] = "replace_cloud"
-    STRUCTURAL: ClassVar[bool] = True
+    DATA_FRAMES: ClassVar[int] = 1
     name: str
-    cloud: NDArray[np.float64]
+    cloud: NDArray[np.floating[Any]]
+    stamp: float | None = None
+    block: bool = False
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "cloud", _wire_cloud(self.cloud))
 
     def body(self) -> Body:
-        return {"name": self.name, "cloud": encode_array(self.cloud)}
+        n = int(self.cloud.shape[0]) if self.cloud.ndim else 0
+        return omit_none(
+            {
+                "name": self.name,
+                "points": n,
+                "dtype": self.cloud.dtype.str,
+                "stamp": self.stamp,
+                "block": self.block or None,
+            }
+        )
+
+    def data(self) -> list[Buffer]:
+        return [self.cloud.data.cast("B")]
 
     @classmethod
-    def parse(cls, r: Reader, limits: Limits) -> Self:
+    def parse_frames(cls, r: Reader, limits: Limits, data: Sequence[Buffer]) -> Self:
         name = check_name(r.get("name"), r.path("name"))
-        cloud = check_array(
-            r.get("cloud"), r.path("cloud"), shape=(None, 3), max_rows=limits.max_cloud_points
-        )
-        if cloud.shape[0] == 0:
-            raise ProtocolError(ErrorCode.WRONG_SHAPE, r.path("cloud"), "the cloud is empty")
-        return cls(name, cloud)
+        n = check_int(r.get("points"), r.path("points"), minimum=0)
+        if n == 0:
+            raise ProtocolError(ErrorCode.WRONG_SHAPE, r.path("points"), "the cloud is empty")
+        if n > limits.max_cloud_points:
+            raise ProtocolError(
+                ErrorCode.OVERSIZED_CLOUD,
+                r.path("points"),
+                f"{n} points exceed the cap of {limits.max_cloud_points}",
+            )
+        dtype = r.get("dtype")
+        if dtype not in CLOUD_DTYPES:
+            raise ProtocolError(
+                ErrorCode.WRONG_TYPE,
+                r.path("dtype"),
+                f"dtype {dtype!r} not accepted; send one of {list(CLOUD_DTYPES)}",
+            )
+        stamp = stamp_of(r)
+        blk = r.opt("block")
+        block = False if blk is None else check_bool(blk, r.path("block"))
+        dt = np.dtype(dtype)
+        raw = data[0]
+        need = n * 3 * dt.itemsize
+        size = len(raw) if isinstance(raw, bytes) else raw.nbytes
+        if size != need:
+            raise ProtocolError(
+                ErrorCode.WRONG_SHAPE,
+                "cloud",
+                f"the data frame holds {size} bytes; {n} points of {dtype} need {need}",
+            )
+        # a read-only view of the received frame (finiteness is checked by the indexing
+        # worker, off the request thread: a cloud with bad points is never swapped in)
+        cloud = np.frombuffer(raw, dtype=dt).reshape(n, 3)
+        return cls(name, cloud, stamp, block)
 
 
 @dataclass(frozen=True, eq=False)

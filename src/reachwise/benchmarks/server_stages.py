@@ -1,0 +1,133 @@
+"""Where a query's microseconds go beyond the distance computation: each stage of the
+request path timed alone, in this process (no network), for the full msgpack path and
+for the binary tick path (issue 17: "the request path trims our own work").
+
+Stages, per query of the benchmark's crane scene carrying one joint state: the
+client's request (making the :class:`~reachwise.server.protocol.Query` and encoding
+it), the server's decoding, its handling beyond :meth:`Scene.query_all` (checking and
+applying the joint state, the sequence, time stamps, the layout and cloud table, the
+rows of the reply), its encoding of the reply, the client's decoding, and the result
+the client returns (``full``: every pair result built, as the client did before;
+``tick``: the lazy result, pairs built when first read; ``tick.result_pairs`` is that
+reading). The server's handling is the median of ``handle(query) − query_all()`` over
+interleaved pairs of calls, which cancels the computation and most load swings.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+import reachwise.server.protocol as P
+from reachwise.benchmarks._harness import BenchReport, time_interleaved
+from reachwise.benchmarks.distance import environment_points, part_points
+from reachwise.benchmarks.server_setup import ENV_X, LINKS, MARGIN, crane_q
+from reachwise.io.robot_file import robot_to_dict
+from reachwise.kinematics.robot import Robot
+from reachwise.server.client.results import ServerSceneResult
+from reachwise.server.service import SceneService
+
+__all__ = ["STAGES", "stage_costs"]
+
+#: The stages, in request order.
+STAGES = (
+    "client_request",
+    "server_decode",
+    "server_handling",
+    "server_encode",
+    "client_decode",
+    "client_result",
+)
+
+
+def _service(robot: Robot) -> SceneService:
+    svc = SceneService()
+    svc.handle(P.AddRobot(robot_to_dict(robot), crane_q(robot, 0), 0.0))
+    part = part_points(1000, seed=1)
+    for link in LINKS:
+        svc.handle(P.AddObject(link, part, None, robot.name, link))
+    pose = np.eye(4)
+    pose[0, 3] = ENV_X
+    svc.handle(P.AddObject("environment", environment_points(5500, seed=2), pose))
+    svc.handle(P.WatchEnvironment(robot.name, MARGIN))
+    return svc
+
+
+def stage_costs(rep: BenchReport, robot: Robot, repeat: int) -> None:
+    """Add ``stage.full.<stage>``, ``stage.tick.<stage>`` (medians, µs) and their
+    ``.total`` to ``rep``."""
+    svc = _service(robot)
+    q = crane_q(robot, 2950)  # two of the four pairs within the margin
+    first = svc.handle(P.Query(1.0, {robot.name: q}))
+    if not isinstance(first, P.QueryReply):
+        raise RuntimeError("the first query was not answered")
+    layout = P.Layout.of(first)
+    if layout is None:
+        raise RuntimeError("the first reply sent no layout")
+    name = layout.name
+    query = P.Query(1.0, {robot.name: q}, None, None, name)
+    full_raw = P.encode_request(1, query)
+    tick_raw = P.encode_tick(1, query, layout)
+    if tick_raw is None:
+        raise RuntimeError("the query does not fit a tick")
+    reply = svc.handle(query)
+    if not isinstance(reply, P.QueryReply):
+        raise RuntimeError("the query was not answered")
+    full_reply = P.encode_reply(1, reply)
+    tick_reply = P.encode_tick_reply(1, reply, layout)
+    _, decoded = P.decode_tick_reply(tick_reply, layout)
+    limits = P.DEFAULT_LIMITS
+
+    def result(r: P.QueryReply) -> ServerSceneResult:
+        return ServerSceneResult.of_reply(r, layout, computed_at=1.0)
+
+    full: dict[str, Callable[[int], object]] = {
+        "client_request": lambda i: P.encode_request(
+            1, P.Query(1.0, {robot.name: q}, None, None, name)
+        ),
+        "server_decode": lambda i: P.decode_request(full_raw, limits),
+        "server_encode": lambda i: P.encode_reply(1, reply),
+        "client_decode": lambda i: P.decode_reply(full_reply, P.QueryReply),
+        "client_result": lambda i: result(reply).pairs,
+    }
+    tick: dict[str, Callable[[int], object]] = {
+        "client_request": lambda i: P.encode_tick(
+            1, P.Query(1.0, {robot.name: q}, None, None, name), layout
+        ),
+        "server_decode": lambda i: P.decode_tick(tick_raw, layout, limits),
+        "server_encode": lambda i: P.encode_tick_reply(1, reply, layout),
+        "client_decode": lambda i: P.decode_tick_reply(tick_reply, layout),
+        "client_result": lambda i: result(decoded),
+        "result_pairs": lambda i: result(decoded).pairs,
+    }
+    samples = time_interleaved(
+        {
+            **{f"full.{k}": v for k, v in full.items()},
+            **{f"tick.{k}": v for k, v in tick.items()},
+            "handle": lambda i: svc.handle(query),
+            "query_all": lambda i: svc.scene.query_all(),
+        },
+        repeat,
+        warmup=50,
+    )
+    handling = float(np.median(samples["handle"] - samples["query_all"]))
+    for path in ("full", "tick"):
+        total = 0.0
+        for stage in STAGES:
+            v = (
+                handling
+                if stage == "server_handling"
+                else float(np.median(samples[f"{path}.{stage}"]))
+            )
+            rep.metrics[f"stage.{path}.{stage}"] = v
+            total += v
+        rep.metrics[f"stage.{path}.total"] = total
+    rep.metrics["stage.tick.result_pairs"] = float(np.median(samples["tick.result_pairs"]))
+    rep.metrics["stage.query_all"] = float(np.median(samples["query_all"]))
+    rep.notes.append(
+        "stage.*: each stage of the request path timed alone in this process (no network), "
+        "interleaved; server_handling = median(handle(query) - query_all()), shared by both "
+        "paths; full.client_result builds every pair result, tick.client_result is the lazy "
+        "result (tick.result_pairs: reading its pairs)"
+    )
