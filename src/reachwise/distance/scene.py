@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import weakref
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -289,6 +290,8 @@ class Scene:
         if voxel is not None:
             voxel = _positive(voxel, "voxel")
         self._ingest = CloudIngest(voxel=voxel)
+        # a scene dropped without close() still stops its worker thread
+        self._stop_ingest = weakref.finalize(self, self._ingest.close)
         # the arrays the compiled query reads, and what a query needs of them
         self._arrays = SceneArrays()
         self._slot: dict[str, int] = {}
@@ -634,8 +637,9 @@ class Scene:
         )
 
     def close(self) -> None:
-        """Stop the cloud-ingestion worker (a remote scene disconnects here)."""
-        self._ingest.close()
+        """Stop the cloud-ingestion worker (a remote scene disconnects here); a scene
+        that is garbage-collected stops it too."""
+        self._stop_ingest()
 
     def _install(self, ready: Ready) -> None:
         """Swap in a built cloud (unless a newer version is in use already): the object
