@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from reachwise.distance._build import build_tree, morton_order
+from reachwise.distance._build import _sorted_lsd, _sorted_msd, build_tree, morton_order, summary
 
 
 def check_layout(points: np.ndarray, leaf_size: int) -> None:
@@ -72,3 +72,29 @@ def test_morton_order_sorts_by_interleaved_cell_bits() -> None:
             ref |= ((cell[:, axis] >> bit) & 1) << (3 * bit + shift)
     np.testing.assert_array_equal(codes, ref[order])
     assert sorted(order.tolist()) == list(range(500))
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 3))
+def test_both_sorts_give_the_same_order(seed: int, kind: int) -> None:
+    """The LSD sort (camera frames) and the top-down sort (a million points and more)
+    order the rows identically: by Morton code, then by row."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 6000))
+    pts = rng.normal(size=(n, 3)) * rng.uniform(1e-3, 10.0)
+    if kind == 1:  # ties in every cell
+        pts = np.round(pts, 1)
+    elif kind == 2:  # a few points repeated: one cell holds all
+        pts = np.repeat(pts[:3], n // 3 + 1, axis=0)[:n]
+    elif kind == 3:  # a raster-ordered sheet, as a camera gives it
+        u, v = np.meshgrid(np.linspace(0, 1, 80), np.linspace(0, 1, 60))
+        pts = np.column_stack([u.ravel(), v.ravel(), 0.1 * np.sin(5 * u.ravel())])
+    _, bounds, _ = summary(pts)
+    lsd = _sorted_lsd(pts, bounds)
+    msd = _sorted_msd(pts, bounds)
+    for a, b in zip(lsd, msd, strict=True):
+        np.testing.assert_array_equal(a, b)
+    order, codes = morton_order(pts)
+    np.testing.assert_array_equal(lsd[1], order)
+    np.testing.assert_array_equal(lsd[2], codes)
+    np.testing.assert_array_equal(lsd[0], pts[order])

@@ -58,7 +58,8 @@ def our_threads() -> list[str]:
     """The viewer's own threads (playback, live run) still alive."""
     import threading
 
-    return [t.name for t in threading.enumerate() if t.name.startswith("reachwise-")]
+    viewers = ("reachwise-playback", "reachwise-live")
+    return [t.name for t in threading.enumerate() if t.name in viewers]
 
 
 def link_position(viewer: Viewer, robot: str, link: str) -> np.ndarray:

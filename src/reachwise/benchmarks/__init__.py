@@ -15,4 +15,5 @@ REGISTRY: dict[str, str] = {
     "control": "reachwise.benchmarks.control",
     "pairs": "reachwise.benchmarks.pairs",
     "server": "reachwise.benchmarks.server",
+    "realtime": "reachwise.benchmarks.realtime",
 }

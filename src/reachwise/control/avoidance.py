@@ -20,6 +20,17 @@ distance and the margin ``ρ_O``:
 A moving object (its twist given per call) also gives each point the velocity of the
 object's closest point, for the controller's velocity-aware repulsion and guard.
 
+The points also carry the measurement time of the oldest cloud the robot's pairs were
+answered on (``cloud_stamp``, from the answer's ``cloud_stamps``; +inf when none ages)
+and its name: the controller bounds the age of the clouds with it
+(``SafetyConfig.max_cloud_age``), as it bounds the age of the joint states.
+
+An in-process scene's answer holds every pair's numbers in one array
+(:attr:`~reachwise.distance.scene.SceneResult.rows`); without twists the converter
+reads them there in one compiled call (:mod:`reachwise.control._rows`) instead of
+looping over :class:`~reachwise.distance.scene.PairResult` objects — same rules, same
+points.
+
 Pairs answered "no risk" (beyond the margin) give no point. A pair whose answer holds
 NaN or infinite numbers while claiming to be within the margin is kept, so the
 controller's safety check sees it and stops. An answer marked invalid (missing data:
@@ -32,13 +43,15 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from reachwise.control._rows import select_rows
 from reachwise.control.tick.types import AvoidanceRows
-from reachwise.distance.scene import OnLink, SceneLike, SceneResult
+from reachwise.distance.answers import PairAnswers
+from reachwise.distance.scene import OnLink, SceneLike, SceneResult, WatchedPair
 from reachwise.errors import InputError
 from reachwise.kinematics.robot import Robot
 
@@ -58,7 +71,9 @@ class AvoidancePoints:
     handled in task space (P-V Eq. 6); ``pairs`` the object names ``"a|b"``.
     ``valid`` False (with a ``reason``) stands for missing distance data.
     ``obstacle_velocity`` (m, 3): world velocity of the other object's closest point
-    when that object moves (zeros: static, the default).
+    when that object moves (zeros: static, the default). ``cloud_stamp`` (s): when the
+    oldest cloud the points were computed on was measured (+inf: none of them ages,
+    NaN: unknown), ``cloud`` its object's name.
     """
 
     sequence: int
@@ -76,6 +91,8 @@ class AvoidancePoints:
     valid: bool = True
     reason: str = ""
     obstacle_velocity: NDArray[np.float64] | None = None
+    cloud_stamp: float = math.inf
+    cloud: str = ""
     #: The compiled tick's input group, as ``tuple(AvoidanceRows(...))`` (built here).
     kernel_rows: tuple[NDArray[Any], ...] = field(init=False, repr=False, compare=False)
 
@@ -88,6 +105,36 @@ class AvoidancePoints:
             np.zeros(0, np.int64), z3, np.zeros(0, np.int64), z3, z3,
             np.zeros(0), np.zeros(0), np.zeros(0, np.bool_),
         )  # fmt: skip
+
+    @classmethod
+    def of_checked(
+        cls,
+        sequence: int,
+        stamp: float,
+        computed: float,
+        rows: AvoidanceRows,
+        pairs: tuple[str, ...],
+        cloud_stamp: float,
+        cloud: str,
+    ) -> AvoidancePoints:
+        """Valid points from arrays that are already what the constructor makes of its
+        inputs — C-ordered int64, float64 and bool arrays of shapes (m,) and (m, 3), as
+        :mod:`reachwise.control._rows` returns them — without a second look (the
+        converter's per-tick path)."""
+        self = object.__new__(cls)
+        put = object.__setattr__
+        put(self, "sequence", sequence)
+        put(self, "stamp", stamp)
+        put(self, "computed", computed)
+        for name, value in zip(AvoidanceRows._fields, rows, strict=True):
+            put(self, name, value)
+        put(self, "pairs", pairs)
+        put(self, "valid", True)
+        put(self, "reason", "")
+        put(self, "cloud_stamp", cloud_stamp)
+        put(self, "cloud", cloud)
+        put(self, "kernel_rows", tuple(rows))
+        return self
 
     def __post_init__(self) -> None:
         m = int(np.asarray(self.distance).shape[0])
@@ -175,6 +222,7 @@ class SceneConverter:
         for (a, b), v in (margins or {}).items():
             self._margins[(a, b)] = float(v)
             self._margins[(b, a)] = float(v)
+        self._table: _RowTable | None = None
 
     def __call__(
         self,
@@ -200,6 +248,8 @@ class SceneConverter:
         if not result.valid:
             empty = AvoidancePoints.empty(result.sequence, stamp, computed)
             return replace(empty, valid=False, reason=result.reason or "missing distance data")
+        if not twists and isinstance(result.pairs, PairAnswers):
+            return self._from_rows(result, result.pairs, stamp, computed)
         a_link: list[int] = []
         a_pt: list[NDArray[np.float64]] = []
         b_link: list[int] = []
@@ -255,8 +305,10 @@ class SceneConverter:
             dist.append(r.distance)
             margin.append(rho0)
             names.append(f"{p.a}|{p.b}")
+        cloud_stamp, cloud = self._oldest_cloud(result, _watched(result.pairs, self._link))
         if not dist:
-            return AvoidancePoints.empty(result.sequence, stamp, computed)
+            empty = AvoidancePoints.empty(result.sequence, stamp, computed)
+            return replace(empty, cloud_stamp=cloud_stamp, cloud=cloud)
         return AvoidancePoints(
             result.sequence,
             stamp,
@@ -271,7 +323,102 @@ class SceneConverter:
             np.array(task, np.bool_),
             tuple(names),
             obstacle_velocity=np.array(vel, float).reshape(-1, 3),
+            cloud_stamp=cloud_stamp,
+            cloud=cloud,
         )
+
+    def _from_rows(
+        self, result: SceneResult, answers: PairAnswers, stamp: float, computed: float
+    ) -> AvoidancePoints:
+        """The points of an answer held as rows (no twists): one compiled call."""
+        table = self._table
+        if table is None or table.layout is not answers.layout:
+            table = self._table = self._row_table(answers.layout)
+        cloud_stamp, cloud = self._oldest_cloud(result, table.watched)
+        a_link, a_pt, b_link, b_pt, normal, velocity, dist, margin, task, keep = select_rows(
+            answers.rows, table.link_a, table.link_b, table.rho0, table.tool_a, table.tool_b
+        )
+        rows = AvoidanceRows(
+            a_link=a_link,
+            a_point=a_pt,
+            b_link=b_link,
+            b_point=b_pt,
+            normal=normal,
+            obstacle_velocity=velocity,
+            distance=dist,
+            margin=margin,
+            task_space=task,
+        )
+        names = table.names
+        pairs = tuple(names[k] for k in keep.tolist())
+        return AvoidancePoints.of_checked(
+            result.sequence, stamp, computed, rows, pairs, cloud_stamp, cloud
+        )
+
+    def _row_table(self, layout: tuple[WatchedPair, ...]) -> _RowTable:
+        """Per pair of ``layout``: this robot's frame of each object, ``ρ_O``, tool flags."""
+        la = np.array([self._link.get(p.a, -1) for p in layout], np.int64)
+        lb = np.array([self._link.get(p.b, -1) for p in layout], np.int64)
+        rho0 = np.array([self._margins.get((p.a, p.b), p.margin) for p in layout], np.float64)
+        tools = self.tool_links
+        return _RowTable(
+            layout,
+            la,
+            lb,
+            rho0,
+            np.array([k in tools for k in la.tolist()], np.bool_),
+            np.array([k in tools for k in lb.tolist()], np.bool_),
+            tuple(f"{p.a}|{p.b}" for p in layout),
+            _watched(layout, self._link),
+        )
+
+    @staticmethod
+    def _oldest_cloud(result: SceneResult, watched: tuple[str, ...]) -> tuple[float, str]:
+        """Stamp and name of the oldest cloud among ``watched`` (NaN wins: unknown)."""
+        stamps = result.cloud_stamps
+        oldest = math.inf
+        name = ""
+        for o in watched:
+            t = stamps.get(o, math.inf)
+            if t != t:
+                return t, o
+            if t < oldest:
+                oldest = t
+                name = o
+        return oldest, name
+
+
+@dataclass(frozen=True, eq=False)
+class _RowTable:
+    """What :meth:`SceneConverter._from_rows` needs per pair of one answer layout."""
+
+    layout: tuple[WatchedPair, ...]
+    link_a: NDArray[np.int64]
+    link_b: NDArray[np.int64]
+    rho0: NDArray[np.float64]
+    tool_a: NDArray[np.bool_]
+    tool_b: NDArray[np.bool_]
+    names: tuple[str, ...]
+    watched: tuple[str, ...]
+
+
+class _Pair(Protocol):
+    @property
+    def a(self) -> str: ...
+
+    @property
+    def b(self) -> str: ...
+
+
+def _watched(pairs: Iterable[_Pair], links: Mapping[str, int]) -> tuple[str, ...]:
+    """The objects of the pairs that involve the robot (an object on one of its links)."""
+    out: dict[str, None] = {}
+    for p in pairs:
+        a, b = p.a, p.b
+        if a in links or b in links:
+            out[a] = None
+            out[b] = None
+    return tuple(out)
 
 
 def _point_velocity(

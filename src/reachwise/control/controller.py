@@ -340,8 +340,9 @@ class Controller:
             else:
                 values = (distances.distance, distances.a_point, distances.normal)
                 chk = check_data(
-                    distances.sequence, distances.stamp, self._last_seq, now, cfg.safety, values
-                )
+                    distances.sequence, distances.stamp, self._last_seq, now, cfg.safety, values,
+                    cloud_stamp=distances.cloud_stamp, cloud=distances.cloud,
+                )  # fmt: skip
             if not chk.ok or distances is None:
                 self._best_t = now  # the stall clock does not run while stopped
                 return self._stop(chk.reason)

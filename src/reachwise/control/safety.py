@@ -9,6 +9,14 @@ or infinite value where a finite one is required. It then decelerates to a
 protective stop — linearly from the last command to zero within ``stop_ticks``
 ticks — and reports the reason. When valid data return, control resumes.
 
+The same rule covers the point clouds the distances were computed on: a camera or
+scanner that stops delivering leaves the scene answering on its last cloud, which
+ages. With ``max_cloud_age`` (s; inf by default: clouds never count as stale) a
+watched cloud measured longer ago than that — or whose measurement time is unknown —
+is missing data, and the controller makes the same protective stop until a fresh
+cloud arrives. A cloud that does not age (a CAD part, a map: stamp +inf) never stops
+it.
+
 **Protective separation margin** (after ISO/TS 15066:2016 §5.5.4, Eq. 1–2, the
 speed-and-separation-monitoring distance ``S_p = S_h + S_r + S_s + C + Z_d + Z_r``).
 For a robot part and an obstacle the collision margin ``ρ_O`` of the controller should
@@ -47,11 +55,13 @@ __all__ = [
 
 @dataclass(frozen=True)
 class SafetyConfig:
-    """Freshness and protective-stop settings. ``dt`` is the control period (s)."""
+    """Freshness and protective-stop settings. ``dt`` is the control period (s);
+    ``max_cloud_age`` (s) the oldest a watched cloud may be (inf: no bound)."""
 
     dt: float = 0.01
     max_age_ticks: float = 2.0
     stop_ticks: int = 5
+    max_cloud_age: float = math.inf
 
     def __post_init__(self) -> None:
         if not self.dt > 0:
@@ -60,6 +70,8 @@ class SafetyConfig:
             raise ValueError(f"max_age_ticks must be >= 0, got {self.max_age_ticks}")
         if self.stop_ticks < 1:
             raise ValueError(f"stop_ticks must be >= 1, got {self.stop_ticks}")
+        if not self.max_cloud_age > 0:
+            raise ValueError(f"max_cloud_age must be > 0 s (inf allowed), got {self.max_cloud_age}")
 
     @property
     def max_age(self) -> float:
@@ -82,11 +94,16 @@ def check_data(
     now: float,
     config: SafetyConfig,
     values: tuple[NDArray[np.float64], ...] = (),
+    *,
+    cloud_stamp: float = math.inf,
+    cloud: str = "",
 ) -> DataCheck:
     """Decide whether distance data may be used at time ``now``.
 
     ``None`` for ``sequence`` means no data arrived; ``values`` are arrays that must be
-    finite (the distances, points and directions of the active pairs).
+    finite (the distances, points and directions of the active pairs);
+    ``cloud_stamp`` the measurement time of the oldest cloud they were computed on
+    (+inf: none ages, NaN: unknown), ``cloud`` its name.
     """
     if sequence is None or stamp is None:
         return DataCheck(False, "missing distance data")
@@ -104,6 +121,16 @@ def check_data(
         )
     if age < -config.dt:
         return DataCheck(False, f"distance data from the future (age {age * 1e3:.1f} ms)")
+    limit = config.max_cloud_age
+    if limit != math.inf:
+        if cloud_stamp != cloud_stamp:
+            return DataCheck(False, f"cloud {cloud!r} without a valid timestamp")
+        cloud_age = now - cloud_stamp
+        if cloud_age > limit * (1.0 + 1e-9) + 1e-12:
+            return DataCheck(
+                False,
+                f"stale cloud {cloud!r} (age {cloud_age * 1e3:.1f} ms > {limit * 1e3:g} ms)",
+            )
     for v in values:
         if v.size and not np.isfinite(v).all():
             return DataCheck(False, "non-finite distance data (NaN or inf)")

@@ -169,25 +169,23 @@ def _descend(x, y, z, pts, box, info, root, best2, st, gs):  # type: ignore[no-u
     return best2, bj
 
 
-_SIG_QUERY = (
-    "int64(float64[:, ::1], float64[:, ::1], int64[:, ::1], int64[::1], float64[::1],"
-    " float64[:, ::1], float64[:, ::1], int64[:, ::1], int64[::1], float64[::1],"
-    " float64[:, ::1], float64[:, ::1], float64, int64, int64, boolean,"
-    " float64[::1], int64[::1])"
-)
+#: Depth of the node-pair stack and of the point-descent stack of one query.
+STACK = 512
+POINT_STACK = 256
+#: Lengths of the integer and float stack scratch one query needs.
+STACK_INTS = 2 * STACK + LEAF_MAX + POINT_STACK
+STACK_FLOATS = STACK + LEAF_MAX + POINT_STACK
 
 
-@njit(_SIG_QUERY, cache=True, nogil=True)
-def dual_tree_query(  # type: ignore[no-untyped-def]
+@njit(cache=True, nogil=True)
+def query_core(  # type: ignore[no-untyped-def]
     ptsA,
     boxA,
     infoA,
-    permA,
     cenA,
     ptsB,
     boxB,
     infoB,
-    permB,
     cenB,
     poseA,
     poseB,
@@ -196,7 +194,13 @@ def dual_tree_query(  # type: ignore[no-untyped-def]
     warm_b,
     swap,
     out,
-    out_idx,
+    tbox,
+    tdone,
+    tp,
+    done,
+    stack_i,
+    stack_g,
+    vec,
 ):
     """Exact closest pair of clouds A and B under world poses ``poseA``, ``poseB``.
 
@@ -211,10 +215,15 @@ def dual_tree_query(  # type: ignore[no-untyped-def]
     so rounding never loses a pair at the margin) or, if smaller, at the distance of the
     warm-start pair (``warm_a``, ``warm_b``: tree-order indices, -1 for none).
 
+    Scratch, owned by the caller and overwritten: ``tbox`` (≥ M_A, 6), ``tdone`` and
+    ``done`` (≥ M_A), ``tp`` (≥ N_A, 3), ``stack_i`` (:data:`STACK_INTS`), ``stack_g``
+    (:data:`STACK_FLOATS`), ``vec`` (4, 3). Nothing is allocated.
+
     Writes ``out`` = [distance, point_a xyz, point_b xyz, direction xyz] (world, in the
-    caller's order: if ``swap`` the caller's ``a`` is B) and ``out_idx`` = tree-order
-    indices of the A and B points found. Returns 0 when a pair within the margin was
-    found, 1 for "no risk" (true distance > margin; ``out`` then unset).
+    caller's order: if ``swap`` the caller's ``a`` is B). Returns ``(status, i, j)``:
+    status 0 when a pair within the margin was found, 1 for "no risk" (true distance >
+    margin; ``out`` then unset unless ``i >= 0``); ``i``, ``j`` the tree-order indices
+    of the A and B points found (-1 for none).
     """
     # relative pose: x_B = R x_A + t
     R = np.empty((3, 3))
@@ -238,8 +247,7 @@ def dual_tree_query(  # type: ignore[no-untyped-def]
     pad = 1e-13 * scale
     # A's node boxes in B's frame (AABBs of the mapped boxes), filled lazily: a node's
     # box is mapped when the node is first reached (tdone)
-    tbox = np.empty((mA, 6))
-    tdone = np.zeros(mA, np.bool_)
+    tdone[:mA] = False
     tdone[0] = True
     k = 0  # the root now; other nodes in pairs of siblings when first reached
     cx = 0.5 * (boxA[k, 0] + boxA[k, 3])
@@ -253,8 +261,7 @@ def dual_tree_query(  # type: ignore[no-untyped-def]
         hi = abs(R[i, 0]) * ex + abs(R[i, 1]) * ey + abs(R[i, 2]) * ez + pad
         tbox[k, i] = ci - hi
         tbox[k, i + 3] = ci + hi
-    tp = np.empty((nA, 3))
-    done = np.zeros(mA, np.bool_)  # leaf points of A mapped lazily
+    done[:mA] = False  # leaf points of A mapped lazily (into tp)
 
     if margin == np.inf:
         best2 = np.inf
@@ -278,15 +285,15 @@ def dual_tree_query(  # type: ignore[no-untyped-def]
             bi = warm_a
             bj = warm_b
 
-    lg = np.empty(LEAF_MAX)
-    lp = np.empty(LEAF_MAX, np.int64)
-    pst = np.empty(256, np.int64)
-    pgs = np.empty(256)
+    lg = stack_g[STACK : STACK + LEAF_MAX]
+    lp = stack_i[2 * STACK : 2 * STACK + LEAF_MAX]
+    pst = stack_i[2 * STACK + LEAF_MAX : 2 * STACK + LEAF_MAX + POINT_STACK]
+    pgs = stack_g[STACK + LEAF_MAX : STACK + LEAF_MAX + POINT_STACK]
     # depth first over node pairs, the nearer child pair first (it tightens the bound
     # quickly); the stack holds each pair with its box distance
-    st_a = np.empty(512, np.int64)
-    st_b = np.empty(512, np.int64)
-    st_g = np.empty(512)
+    st_a = stack_i[:STACK]
+    st_b = stack_i[STACK : 2 * STACK]
+    st_g = stack_g[:STACK]
     st_a[0] = 0
     st_b[0] = 0
     st_g[0] = _gap2(tbox, 0, boxB, 0)
@@ -400,12 +407,12 @@ def dual_tree_query(  # type: ignore[no-untyped-def]
                 sp += 1
 
     if bi < 0:
-        return 1
+        return 1, -1, -1
     # world points from the caller's (unpermuted) frames: identical values, tree order
-    pa = np.empty(3)
-    pb = np.empty(3)
-    ca = np.empty(3)
-    cb = np.empty(3)
+    pa = vec[0]
+    pb = vec[1]
+    ca = vec[2]
+    cb = vec[3]
     for i in range(3):
         pa[i] = (
             poseA[i, 0] * ptsA[bi, 0]
@@ -426,11 +433,59 @@ def dual_tree_query(  # type: ignore[no-untyped-def]
             pa[i], pb[i] = pb[i], pa[i]
             ca[i], cb[i] = cb[i], ca[i]
     finish(pa, pb, ca, cb, margin, out)
-    out_idx[0] = permA[bi]
-    out_idx[1] = permB[bj]
     if out[0] > margin:
-        return 1
-    return 0
+        return 1, bi, bj
+    return 0, bi, bj
+
+
+_SIG_QUERY = (
+    "int64(float64[:, ::1], float64[:, ::1], int64[:, ::1], int64[::1], float64[::1],"
+    " float64[:, ::1], float64[:, ::1], int64[:, ::1], int64[::1], float64[::1],"
+    " float64[:, ::1], float64[:, ::1], float64, int64, int64, boolean,"
+    " float64[::1], int64[::1])"
+)
+
+
+@njit(_SIG_QUERY, cache=True, nogil=True)
+def dual_tree_query(  # type: ignore[no-untyped-def]
+    ptsA,
+    boxA,
+    infoA,
+    permA,
+    cenA,
+    ptsB,
+    boxB,
+    infoB,
+    permB,
+    cenB,
+    poseA,
+    poseB,
+    margin,
+    warm_a,
+    warm_b,
+    swap,
+    out,
+    out_idx,
+):
+    """One query of :func:`query_core` with scratch of its own.
+
+    Writes ``out`` (see :func:`query_core`) and ``out_idx`` = [input row of the A
+    point, input row of the B point, their tree-order indices] (-1 when none was
+    found); returns the status (0 within the margin, 1 "no risk").
+    """
+    mA = boxA.shape[0]
+    status, bi, bj = query_core(
+        ptsA, boxA, infoA, cenA, ptsB, boxB, infoB, cenB, poseA, poseB, margin,
+        warm_a, warm_b, swap, out,
+        np.empty((mA, 6)), np.empty(mA, np.bool_), np.empty((ptsA.shape[0], 3)),
+        np.empty(mA, np.bool_), np.empty(STACK_INTS, np.int64), np.empty(STACK_FLOATS),
+        np.empty((4, 3)),
+    )  # fmt: skip
+    out_idx[0] = permA[bi] if bi >= 0 else -1
+    out_idx[1] = permB[bj] if bj >= 0 else -1
+    out_idx[2] = bi
+    out_idx[3] = bj
+    return status
 
 
 # --------------------------------------------------------------------------- thesis helpers

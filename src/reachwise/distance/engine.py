@@ -74,34 +74,31 @@ def _run_default(
     margin: float,
     warm: tuple[int, int],
 ) -> tuple[DistanceResult, tuple[int, int]]:
-    """One dual-tree query; returns the result and the pair to warm-start the next one."""
+    """One dual-tree query; ``warm`` and the pair returned to warm-start the next one are
+    tree-order indices into ``ta`` and ``tb`` (-1: none)."""
     swap = ta.points.shape[0] > tb.points.shape[0]  # map the smaller cloud into the larger's frame
     wa, wb = warm
     out = np.empty(10)
-    idx = np.empty(2, np.int64)
+    idx = np.empty(4, np.int64)
     if swap:
-        w1 = int(tb.inverse[wb]) if wb >= 0 else -1
-        w2 = int(ta.inverse[wa]) if wa >= 0 else -1
         status = K.dual_tree_query(
             tb.points, tb.boxes, tb.info, tb.perm, tb.centroid,
             ta.points, ta.boxes, ta.info, ta.perm, ta.centroid,
-            pose_b, pose_a, margin, w1, w2, True, out, idx,
+            pose_b, pose_a, margin, wb, wa, True, out, idx,
         )  # fmt: skip
-        ia, ib = int(idx[1]), int(idx[0])
+        ia, ib, ta_k, tb_k = int(idx[1]), int(idx[0]), int(idx[3]), int(idx[2])
     else:
-        w1 = int(ta.inverse[wa]) if wa >= 0 else -1
-        w2 = int(tb.inverse[wb]) if wb >= 0 else -1
         status = K.dual_tree_query(
             ta.points, ta.boxes, ta.info, ta.perm, ta.centroid,
             tb.points, tb.boxes, tb.info, tb.perm, tb.centroid,
-            pose_a, pose_b, margin, w1, w2, False, out, idx,
+            pose_a, pose_b, margin, wa, wb, False, out, idx,
         )  # fmt: skip
-        ia, ib = int(idx[0]), int(idx[1])
+        ia, ib, ta_k, tb_k = int(idx[0]), int(idx[1]), int(idx[2]), int(idx[3])
     if status != 0:
         return NO_RISK, (-1, -1)
     out.setflags(write=False)
     res = DistanceResult(float(out[0]), out[1:4], out[4:7], out[7:10], ia, ib, False)
-    return res, (ia, ib)
+    return res, (ta_k, tb_k)
 
 
 def default_closest(

@@ -26,12 +26,13 @@ from __future__ import annotations
 import threading
 import weakref
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 import reachwise.distance._kernels as K
-from reachwise.distance._build import build_tree
+from reachwise.distance._build import build_tree_in, summary
 from reachwise.errors import InputError
 from reachwise.geometry.boxes import AABB
 from reachwise.geometry.cloud import PointCloud
@@ -44,6 +45,7 @@ __all__ = [
     "build_index",
     "cloud_centroid",
     "cloud_index",
+    "index_of_checked",
 ]
 
 #: Leaf size of the per-cloud tree (points per leaf at most).
@@ -55,16 +57,16 @@ class CloudIndex:
     """Everything the distance strategies derive from a cloud's points, in its frame.
 
     The tree (:func:`reachwise.distance._build.build_tree`): ``points`` in tree
-    order, ``perm[k]`` the input row of tree point ``k``, ``inverse`` the reverse map,
-    ``boxes`` (M, 6) node AABBs (lo, hi; node 0 is the root), ``info`` (M, 3) start,
-    end, right child. ``centroid`` the mean point (the direction rule at distance 0),
-    ``aabb`` the tight bounds (Table 1 step 3), ``version`` the cloud version it
-    indexes (see the module docstring).
+    order, ``perm[k]`` the input row of tree point ``k`` (:attr:`inverse` the reverse
+    map, made on first use: the queries keep their warm starts in tree order and never
+    need it), ``boxes`` (M, 6) node AABBs (lo, hi; node 0 is the root), ``info`` (M, 3)
+    start, end, right child. ``centroid`` the mean point (the direction rule at
+    distance 0), ``aabb`` the tight bounds (Table 1 step 3), ``version`` the cloud
+    version it indexes (see the module docstring).
     """
 
     points: NDArray[np.float64]
     perm: NDArray[np.int64]
-    inverse: NDArray[np.int64]
     boxes: NDArray[np.float64]
     info: NDArray[np.int64]
     centroid: NDArray[np.float64]
@@ -74,21 +76,48 @@ class CloudIndex:
     def __len__(self) -> int:
         return int(self.points.shape[0])
 
+    @cached_property
+    def inverse(self) -> NDArray[np.int64]:
+        """``inverse[row]``: the tree position of input row ``row`` (``perm``'s reverse)."""
+        inv = np.empty_like(self.perm)
+        inv[self.perm] = np.arange(self.perm.shape[0])
+        inv.setflags(write=False)
+        return inv
+
 
 def build_index(points: ArrayLike, *, version: int = 0, leaf_size: int = LEAF_SIZE) -> CloudIndex:
     """The index of (N, 3) ``points`` (a pure function: safe on any thread).
 
-    ``points`` are taken as given (a :class:`PointCloud`'s are validated already).
+    ``points`` are taken as given (a :class:`PointCloud`'s are validated already); one
+    compiled pass finds their bounds and centroid, the tree kernel copies them into
+    tree order (both release the GIL).
     """
+    _check_leaf_size(leaf_size)
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    _, bounds, centroid = summary(pts)
+    return index_of_checked(pts, bounds, centroid, version=version, leaf_size=leaf_size)
+
+
+def index_of_checked(
+    points: NDArray[np.float64],
+    bounds: NDArray[np.float64],
+    centroid: NDArray[np.float64],
+    *,
+    version: int = 0,
+    leaf_size: int = LEAF_SIZE,
+) -> CloudIndex:
+    """The index of C-ordered float64 (N, 3) ``points`` whose ``bounds`` (lo xyz, hi
+    xyz) and ``centroid`` are known already (:func:`reachwise.distance._build.checked_copy`
+    found them while copying a handed-over frame): only the tree is built here."""
+    _check_leaf_size(leaf_size)
+    tp, perm, boxes, info = build_tree_in(points, bounds, leaf_size)
+    aabb = AABB(boxes[0, :3].copy(), boxes[0, 3:].copy())  # the root box: exact min, max
+    return CloudIndex(tp, perm, boxes, info, centroid, aabb, int(version))
+
+
+def _check_leaf_size(leaf_size: int) -> None:
     if not 1 <= leaf_size <= K.LEAF_MAX:
         raise InputError("leaf_size", "", f"must be in 1..{K.LEAF_MAX}, got {leaf_size}")
-    pts = np.array(points, dtype=np.float64, order="C", copy=True)
-    tp, perm, boxes, info = build_tree(pts, leaf_size)
-    inverse = np.empty_like(perm)
-    inverse[perm] = np.arange(perm.shape[0])
-    centroid = np.ascontiguousarray(pts.mean(axis=0))
-    aabb = AABB(boxes[0, :3].copy(), boxes[0, 3:].copy())  # the root box: exact min, max
-    return CloudIndex(tp, perm, inverse, boxes, info, centroid, aabb, int(version))
 
 
 class IndexRegistry:

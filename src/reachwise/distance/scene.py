@@ -29,26 +29,33 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Callable, Iterable, Mapping
+import weakref
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from types import MappingProxyType
-from typing import Literal, Protocol, get_args, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+import reachwise.distance._batch as B
+import reachwise.distance._kernels as K
 from reachwise.distance._common import (
-    DistanceResult,
     as_cloud,
     check_margin,
     check_pose,
 )
+from reachwise.distance.answers import ROW_COLUMNS, PairAnswers, rows_of
 from reachwise.distance.engine import STRATEGIES, PairQuery, StrategyName
 from reachwise.distance.index import INDICES, cloud_index
 from reachwise.distance.ingest import CloudIngest, Ready, ready_cloud
+from reachwise.distance.pairs import PAIR_KINDS, PairKind, PairResult, WatchedPair
+from reachwise.distance.scene_arrays import SceneArrays
 from reachwise.errors import InputError, UnknownName, check_choice
 from reachwise.geometry.cloud import PointCloud
+from reachwise.kinematics.fk import fk_all_into
+from reachwise.kinematics.robot import Robot
 
 
 @runtime_checkable
@@ -107,37 +114,6 @@ class SceneObject:
     source: PoseSource
 
 
-#: Why a pair is watched: links of one robot (``self``), a robot and its environment,
-#: two robots, or a rule given by hand (``custom``).
-PairKind = Literal["self", "robot-environment", "robot-robot", "custom"]
-PAIR_KINDS: tuple[PairKind, ...] = get_args(PairKind)
-
-
-@dataclass(frozen=True)
-class WatchedPair:
-    """A pair of objects to watch: ``kind`` (:data:`PairKind`), ``margin`` in metres."""
-
-    a: str
-    b: str
-    margin: float
-    kind: PairKind
-
-
-@dataclass(frozen=True)
-class PairResult:
-    """One watched pair's answer: object names, margin, kind and the distance result
-    (``point_a`` on ``a``; ``direction`` from ``b`` to ``a``), and ``versions``, the
-    versions of the two objects' clouds it was computed on (0: the cloud the object was
-    added with; see :meth:`Scene.replace_cloud`)."""
-
-    a: str
-    b: str
-    margin: float
-    kind: PairKind
-    result: DistanceResult
-    versions: tuple[int, int] = (0, 0)
-
-
 @dataclass(frozen=True)
 class SceneResult:
     """Every watched pair's answer from one :meth:`Scene.query_all` call.
@@ -155,16 +131,29 @@ class SceneResult:
     cloud that does not age (a CAD part, a map: added without a stamp), NaN when it is
     unknown. A controller bounds the age of the clouds it relies on with them, as it
     bounds the age of the joint states with ``measured_at``.
+
+    The in-process scene's ``pairs`` is a
+    :class:`~reachwise.distance.answers.PairAnswers`: the numbers of every pair in one
+    array (:attr:`rows`), each :class:`PairResult` made when it is first read.
     """
 
     sequence: int
-    pairs: tuple[PairResult, ...]
+    pairs: Sequence[PairResult]
     measured_at: float = math.nan
     computed_at: float = math.nan
     valid: bool = True
     reason: str = ""
     versions: Mapping[str, int] = field(default_factory=dict)
     cloud_stamps: Mapping[str, float] = field(default_factory=dict)
+
+    @property
+    def rows(self) -> NDArray[np.float64]:
+        """Every pair's numbers as a read-only (P, 13) array, in the order of ``pairs``
+        (layout: :mod:`reachwise.distance.answers`)."""
+        pairs = self.pairs
+        if isinstance(pairs, PairAnswers):
+            return pairs.rows
+        return rows_of(pairs)
 
     def at_risk(self) -> tuple[PairResult, ...]:
         """Pairs within their margin, nearest first."""
@@ -261,23 +250,36 @@ class Scene:
 
     ``clock`` (optional, s): stamps inputs given without ``stamp=``, the query and its
     end (:attr:`SceneResult.measured_at`, :attr:`SceneResult.computed_at`); a
-    simulation passes its simulated time.
+    simulation passes its simulated time. ``voxel`` (m, optional): thin every cloud
+    handed over with :meth:`replace_cloud` to one point per voxel of that edge before
+    it is indexed (:func:`reachwise.distance.voxel.voxel_thin`); the thinned cloud is
+    the one swapped in, and the answers are exact on it.
+
+    With the default strategy the scene keeps its state as arrays
+    (:class:`~reachwise.distance.scene_arrays.SceneArrays`) and answers every pair in
+    one compiled call, forward kinematics once per robot before it; the answer's
+    pairs are made on demand from one array of numbers
+    (:class:`~reachwise.distance.answers.PairAnswers`). The other strategies answer
+    pair by pair with :class:`~reachwise.distance.engine.PairQuery`.
     """
 
     def __init__(
-        self, *, strategy: StrategyName = "default", clock: Callable[[], float] | None = None
+        self,
+        *,
+        strategy: StrategyName = "default",
+        clock: Callable[[], float] | None = None,
+        voxel: float | None = None,
     ) -> None:
         self.strategy = check_choice(strategy, STRATEGIES, source="scene", kind="strategy")
         self.clock = clock
         self._objects: dict[str, SceneObject] = {}
         self._robots: dict[str, RobotLike] = {}
         self._q: dict[str, NDArray[np.float64] | None] = {}
-        self._runtime: dict[str, NDArray[np.float64]] = {}
         # time stamps (s) of the joint states and run-time poses; NaN = unknown
         self._q_stamp: dict[str, float] = {}
         self._pose_stamp: dict[str, float] = {}
         self._pairs: dict[tuple[str, str], WatchedPair] = {}
-        self._queries: dict[tuple[str, str], PairQuery] = {}
+        self._queries: dict[tuple[str, str], PairQuery] = {}  # strategies other than default
         self._sequence = 0
         # cloud versions: the one in use per object, the last one handed over, and the
         # time stamp of the one in use (+inf: does not age); the read-only snapshots
@@ -285,7 +287,20 @@ class Scene:
         self._versions: Mapping[str, int] = MappingProxyType({})
         self._cloud_stamps: Mapping[str, float] = MappingProxyType({})
         self._issued: dict[str, int] = {}
-        self._ingest = CloudIngest()
+        if voxel is not None:
+            voxel = _positive(voxel, "voxel")
+        self._ingest = CloudIngest(voxel=voxel)
+        # a scene dropped without close() still stops its worker thread
+        self._stop_ingest = weakref.finalize(self, self._ingest.close)
+        # the arrays the compiled query reads, and what a query needs of them
+        self._arrays = SceneArrays()
+        self._slot: dict[str, int] = {}
+        self._frame_row: dict[str, int] = {}
+        self._plan: _Plan | None = None  # rebuilt when the contents change
+        self._fresh: set[tuple[str, str]] = set()  # pairs whose warm start is dropped
+        self._swaps = 0
+        self._deferred = 0
+        self._during_build = 0
 
     # ------------------------------------------------------------------ contents
     @property
@@ -321,6 +336,24 @@ class Scene:
         for ready in self._ingest.take_ready():
             self._install(ready)
 
+    @property
+    def swaps(self) -> int:
+        """Clouds swapped in by :meth:`query_all` (built on the worker)."""
+        return self._swaps
+
+    @property
+    def swaps_deferred(self) -> int:
+        """Queries that found a built cloud but the worker holding the hand-over lock
+        at that instant: they went on with the cloud in use instead of waiting (the
+        next query swaps it in)."""
+        return self._deferred
+
+    @property
+    def queries_during_build(self) -> int:
+        """Queries answered while the worker was building a newer cloud for one of
+        their pairs' objects: each answered on the cloud in use, without waiting."""
+        return self._during_build
+
     def add_robot(
         self, robot: RobotLike, q: ArrayLike | None = None, *, stamp: float | None = None
     ) -> None:
@@ -332,6 +365,8 @@ class Scene:
             raise InputError("scene", f"robot {robot.name!r}", "already registered")
         self._robots[robot.name] = robot
         self._q[robot.name] = None
+        self._frame_row[robot.name] = self._arrays.add_frames(len(robot.link_names))
+        self._plan = None
         if q is not None:
             self.set_joints(robot.name, q, stamp=stamp)
 
@@ -367,6 +402,7 @@ class Scene:
         c = as_cloud(cloud, name)
         P = check_pose(pose, f"pose of {name!r}").copy()
         source: PoseSource
+        row = -1
         if robot is not None or link is not None:
             if robot is None or link is None:
                 raise InputError("scene", f"object {name!r}", "give both robot and link")
@@ -376,15 +412,17 @@ class Scene:
             if dynamic:
                 raise InputError("scene", f"object {name!r}", "a link object cannot be dynamic")
             source = OnLink(robot, link, P)
+            row = self._frame_row[robot] + r.link_names.index(link)
         elif dynamic:
             source = Runtime()
-            self._runtime[name] = P
             self._pose_stamp[name] = self._stamp(None, f"object {name!r}")
         else:
             source = Fixed(P)
-        cloud_index(c)
+        index = cloud_index(c)
         obj = SceneObject(name, c, source)
         self._objects[name] = obj
+        self._slot[name] = self._arrays.add_object(index, P, row)
+        self._plan = None
         self._issued[name] = 0
         self._set_version(name, 0, math.inf)
         return obj
@@ -395,9 +433,9 @@ class Scene:
         obj = self._object(name)
         if not isinstance(obj.source, Runtime):
             raise InputError("scene", f"object {name!r}", "its pose is not set at run time")
-        P = check_pose(pose, f"pose of {name!r}").copy()
+        P = check_pose(pose, f"pose of {name!r}")
         t = self._stamp(stamp, f"object {name!r}")
-        self._runtime[name] = P
+        self._arrays.set_pose(self._slot[name], P)
         self._pose_stamp[name] = t
 
     def replace_cloud(
@@ -418,19 +456,21 @@ class Scene:
         a query never waits for a build. Until then the answers use the previous
         cloud, and say so (:attr:`SceneResult.versions`). A newer hand-over for the
         same object supersedes one still waiting; a cloud with bad points is never
-        swapped in (its error is in :meth:`CloudIngest.errors`). An array is read on
-        the worker thread: do not write into it afterwards.
+        swapped in (its error is in :meth:`CloudIngest.errors`). An array (float64 or
+        float32, any strides) is read on the worker thread: do not write into it
+        afterwards.
 
         ``block=True`` checks and indexes the cloud now, in the caller, and swaps it in
         before returning (bad points raise :class:`~reachwise.errors.CloudError`).
-        Either way the warm starts of the object's pairs are dropped at the swap."""
+        Either way the warm starts of the object's pairs are dropped at the swap, and
+        a scene made with ``voxel`` thins the cloud first."""
         self._object(name)
         t = self._stamp(stamp, f"object {name!r}")
         version = self._issued[name] + 1
         # no dtype here: a float32 frame is converted on the worker, not on this thread
         points = cloud if isinstance(cloud, PointCloud) else np.asarray(cloud)
         if block:
-            self._install(ready_cloud(name, version, points, t))
+            self._install(ready_cloud(name, version, points, t, self._ingest.voxel))
             self._issued[name] = version
             return version
         self._issued[name] = version
@@ -452,13 +492,17 @@ class Scene:
         key = (a, b) if (b, a) not in self._pairs else (b, a)
         pair = WatchedPair(key[0], key[1], m, kind)
         self._pairs[key] = pair
-        self._queries[key] = self._make_query(pair)
+        self._fresh.add(key)
+        if self.strategy != "default":
+            self._queries[key] = self._make_query(pair)
+        self._plan = None
         return pair
 
     def unwatch(self, a: str, b: str) -> None:
         for key in ((a, b), (b, a)):
             self._pairs.pop(key, None)
             self._queries.pop(key, None)
+        self._plan = None
 
     def robot_objects(self, robot: str) -> tuple[SceneObject, ...]:
         """Objects attached to ``robot``'s links, base to tool."""
@@ -521,46 +565,71 @@ class Scene:
 
     # ------------------------------------------------------------------ queries
     def poses(self) -> dict[str, NDArray[np.float64]]:
-        """Current world pose of every object (forward kinematics of each robot once)."""
-        fk: dict[str, NDArray[np.float64]] = {}
-        return {name: self._pose(obj, fk) for name, obj in self._objects.items()}
+        """Current world pose of every object (forward kinematics of each robot once;
+        the same numbers :meth:`query_all` places the objects with)."""
+        arrays = self._arrays
+        for robot in {
+            o.source.robot for o in self._objects.values() if isinstance(o.source, OnLink)
+        }:
+            self._forward_kinematics(robot)
+        out = np.empty_like(arrays.poses)
+        everything = np.ones(arrays.src.shape[0], np.bool_)
+        B.place_objects(arrays.frames, arrays.fixed, arrays.src, arrays.identity, everything, out)
+        return {name: out[self._slot[name]].copy() for name in self._objects}
 
     def query_all(self) -> SceneResult:
         """Answer every watched pair at the current joint states and poses; the result
         carries its sequence number, time stamps and cloud versions (see
-        :class:`SceneResult`). Clouds indexed since the last call are swapped in first."""
-        for ready in self._ingest.take_ready():
-            self._install(ready)
+        :class:`SceneResult`). Clouds indexed since the last call are swapped in first
+        (never waiting for the worker: see :attr:`swaps_deferred`)."""
+        ingest = self._ingest
+        if ingest.has_ready:
+            taken = ingest.try_take_ready()
+            if taken is None:
+                self._deferred += 1
+            else:
+                for ready in taken:
+                    self._install(ready)
+        plan = self._plan
+        if plan is None:
+            plan = self._plan = self._make_plan()
+        building = ingest.building
+        if building is not None and building in plan.objects:
+            self._during_build += 1
         clock = self.clock
         measured = clock() if clock is not None else math.inf
-        fk: dict[str, NDArray[np.float64]] = {}
-        cache: dict[str, NDArray[np.float64]] = {}
-        out = []
-        versions = self._versions
-        for key, pair in self._pairs.items():
-            for n in key:
-                if n not in cache:
-                    obj = self._objects[n]
-                    cache[n] = self._pose(obj, fk)
-                    t = self._input_stamp(obj)
-                    if t != t or t < measured:  # unknown (NaN, then kept) or older
-                        measured = t
-            res = self._queries[key](cache[pair.a], cache[pair.b])
-            out.append(
-                PairResult(
-                    pair.a,
-                    pair.b,
-                    pair.margin,
-                    pair.kind,
-                    res,
-                    (versions[pair.a], versions[pair.b]),
+        for name, robot, frames in plan.kinematics:
+            q = self._q[name]
+            if q is None:
+                raise InputError(
+                    "scene", f"robot {name!r}", "has no joint state; call set_joints first"
                 )
-            )
+            if frames is not None:
+                fk_all_into(robot, q, frames)  # type: ignore[arg-type]
+            else:
+                self._forward_kinematics(name)
+        stamps = self._q_stamp
+        for name in plan.robots:
+            t = stamps.get(name, math.nan)
+            if t != t or t < measured:  # unknown (NaN, then kept) or older
+                measured = t
+        stamps = self._pose_stamp
+        for name in plan.runtime:
+            t = stamps.get(name, math.nan)
+            if t != t or t < measured:
+                measured = t
+        rows = np.empty((len(plan.layout), ROW_COLUMNS))
+        if plan.arguments is not None:
+            B.query_pairs(rows, *plan.arguments)
+        else:
+            self._query_pairwise(plan, rows)
+        rows.setflags(write=False)
         self._sequence += 1
         computed = clock() if clock is not None else math.nan
+        versions = self._versions
         return SceneResult(
             self._sequence,
-            tuple(out),
+            PairAnswers(plan.layout, rows, versions),
             measured_at=measured if measured != math.inf else math.nan,
             computed_at=computed,
             versions=versions,
@@ -568,21 +637,28 @@ class Scene:
         )
 
     def close(self) -> None:
-        """Stop the cloud-ingestion worker (a remote scene disconnects here)."""
-        self._ingest.close()
+        """Stop the cloud-ingestion worker (a remote scene disconnects here); a scene
+        that is garbage-collected stops it too."""
+        self._stop_ingest()
 
     def _install(self, ready: Ready) -> None:
         """Swap in a built cloud (unless a newer version is in use already): the object
-        takes the cloud, the index registry its index, its pairs fresh warm starts."""
+        takes the cloud, its slot the index (its pairs fresh warm starts); what it
+        replaced goes back to the worker to be freed there."""
         if ready.version <= self._versions.get(ready.name, -1):
             return
         obj = self._objects[ready.name]
         INDICES.put(ready.cloud, ready.index)
         self._objects[ready.name] = SceneObject(ready.name, ready.cloud, obj.source)
+        old = self._arrays.set_index(self._slot[ready.name], ready.index)
         self._set_version(ready.name, ready.version, ready.stamp)
-        for key in list(self._queries):
+        for key in self._queries:
             if ready.name in key:
                 self._queries[key] = self._make_query(self._pairs[key])
+        if self._plan is not None and self._plan.arguments is not None:
+            self._plan = self._plan.with_arguments(self._arrays.arguments())
+        self._swaps += 1
+        self._ingest.retire(obj.cloud, old)
 
     def _set_version(self, name: str, version: int, stamp: float) -> None:
         """New read-only snapshots of the versions and cloud stamps (answers already
@@ -591,6 +667,105 @@ class Scene:
         self._cloud_stamps = MappingProxyType({**self._cloud_stamps, name: stamp})
 
     # ------------------------------------------------------------------ helpers
+    def _make_plan(self) -> _Plan:
+        """What a query needs, from the current contents: the pair table (warm starts
+        kept for pairs unchanged since the last plan), the robots whose kinematics
+        place a watched object, the stamps to check."""
+        arrays = self._arrays
+        old = self._plan_warm()
+        layout = tuple(self._pairs.values())
+        slot = self._slot
+        warm = np.full((len(layout), 2), -1, np.int64)
+        for k, p in enumerate(layout):
+            key = (p.a, p.b)
+            if key in old and key not in self._fresh:
+                warm[k] = old[key]
+        self._fresh.clear()
+        arrays.set_pairs(
+            np.array([slot[p.a] for p in layout], np.int64),
+            np.array([slot[p.b] for p in layout], np.int64),
+            np.array([p.margin for p in layout], np.float64),
+            warm,
+        )
+        used = {n for p in layout for n in (p.a, p.b)}
+        robots = []
+        runtime = []
+        for n in sorted(used, key=slot.__getitem__):
+            src = self._objects[n].source
+            if isinstance(src, OnLink) and src.robot not in robots:
+                robots.append(src.robot)
+            elif isinstance(src, Runtime):
+                runtime.append(n)
+        kinematics = []
+        for r in robots:
+            robot = self._robots[r]
+            row = self._frame_row[r]
+            native = isinstance(robot, Robot)
+            frames = arrays.frames[row : row + len(robot.link_names)] if native else None
+            kinematics.append((r, robot, frames))
+        args = arrays.arguments() if self.strategy == "default" else None
+        return _Plan(
+            layout, frozenset(used), tuple(kinematics), tuple(robots), tuple(runtime), args
+        )
+
+    def _plan_warm(self) -> dict[tuple[str, str], NDArray[np.int64]]:
+        """The warm starts of the pairs in the last plan's table, by pair."""
+        arrays = self._arrays
+        if arrays.warm.shape[0] == 0:
+            return {}
+        names = {s: n for n, s in self._slot.items()}
+        return {
+            (names[a], names[b]): arrays.warm[k].copy()
+            for k, (a, b) in enumerate(
+                zip(arrays.pair_a.tolist(), arrays.pair_b.tolist(), strict=True)
+            )
+        }
+
+    def _forward_kinematics(self, robot: str) -> None:
+        """``robot``'s frames into the scene's frame rows: compiled for a
+        :class:`~reachwise.kinematics.robot.Robot`, else its ``fk_all`` checked."""
+        r = self._robots[robot]
+        q = self._q[robot]
+        if q is None:
+            raise InputError(
+                "scene", f"robot {robot!r}", "has no joint state; call set_joints first"
+            )
+        n = len(r.link_names)
+        row = self._frame_row[robot]
+        out = self._arrays.frames[row : row + n]
+        if isinstance(r, Robot):
+            fk_all_into(r, q, out)
+            return
+        frames = np.asarray(r.fk_all(q), dtype=np.float64)
+        if frames.shape != (n, 4, 4):
+            raise InputError(
+                f"robot {robot!r}", "fk_all", f"expected shape ({n}, 4, 4), got {frames.shape}"
+            )
+        for k in range(n):
+            P = np.ascontiguousarray(frames[k])
+            out[k] = P if K.pose_status(P) == 0 else check_pose(P, f"fk_all of {robot!r}")
+
+    def _query_pairwise(self, plan: _Plan, rows: NDArray[np.float64]) -> None:
+        """Every pair with its own :class:`PairQuery` (strategies other than default)."""
+        poses = self._arrays.place()
+        slot = self._slot
+        for k, p in enumerate(plan.layout):
+            res = self._queries[(p.a, p.b)](poses[slot[p.a]], poses[slot[p.b]])
+            row = rows[k]
+            if res.no_risk:
+                row[0] = math.inf
+                row[1:10] = math.nan
+                row[10:12] = -1.0
+                row[12] = 1.0
+            else:
+                row[0] = res.distance
+                row[1:4] = res.point_a
+                row[4:7] = res.point_b
+                row[7:10] = res.direction
+                row[10] = res.index_a
+                row[11] = res.index_b
+                row[12] = 0.0
+
     def _stamp(self, stamp: float | None, source: str) -> float:
         """A checked measurement time stamp (s), the clock's reading, or NaN."""
         if stamp is None:
@@ -602,15 +777,6 @@ class Scene:
         ):
             raise InputError(source, "stamp", f"must be a finite time in s, got {stamp!r}")
         return float(stamp)
-
-    def _input_stamp(self, obj: SceneObject) -> float:
-        """Time stamp of the input ``obj``'s pose comes from (+inf for a fixed one)."""
-        src = obj.source
-        if isinstance(src, OnLink):
-            return self._q_stamp.get(src.robot, math.nan)
-        if isinstance(src, Runtime):
-            return self._pose_stamp.get(obj.name, math.nan)
-        return math.inf
 
     def _make_query(self, pair: WatchedPair) -> PairQuery:
         return PairQuery(
@@ -632,33 +798,36 @@ class Scene:
             raise UnknownName("scene", "object", name, self._objects)
         return o
 
-    def _pose(self, obj: SceneObject, fk: dict[str, NDArray[np.float64]]) -> NDArray[np.float64]:
-        src = obj.source
-        if isinstance(src, Fixed):
-            return src.pose
-        if isinstance(src, Runtime):
-            return self._runtime[obj.name]
-        frames = fk.get(src.robot)
-        if frames is None:
-            robot = self._robots[src.robot]
-            q = self._q[src.robot]
-            if q is None:
-                raise InputError(
-                    "scene", f"robot {src.robot!r}", "has no joint state; call set_joints first"
-                )
-            frames = np.asarray(robot.fk_all(q), dtype=np.float64)
-            n = len(robot.link_names)
-            if frames.shape != (n, 4, 4):
-                raise InputError(
-                    f"robot {src.robot!r}",
-                    "fk_all",
-                    f"expected shape ({n}, 4, 4), got {frames.shape}",
-                )
-            fk[src.robot] = frames
-        link_pose = frames[self._robots[src.robot].link_names.index(src.link)]
-        if src.identity:
-            return np.ascontiguousarray(link_pose)
-        return np.ascontiguousarray(link_pose @ src.offset)
+
+@dataclass(frozen=True, eq=False)
+class _Plan:
+    """What :meth:`Scene.query_all` needs, made once per change of the contents:
+    ``layout`` the watched pairs in order, ``objects`` their names, ``kinematics``
+    (robot name, robot, its frame rows or None for a robot that is not a
+    :class:`Robot`) for the robots placing a watched object, ``robots`` and
+    ``runtime`` whose stamps the answer depends on, ``arguments`` of the compiled
+    query after the rows (None: pair by pair)."""
+
+    layout: tuple[WatchedPair, ...]
+    objects: frozenset[str]
+    kinematics: tuple[tuple[str, RobotLike, NDArray[np.float64] | None], ...]
+    robots: tuple[str, ...]
+    runtime: tuple[str, ...]
+    arguments: tuple[object, ...] | None
+
+    def with_arguments(self, arguments: tuple[object, ...]) -> _Plan:
+        return _Plan(
+            self.layout, self.objects, self.kinematics, self.robots, self.runtime, arguments
+        )
+
+
+def _positive(value: object, field_name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise InputError("scene", field_name, f"expected a number in metres, got {value!r}")
+    v = float(value)
+    if not (math.isfinite(v) and v > 0.0):
+        raise InputError("scene", field_name, f"must be a finite length > 0 m, got {v!r}")
+    return v
 
 
 __all__ = [

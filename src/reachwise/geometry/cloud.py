@@ -93,6 +93,32 @@ class PointCloud:
             return data
         return cls(np.asarray(data), name=name)
 
+    @classmethod
+    def of_checked(
+        cls, points: NDArray[np.float64], *, frame: str = "world", name: str = ""
+    ) -> PointCloud:
+        """A cloud that takes ``points`` as they are, without a copy or a check of the
+        values: for a caller that has just made them — a C-ordered float64 (N, 3) array,
+        N ≥ 1, every coordinate finite — in a pass of its own (the distance layer's
+        ingestion copies and checks a camera frame in one compiled pass). The array is
+        made read-only; nobody may keep a writable view of it. Anything else: use the
+        constructor, which copies and checks."""
+        if not (
+            isinstance(points, np.ndarray)
+            and points.dtype == np.float64
+            and points.ndim == 2
+            and points.shape[1] == 3
+            and points.shape[0] >= 1
+            and points.flags.c_contiguous
+        ):
+            raise CloudError(name or "point cloud", "points", "of_checked needs float64 (N, 3)")
+        cloud = object.__new__(cls)
+        points.setflags(write=False)
+        object.__setattr__(cloud, "points", points)
+        object.__setattr__(cloud, "frame", frame)
+        object.__setattr__(cloud, "name", name)
+        return cloud
+
     def __len__(self) -> int:
         return int(self.points.shape[0])
 

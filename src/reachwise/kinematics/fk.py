@@ -48,3 +48,11 @@ def fk_all(robot: Robot, q: ArrayLike) -> NDArray[np.float64]:
     c = robot.arrays
     F = K.fk_all_batch(c.kind, c.qidx, c.dh, c.classic, c.base, c.tool, Q)
     return F[0] if single else F
+
+
+def fk_all_into(robot: Robot, q: NDArray[np.float64], out: NDArray[np.float64]) -> None:
+    """:func:`fk_all` of one configuration into ``out`` ``(N+2, 4, 4)``, allocating
+    nothing: the per-tick path of a 1 kHz loop. ``q`` must be checked already (a
+    C-ordered float64 ``(n,)`` of finite values)."""
+    c = robot.arrays
+    K.frames(c.kind, c.qidx, c.dh, c.classic, c.base, c.tool, q, out)

@@ -347,7 +347,7 @@ class SceneService:
             t0 = time.perf_counter()
             res = self.scene.query_all()
             compute = time.perf_counter() - t0
-            pairs = res.pairs
+            pairs = tuple(res.pairs)
             if wanted is not None:
                 pairs = tuple(p for p in pairs if frozenset((p.a, p.b)) in wanted)
             layout = self._current_layout()

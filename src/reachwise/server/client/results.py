@@ -54,7 +54,7 @@ class ServerSceneResult(SceneResult):
     ``versions`` and ``cloud_stamps`` the first time one of them is read (a 1 kHz
     loop that reads a few fields pays for those alone); it is equal to one built
     eagerly, field by field. :attr:`rows` and :attr:`clouds` give the arrays as they
-    came (read-only), None for a result built otherwise."""
+    came (read-only); ``clouds`` is None for a result built otherwise."""
 
     compute_time: float = math.nan
 
@@ -82,10 +82,12 @@ class ServerSceneResult(SceneResult):
         return out
 
     @property
-    def rows(self) -> NDArray[np.float64] | None:
-        """The reply's rows (:class:`~reachwise.server.protocol.QueryReply`)."""
+    def rows(self) -> NDArray[np.float64]:
+        """The reply's rows as they came (:class:`~reachwise.server.protocol.QueryReply`:
+        the in-process scene's row layout, so the controller's converter reads them in
+        one compiled call); for a result built otherwise, the rows of its ``pairs``."""
         src = self.__dict__.get("_reply")
-        return None if src is None else src[1]
+        return super().rows if src is None else src[1]
 
     @property
     def clouds(self) -> NDArray[np.float64] | None:

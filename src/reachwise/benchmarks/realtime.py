@@ -1,0 +1,398 @@
+"""``reachwise bench realtime``: live clouds at camera rate and a 1 kHz control loop (issue 17).
+
+One run measures:
+
+1. **Index builds** of a 300 000-point camera frame and a 1 000 000-point room scan,
+   what the ingestion worker does per hand-over (check and copy the points, build the
+   tree: :func:`reachwise.distance.ingest.ready_cloud`), against the path this issue
+   started from (a :class:`~reachwise.geometry.cloud.PointCloud` copy and NaN check,
+   a second copy, the tree of commit 9be9138, an inverse map and a mean:
+   :mod:`reachwise.benchmarks._baseline_build`), interleaved rep by rep. Wall time
+   (``build.<n>.new`` / ``.old``) and the thread's CPU time (``..._cpu``): the
+   machine is shared, and CPU time is what the build costs one core whatever else runs.
+2. **The 1 kHz loop** on the real-arm scene: the example-robot-data Panda with every
+   link a 1000-point cloud and its automatic self-collision pairs (the ``panda-shelf``
+   scenario, with its scanned shelf), in a 1 000 000-point room (floor, walls,
+   ceiling, a table), while a camera thread hands over a 307 200-point depth frame
+   (640×480 rays cast into the room, the shelf, the table and a person walking past)
+   30 times a second with :meth:`~reachwise.distance.scene.Scene.replace_cloud`. Links
+   1–7 are watched against the room and the camera cloud (the base stands on the
+   floor) with the scenario's 5 cm margin. Each tick at ``dt = 1 ms`` (paced in real
+   time): joint state, every pair's distance (``Scene.query_all``), the avoidance
+   points (``SceneConverter``) and the controller step, timed as one (``loop.tick``;
+   the kinematic plant's integration is not part of it); the robot shuttles between
+   the scenario's goals; ``loop.tick_cpu`` is the CPU time the loop's thread spent in
+   the tick (wall time minus the time the machine gave to others). Also: each
+   ``replace_cloud`` call on the camera thread
+   (``handoff``: the hand-over only), the clouds swapped in per second
+   (``loop.swaps_per_s``), the queries answered while a build was running
+   (``loop.ticks_during_build``) and, of those, the ticks longer than the 1 ms period
+   (``loop.ticks_waited_for_build``: a tick that waited for a build would be one of
+   them; the scene itself never waits — it takes a built cloud only when the worker
+   does not hold the lock, ``loop.swaps_deferred``).
+   Without example-robot-data (the ``robots`` extra) the loop runs the built-in
+   ``panda`` (the same kinematics, published DH) with capsule-shaped link clouds and
+   says so in the notes.
+3. **The server** (``reachwise.benchmarks.server.streaming_figures``, when present):
+   a camera process streaming to ``reachwise serve`` at 30 Hz while this process
+   queries at 1 kHz, and the protocol's work beyond a bare ZeroMQ echo.
+
+The whole run keeps freed memory for reuse (glibc's trim and mmap thresholds raised:
+:func:`reachwise.control.realtime.keep_freed_memory`; builds otherwise spend a third of
+their time on page faults), and the loop runs inside
+:func:`reachwise.control.realtime.realtime_settings` (the garbage collector's existing
+objects frozen after setup, the GIL switch interval at 0.1 ms instead of 5 ms): see
+the README's realtime section.
+
+Targets (issue 17): tick median ≤ 300 µs, p99.9 ≤ 1 ms, max ≤ 3 ms; 0 ticks waited
+for a build; ≥ 29 swaps/s; hand-off p99 ≤ 2 ms; builds: 300 k ≤ 20 ms, 1 M ≤ 80 ms.
+"""
+
+from __future__ import annotations
+
+import gc
+import importlib
+import math
+import threading
+import time
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from reachwise.benchmarks._baseline_build import ingest_baseline
+from reachwise.benchmarks._harness import BenchReport, Target
+from reachwise.control.avoidance import SceneConverter
+from reachwise.control.controller import Controller, ControllerConfig, Goal
+from reachwise.control.realtime import keep_freed_memory, realtime_settings
+from reachwise.control.safety import SafetyConfig
+from reachwise.distance.ingest import ready_cloud
+from reachwise.distance.scene import OnLink, Scene
+from reachwise.errors import MissingDependency
+
+ROOM_POINTS = 1_000_000
+CAMERA_SIZE = (640, 480)
+CAMERA_HZ = 30.0
+DT = 1e-3  # s: the control period
+MARGIN = 0.05  # m, the panda-shelf scenario's environment margin
+FRAMES = 12  # distinct camera frames, handed over in turn
+ROOM = (np.array([-2.0, -2.5, 0.0]), np.array([3.0, 2.5, 2.8]))  # lo, hi corners (m)
+TABLE = (np.array([-0.9, 0.5, 0.0]), np.array([-0.3, 1.3, 0.75]))  # a box on the floor
+SHELF = (np.array([0.45, -0.4, 0.0]), np.array([0.75, 0.4, 0.9]))  # panda-shelf's shelf box
+CAMERA_AT = np.array([2.2, -1.8, 1.9])
+CAMERA_LOOKS_AT = np.array([0.3, 0.0, 0.5])
+
+
+# --------------------------------------------------------------------------- clouds
+
+
+def _box_surface(lo: NDArray[np.float64], hi: NDArray[np.float64], n: int, rng: Any) -> Any:
+    """``n`` points on the faces of box [lo, hi], area-weighted."""
+    ext = hi - lo
+    areas = np.array([ext[1] * ext[2], ext[0] * ext[2], ext[0] * ext[1]] * 2)
+    face = rng.choice(6, size=n, p=areas / areas.sum())
+    p = lo + rng.uniform(0.0, 1.0, size=(n, 3)) * ext
+    for f in range(6):
+        m = face == f
+        axis = f % 3
+        p[m, axis] = lo[axis] if f < 3 else hi[axis]
+    return p
+
+
+def room_points(n: int = ROOM_POINTS, seed: int = 3) -> NDArray[np.float64]:
+    """A scanned room around the robot: floor (1 cm below the base), walls, ceiling and
+    a table, ``n`` points with 2 mm noise."""
+    rng = np.random.default_rng(seed)
+    lo, hi = ROOM[0] - np.array([0.0, 0.0, 0.01]), ROOM[1]
+    k = n // 10
+    pts = np.vstack([_box_surface(lo, hi, n - k, rng), _box_surface(*TABLE, k, rng)])
+    return np.asarray(pts + rng.normal(scale=0.002, size=pts.shape))
+
+
+def _ray_box(o: Any, d: Any, lo: Any, hi: Any) -> Any:
+    """Entry distance of rays ``o + t d`` into box [lo, hi] (inf where they miss)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1 = (lo - o) / d
+        t2 = (hi - o) / d
+    tn = np.nanmax(np.minimum(t1, t2), axis=1)
+    tf = np.nanmin(np.maximum(t1, t2), axis=1)
+    hit = (tf >= tn) & (tf > 0)
+    return np.where(hit, np.where(tn > 0, tn, np.inf), np.inf)
+
+
+def _ray_room(o: Any, d: Any) -> Any:
+    """Exit distance of rays from inside the room (the far wall, floor or ceiling)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(d > 0, (ROOM[1] - o) / d, (ROOM[0] - o) / d)
+    t[~np.isfinite(t)] = np.inf
+    return t.min(axis=1)
+
+
+def camera_frame(k: int, seed: int = 5) -> NDArray[np.float32]:
+    """Depth frame ``k``: 640×480 pinhole rays (60° wide) from :data:`CAMERA_AT`, the
+    first hit of each in the room, the table, the shelf's box or a person (a 0.2 m
+    radius, 1.75 m cylinder approximated by its bounding box) walking past, 4 mm noise;
+    every ray hits (the room is closed): 307 200 points, float32 as a camera gives them."""
+    w, h = CAMERA_SIZE
+    fwd = CAMERA_LOOKS_AT - CAMERA_AT
+    fwd /= np.linalg.norm(fwd)
+    right = np.cross(fwd, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, fwd)
+    f = 0.5 * w / math.tan(math.radians(30.0))
+    u, v = np.meshgrid(np.arange(w) - w / 2 + 0.5, np.arange(h) - h / 2 + 0.5)
+    d = fwd * f + right * u.reshape(-1, 1) - up * v.reshape(-1, 1)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    o = np.broadcast_to(CAMERA_AT, d.shape)
+    phase = 2.0 * math.pi * k / FRAMES
+    person = np.array([1.2 + 0.3 * math.cos(phase), -0.9 + 0.6 * math.sin(phase), 0.0])
+    body = (person - np.array([0.2, 0.2, 0.0]), person + np.array([0.2, 0.2, 1.75]))
+    t = _ray_room(o, d)
+    for lo, hi in (TABLE, SHELF, body):
+        t = np.minimum(t, _ray_box(o, d, lo, hi))
+    rng = np.random.default_rng([seed, k])
+    pts = o + d * (t + rng.normal(scale=0.004, size=t.shape))[:, None]
+    return pts.astype(np.float32)
+
+
+# --------------------------------------------------------------------------- builds
+
+
+def _builds(rep: BenchReport, quick: bool) -> None:
+    reps = 3 if quick else 9
+    camera = camera_frame(0).astype(np.float64)
+    clouds = {"300k": camera[:300_000], "1M": room_points()}
+    for name, pts in clouds.items():
+        ready_cloud("warm", 1, pts[:1000], 0.0)
+        ingest_baseline(pts[:1000])
+        wall: dict[str, list[float]] = {"new": [], "old": []}
+        cpu: dict[str, list[float]] = {"new": [], "old": []}
+        for _ in range(reps):
+            for method in ("new", "old"):
+                w0, c0 = time.perf_counter(), time.thread_time()
+                if method == "new":
+                    ready_cloud("cloud", 1, pts, 0.0)
+                else:
+                    ingest_baseline(pts)
+                wall[method].append((time.perf_counter() - w0) * 1e6)
+                cpu[method].append((time.thread_time() - c0) * 1e6)
+                gc.collect()
+        for method in ("new", "old"):
+            rep.add_samples(f"build.{name}.{method}", np.array(wall[method]))
+            rep.metrics[f"build.{name}.{method}_cpu.median"] = float(np.median(cpu[method]))
+            rep.metrics[f"build.{name}.{method}.min"] = float(np.min(wall[method]))
+        rep.ratio(f"build.{name}.old", f"build.{name}.new")
+    rep.targets["build_300k"] = Target(rep.metrics["build.300k.new.median"], 20_000.0)
+    rep.targets["build_1M"] = Target(rep.metrics["build.1M.new.median"], 80_000.0)
+
+
+# --------------------------------------------------------------------------- the loop
+
+
+@dataclass
+class _Arm:
+    scene: Scene
+    robot: Any
+    controller: Controller
+    converter: SceneConverter
+    goals: list[Goal]
+    q: NDArray[np.float64]
+    real: bool
+
+
+def _real_arm() -> _Arm:
+    """The panda-shelf scenario's world (example-robot-data Panda, automatic pairs)."""
+    from reachwise.sim.world import build_world
+
+    world = build_world("panda-shelf", avoidance=True)
+    if not isinstance(world.scene, Scene):
+        raise TypeError("the panda-shelf world runs an in-process scene")
+    agent = world.agents[0]
+    cfg = agent.controller.config
+    ctrl = Controller(agent.robot, replace(cfg, safety=replace(cfg.safety, dt=DT)))
+    goals = [g for g, _ in agent.own]
+    return _Arm(
+        world.scene, agent.robot, ctrl, agent.converter, goals, np.array(agent.plant.q), True
+    )
+
+
+def _builtin_arm() -> _Arm:
+    """The built-in Panda (published DH) with capsule clouds around its links."""
+    from reachwise.io.robot_file import load_robot
+
+    robot = load_robot("panda")
+    rng = np.random.default_rng(7)
+    q0 = np.array([0.0, -0.6, 0.0, -2.2, 0.0, 1.7, 0.8])
+    F = robot.fk_all(q0)
+    scene = Scene()
+    scene.add_robot(robot, q0)
+    for k in range(1, len(robot.link_names) - 1):
+        end = np.linalg.solve(F[k], F[k + 1][:, 3])[:3]
+        t = rng.uniform(0.0, 1.0, size=(1000, 1))
+        d = rng.normal(size=(1000, 3))
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        link = robot.link_names[k]
+        scene.add_object(f"arm/{link}", t * end + 0.06 * d, robot=robot.name, link=link)
+    scene.watch_self(robot.name, 0.025)
+    ctrl = Controller(robot, ControllerConfig(safety=SafetyConfig(dt=DT)))
+    goals = [Goal.at([0.45, -0.2, 0.45]), Goal.at([0.25, 0.3, 0.7])]
+    return _Arm(scene, robot, ctrl, SceneConverter(scene, robot), goals, q0, False)
+
+
+def _arm() -> tuple[_Arm, str]:
+    try:
+        return _real_arm(), "example-robot-data Panda (panda-shelf scenario)"
+    except MissingDependency as exc:
+        return _builtin_arm(), f"built-in panda with capsule clouds ({exc})"
+
+
+def _loop(rep: BenchReport, quick: bool) -> None:
+    arm, which = _arm()
+    scene, robot = arm.scene, arm.robot
+    frames = [camera_frame(k) for k in range(FRAMES)]
+    scene.add_object("room", room_points())
+    scene.add_object("camera", frames[0])
+    for o in scene.robot_objects(robot.name):
+        link = o.source.link if isinstance(o.source, OnLink) else ""
+        if link == robot.link_names[0]:
+            continue  # the base stands on the floor
+        scene.watch(o.name, "room", MARGIN, kind="robot-environment")
+        scene.watch(o.name, "camera", MARGIN, kind="robot-environment")
+    converter = SceneConverter(scene, robot, tool_links=arm.converter.tool_links)
+    ctrl = arm.controller
+    q = arm.q.copy()
+    duration = 3.0 if quick else 10.0
+    ticks = int(duration / DT)
+    tick_us = np.empty(ticks)
+    cpu_us = np.empty(ticks)
+    during = np.zeros(ticks, np.bool_)
+    handoff: list[float] = []
+    goal_index = 0
+    reached = 0
+    stopped = 0
+    stop = threading.Event()
+    start = time.perf_counter()
+
+    def camera() -> None:
+        k = 1
+        due = time.perf_counter()
+        while not stop.is_set():
+            due += 1.0 / CAMERA_HZ
+            pause = due - time.perf_counter()
+            if pause > 0:
+                time.sleep(pause)
+            frame = frames[k % FRAMES]
+            t0 = time.perf_counter()
+            scene.replace_cloud("camera", frame, stamp=t0 - start)
+            handoff.append((time.perf_counter() - t0) * 1e6)
+            k += 1
+
+    # warm up (compile, fill caches) before the settings freeze what exists
+    scene.set_joints(robot.name, q, stamp=0.0)
+    ctrl.step(q, arm.goals[0], converter(scene.query_all(), stamp=0.0), 0.0)
+    ctrl.reset()
+    thread = threading.Thread(target=camera, name="bench-camera", daemon=True)
+    swaps0, deferred0, during0 = scene.swaps, scene.swaps_deferred, scene.queries_during_build
+    clock = time.perf_counter_ns
+    cpu = time.thread_time_ns
+    with realtime_settings():
+        thread.start()
+        try:
+            start = time.perf_counter()
+            for k in range(ticks):
+                due = start + k * DT
+                pause = due - time.perf_counter()
+                if pause > 0:
+                    time.sleep(pause)
+                now = time.perf_counter() - start
+                goal = arm.goals[goal_index]
+                building = scene.ingest.building is not None
+                c0 = cpu()
+                t0 = clock()
+                scene.set_joints(robot.name, q, stamp=now)
+                res = scene.query_all()
+                pts = converter(res, stamp=now)
+                cmd, status = ctrl.step(q, goal, pts, now)
+                tick_us[k] = (clock() - t0) * 1e-3
+                cpu_us[k] = (cpu() - c0) * 1e-3
+                during[k] = building or scene.ingest.building is not None
+                if status.state == "reached":
+                    goal_index = (goal_index + 1) % len(arm.goals)
+                    reached += 1
+                elif status.state == "protective_stop":
+                    stopped += 1
+                q = np.clip(q + cmd * DT, robot.lower, robot.upper)
+            elapsed = time.perf_counter() - start
+        finally:
+            stop.set()
+            thread.join()
+    scene.close()
+    swaps = scene.swaps - swaps0
+    rep.add_samples("loop.tick", tick_us)
+    rep.metrics["loop.tick.max"] = float(tick_us.max())
+    rep.add_samples("loop.tick_cpu", cpu_us)
+    rep.metrics["loop.pairs"] = float(len(scene.pairs))
+    rep.metrics["loop.swaps"] = float(swaps)
+    rep.metrics["loop.swaps_per_s"] = swaps / elapsed
+    rep.metrics["loop.handoffs"] = float(len(handoff))
+    rep.metrics["loop.swaps_deferred"] = float(scene.swaps_deferred - deferred0)
+    rep.metrics["loop.ticks_during_build"] = float(scene.queries_during_build - during0)
+    waited = int(np.count_nonzero(during & (tick_us > DT * 1e6)))
+    rep.metrics["loop.ticks_waited_for_build"] = float(waited)
+    rep.metrics["loop.goals_reached"] = float(reached)
+    rep.metrics["loop.protective_stops"] = float(stopped)
+    rep.metrics["loop.superseded"] = float(scene.ingest.superseded)
+    rep.add_samples("handoff", np.array(handoff))
+    rep.metrics["handoff.max"] = float(max(handoff))
+    rep.targets["tick_median"] = Target(rep.metrics["loop.tick.median"], 300.0)
+    rep.targets["tick_p99_9"] = Target(rep.metrics["loop.tick.p99_9"], 1000.0)
+    rep.targets["tick_max"] = Target(rep.metrics["loop.tick.max"], 3000.0)
+    rep.targets["ticks_waited_for_build"] = Target(float(waited), 0.0)
+    rep.targets["swaps_per_s"] = Target(rep.metrics["loop.swaps_per_s"], 29.0, True)
+    rep.targets["handoff_p99"] = Target(rep.metrics["handoff.p99"], 2000.0)
+    rep.notes.append(
+        f"loop: {which}; {len(scene.pairs)} pairs; {ticks} ticks at dt = 1 ms paced in real "
+        f"time ({elapsed:.1f} s); a {CAMERA_SIZE[0]}x{CAMERA_SIZE[1]} camera frame handed "
+        f"over {CAMERA_HZ:g} times a second from another thread; room {ROOM_POINTS} points"
+    )
+
+
+# --------------------------------------------------------------------------- server
+
+
+def _server(rep: BenchReport, quick: bool) -> None:
+    """The server section: ``reachwise.benchmarks.server.streaming_figures`` (the
+    stream helper's: a camera process streaming 300 000-point clouds at 30 Hz to
+    ``reachwise serve`` while this process queries at 1 kHz, and the protocol's own
+    work beyond a bare ZeroMQ echo), its figures prefixed ``server.``."""
+    server = importlib.import_module("reachwise.benchmarks.server")
+    figures = getattr(server, "streaming_figures", None)
+    if figures is None:
+        rep.notes.append(
+            "server section: not measured (reachwise.benchmarks.server has no "
+            "streaming_figures on this branch); see `reachwise bench server`"
+        )
+        return
+    got: dict[str, Any] = figures(quick=quick)
+    for k, v in got.get("metrics", {}).items():
+        rep.metrics[f"server.{k}"] = float(v)
+    for k, v in got.get("ratios", {}).items():
+        rep.ratios[f"server.{k}"] = float(v)
+    for k, t in got.get("targets", {}).items():
+        value, limit = float(t["value"]), float(t["limit"])
+        at_least = bool(t["met"]) != (value <= limit)  # a "≥" target
+        rep.targets[f"server.{k}"] = Target(value, limit, at_least)
+    rep.notes.extend(n if n.startswith("server") else f"server: {n}" for n in got.get("notes", []))
+
+
+def run(quick: bool = False) -> BenchReport:
+    """Builds, the 1 kHz loop with a live camera cloud, and the server section (see
+    the module docstring)."""
+    rep = BenchReport("realtime")
+    kept = keep_freed_memory()
+    rep.notes.append(f"freed memory kept for reuse (glibc mallopt): {kept}")
+    _builds(rep, quick)
+    _loop(rep, quick)
+    _server(rep, quick)
+    return rep
