@@ -179,7 +179,7 @@ def classify(points: Sequence[ParetoPoint], names: tuple[str, str], same: float 
     a, b = names
     ok = [p for p in points if p.all_reached]
     vals = np.array([[p.values[a], p.values[b]] for p in ok]).reshape(-1, 2)
-    senses = np.array([OBJECTIVES[a], OBJECTIVES[b]], dtype=np.float64)
+    senses = (OBJECTIVES[a], OBJECTIVES[b])
     scale = extent(vals)
     dom = dominated(vals, senses, same, scale) if ok else np.zeros(0, dtype=np.bool_)
     twin: dict[int, int | None] = {}
@@ -259,7 +259,9 @@ def pareto_sweep(
         """Improve ``name`` from ``z`` (holding the other objective at ``level``)."""
         other = b if name == a else a
         levels = {} if level is None else {other: level}
-        obj = Objective({name: 1.0}, margin=margin, levels=levels, penalty=LEVEL_PENALTY).referenced(ref)
+        obj = Objective(
+            {name: 1.0}, margin=margin, levels=levels, penalty=LEVEL_PENALTY
+        ).referenced(ref)
         z1 = improve(problem, z, obj, workspace, options or SWEEP_OPTIONS).z
         p = measure(problem, z1, len(found), {name: 1.0, other: 0.0}, level, stage)
         found.append(p)
