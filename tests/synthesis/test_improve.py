@@ -11,11 +11,12 @@ from scipy.spatial.transform import Rotation
 
 import reachwise
 from reachwise.benchmarks.synthesis import hard_instance
+from reachwise.errors import InputError
 from reachwise.kinematics.indices import gci, kci
 from reachwise.kinematics.robot import Robot
-from reachwise.synthesis.improve import improve
-from reachwise.synthesis.objectives import Objective
-from reachwise.synthesis.pareto import dominated, pareto_sweep
+from reachwise.synthesis.improve import ImproveOptions, improve
+from reachwise.synthesis.objectives import Objective, size_columns
+from reachwise.synthesis.pareto import classify, dominated, extent, pareto_sweep
 from reachwise.synthesis.problem import SynthesisProblem
 from reachwise.tasks.task import Task
 
@@ -96,14 +97,79 @@ def test_dominance_against_brute_force(rng: np.random.Generator) -> None:
             assert got[i] == (beaten or duplicate)
 
 
-def test_pareto_front_of_gci_and_size(hard: SynthesisProblem) -> None:
-    res = reachwise.synthesize(hard.task, hard.template, runs=1, seed=0)
+def brute_force_non_dominated(vals: np.ndarray, senses: tuple[int, int]) -> bool:
+    """No design at least as good as another in both objectives and better in one."""
+    s = vals * np.array(senses)
+    return not any(
+        np.all(s[j] >= s[i]) and np.any(s[j] > s[i])
+        for i in range(len(s))
+        for j in range(len(s))
+        if i != j
+    )
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_pareto_front_of_gci_and_size(hard: SynthesisProblem, seed: int) -> None:
+    """Two reach-only starts (the seed changes every rounding on the way): each front
+    holds at least 5 distinct designs, mutually non-dominated, each reaching every pose."""
+    res = reachwise.synthesize(hard.task, hard.template, runs=1, seed=seed)
     z0 = hard.pack(res.best.design, res.best.q)
     front = pareto_sweep(hard, z0, ("gci", "size"), points=8)
     designs = front.front
     assert len(designs) >= 5
     for p in designs:
         assert reaches_every_pose(p.robot, p.q, hard.task)
+        assert hard.within_bounds(p.z)
     vals = np.array([[p.values["gci"], p.values["size"]] for p in designs])
-    assert not dominated(vals, (1, -1)).any()
+    assert brute_force_non_dominated(vals, (1, -1))
     assert np.all(np.diff(vals[:, 0]) > 0) and np.all(np.diff(vals[:, 1]) > 0)  # a trade-off
+    # a design that stops reaching leaves the front
+    probe = designs[len(designs) // 2]
+    broken = replace(probe, reached=np.zeros_like(probe.reached))
+    marked = classify([*(p for p in front.points if p is not probe), broken], front.names)
+    assert [q.dominated for q in marked if q.index == probe.index] == [True]
+
+
+def test_epsilon_dominance_on_hand_made_rows() -> None:
+    senses = (1, -1)  # maximize the first column, minimize the second
+    v = np.array([
+        [1.0, 1.0],  # 0: the front's low end
+        [2.0, 2.0],  # 1: a trade-off (exactly: dominated by 3)
+        [1.5, 2.5],  # 2: dominated by 1 (worse in both)
+        [2.0005, 2.0],  # 3: 0.025 % of the extent above 1: the same design
+        [3.0, 3.0],  # 4: the high end
+        [2.9995, 2.1],  # 5: 0.025 % below 4 in the first column, far smaller
+    ])  # fmt: skip
+    exact = dominated(v, senses, tol=1e-12, scale=np.ones(2))
+    assert exact.tolist() == [False, True, True, False, False, False]
+    scale = extent(v)
+    assert scale.tolist() == [2.0, 2.0]
+    loose = dominated(v, senses, tol=0.01, scale=scale)
+    # 3 is the same design as the earlier 1 (kept), 4 is ε-dominated by 5 (as good in
+    # the first column within 1 % of the extent, far better in the second)
+    assert loose.tolist() == [False, False, True, True, True, False]
+    with pytest.raises(InputError):
+        pareto_sweep(None, np.zeros(1), ("gci", "size"), points=8, same=0.5)  # type: ignore[arg-type]
+
+
+def test_a_length_at_the_size_kink_stays_there(hard: SynthesisProblem) -> None:
+    """Minimizing Σ|a|+Σ|d| drives lengths to 0, where |x| has a kink: the lengths that
+    reach it are held there (never carried beyond the band that counts as 0 to the other
+    sign) and a second improvement from that design does not raise the cost."""
+    res = reachwise.synthesize(hard.task, hard.template, runs=1, seed=0)
+    z0 = hard.pack(res.best.design, res.best.q)
+    first = improve(hard, z0, Objective({"size": 1.0}))
+    cols = size_columns(hard)
+    lo, hi = hard.bounds
+    band = ImproveOptions().active_band * (hi - lo)[cols]
+    at_kink = np.abs(first.z[cols]) <= band
+    assert at_kink.any()  # the fixture drives at least one length to the kink
+    flipped = first.z[cols] * z0[cols] < 0
+    assert np.all(np.abs(first.z[cols][flipped]) <= band[flipped])  # only within the band
+    second = improve(hard, first.z, Objective({"size": 1.0}))
+    assert np.all(np.abs(second.z[cols][at_kink]) <= band[at_kink])
+    assert np.all(second.z[cols] * first.z[cols] >= 0)
+    assert second.cost_history == sorted(second.cost_history, reverse=True)
+    assert second.final.values["size"] <= first.final.values["size"]
+    assert reaches_every_pose(hard.robot_at(hard.split(second.z)[0]), hard.split(second.z)[1],
+                              hard.task)  # fmt: skip

@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 from reachwise.synthesis.active_set import bounded_step
 from reachwise.synthesis.linalg import BlockSystem, null_space_project, weighted
-from reachwise.synthesis.objectives import Objective, Terms
+from reachwise.synthesis.objectives import Objective, Terms, size_columns
 from reachwise.synthesis.problem import Evaluation, SynthesisProblem
 from reachwise.synthesis.solvers import Workspace, converged, row_weights
 from reachwise.synthesis.workspace_points import link_points
@@ -61,7 +61,7 @@ class ImproveOptions:
     workspace_weight: float = 1.0
     samples_per_link: int = 4
     active_band: float = 1e-3
-    max_passes: int = 30
+    max_passes: int = 60
 
 
 @dataclass(frozen=True)
@@ -119,6 +119,13 @@ def _reached(problem: SynthesisProblem, ev: Evaluation, fraction: float = 1.0) -
     return bool(pos.all() and ori.all())
 
 
+def _worst(problem: SynthesisProblem, ev: Evaluation) -> float:
+    """The largest error over the task in units of its tolerance."""
+    task = problem.task
+    ori = np.where(task.dims == 3, 0.0, ev.orientation_error / task.tol_orientation)
+    return float(max(np.max(ev.position_error / task.tol_position), np.max(ori)))
+
+
 def restore(
     problem: SynthesisProblem, z: Array, iterations: int = 6, fraction: float = 0.25
 ) -> tuple[Array, Evaluation]:
@@ -131,11 +138,17 @@ def restore(
     wx = row_weights(problem)
     span = _spans(problem)
     ev = problem.evaluate(z)
+    joints_only = iterations
+    worst = np.inf
     for i in range(2 * iterations):
         if _reached(problem, ev, fraction):
             break
+        now = _worst(problem, ev)
+        if i < joints_only and now > 0.5 * worst:
+            joints_only = i  # the joints alone stall (one at a limit): move the design too
+        worst = now
         D, J = ev.D * wx[:, :, None], ev.J * wx[:, :, None]
-        if i < iterations:
+        if i < joints_only:
             D = np.zeros_like(D)
         bs = bounded_step(
             D, J, problem.active_rows, ev.e * wx, 1e-12,
@@ -147,11 +160,69 @@ def restore(
     return z, ev
 
 
+def _kinks(
+    problem: SynthesisProblem, obj: Objective, terms: Terms, z: Array, g: Array, near: Array
+) -> tuple[Array, Array, Array]:
+    """The ``size`` term's kinks: ``|a|`` and ``|d|`` at 0 (orthant-wise, as OWL-QN does
+    for an L1 term; Andrew & Gao 2007).
+
+    Minimizing Σ|a| + Σ|d| drives lengths to exactly 0, where ``|x|`` has a kink (its
+    smoothing ``abs_smoothing`` has curvature 1e4 there): a step that crosses 0 raises
+    the cost while the gradient promised a decrease, so every step fails and the
+    improvement stops — this is what stalled the ε-constraint points of the (gci, size)
+    front. Here 0 acts as a bound on the side of the length's sign (the ratio test stops
+    a step there), and a length within ``near`` of 0 moves only if the rest of the
+    cost's gradient beats the size term's slope ``c`` (its subgradient is ``[−c, c]``),
+    in the direction it wins, with gradient ``g_rest ± c``; otherwise it stays.
+    Returns the gradient and the effective lower and upper bounds."""
+    lo, hi = problem.bounds
+    c = obj.slopes(terms).get("size", 0.0)
+    if c <= 0:
+        return g, lo, hi
+    g, lo_e, hi_e = g.copy(), lo.copy(), hi.copy()
+    for i in size_columns(problem):
+        if not lo[i] < 0 < hi[i]:
+            continue  # a length that cannot change sign has no kink inside its range
+        if z[i] > near[i]:
+            lo_e[i] = 0.0
+        elif z[i] < -near[i]:
+            hi_e[i] = 0.0
+        else:
+            rest = g[i] - c * terms.gradients["size"][i]
+            if rest < -c:  # the descent raises it
+                g[i], lo_e[i] = rest + c, z[i]
+            elif rest > c:  # the descent lowers it
+                g[i], hi_e[i] = rest - c, z[i]
+            else:  # the kink holds it
+                g[i], lo_e[i], hi_e[i] = rest, z[i], z[i]
+    return g, lo_e, hi_e
+
+
 def _project(sysn: BlockSystem, w: Array, v: Array, p: int, active: NDArray[np.bool_]) -> Array:
     """``(I − Φ_w⁺ Φ_w) v`` (``sysn`` factorizes ``Φ_w``), 0 on fixed variables (``w = 0``)."""
     K, nf = active.shape[0], (v.size - p) // active.shape[0]
     vd, vq = null_space_project(sysn, v[:p], v[p:].reshape(K, nf), active)
     return np.concatenate([vd, vq.ravel()]) * (w > 0)
+
+
+def _reduced_gradient(
+    sysn: BlockSystem, Df: Array, Jf: Array, w: Array, g: Array, scale: Array,
+    active: NDArray[np.bool_],
+) -> Array:  # fmt: skip
+    """``G − Φ_sᵀ μ`` in scaled coordinates (``G = s ∘ g``, ``Φ_s = Φ diag(s)``, blocks
+    ``Df``, ``Jf``) with the task multipliers ``μ = (Φ_w Φ_wᵀ)⁻¹ Φ_w (w ∘ g)`` of the
+    free variables (``sysn`` factorizes ``Φ_w``): on a free variable the projected
+    gradient, on a fixed one the multiplier of its bound. A variable at its lower bound
+    with ``r < 0`` (upper: ``r > 0``) would lower the cost by moving inside, with the
+    free variables compensating through the task: a false member of the working set
+    (P-II's dynamic weighting fixes it for good; that stalled the Pareto sweep)."""
+    p = Df.shape[2]
+    K, nf = Jf.shape[0], Jf.shape[2]
+    G = w * g
+    mu = sysn.solve(np.where(active, sysn.apply(G[:p], G[p:].reshape(K, nf)), 0.0))
+    rd = np.einsum("kia,ki->a", Df, mu)
+    rq = np.einsum("kia,ki->ka", Jf, mu)
+    return np.asarray(scale * g - np.concatenate([rd, rq.ravel()]))
 
 
 def _two_loop(g: Array, pairs: list[tuple[Array, Array]]) -> Array:
@@ -216,7 +287,8 @@ def improve(
         g = obj.gradient(terms) + gwall
         x = z / scale
         near = opt.active_band * span  # this close to a bound counts as at it
-        lo_z, hi_z = z <= lo + near, z >= hi - near
+        g, lo_e, hi_e = _kinks(problem, obj, terms, z, g, near)
+        lo_z, hi_z = z <= lo_e + near, z >= hi_e - near
         # a variable at a bound that the descent −g pushes outward stays (weight 0)
         w = scale * ~((lo_z & (g > 0)) | (hi_z & (g < 0)))
         D, J = weighted(Dx, Jx, w[:p], w[p:].reshape(K, nf))
@@ -225,7 +297,12 @@ def improve(
             s_, y_ = x - last[0], gx - last[1]
             if float(s_ @ y_) > 1e-10 * float(np.linalg.norm(s_) * np.linalg.norm(y_)):
                 pairs = [*pairs[-7:], (s_, y_)]
-        for _ in range(opt.max_passes):  # each pass fixes at least one more variable
+        # the working set: a fixed variable whose multiplier has the wrong sign is
+        # released (once per iteration), a free one that the step drives out is fixed
+        movable = (span > 0) & (lo_e < hi_e)  # not a fixed parameter, not held at a kink
+        released = np.zeros(problem.size, dtype=np.bool_)
+        Df, Jf = weighted(Dx, Jx, scale[:p], scale[p:].reshape(K, nf))
+        for _ in range(opt.max_passes):  # each pass fixes or releases variables
             D, J = weighted(Dx, Jx, w[:p], w[p:].reshape(K, nf))
             sysn = BlockSystem.build(D, J, active, 1e-12)
             gw = _project(sysn, w, w * g, p, active)
@@ -234,25 +311,45 @@ def improve(
                 d, pairs = -gw, []
             step = w * d
             out = (lo_z & (step < 0)) | (hi_z & (step > 0))
-            if not out.any():
+            if out.any():
+                w = np.where(out, 0.0, w)  # coupling through Φ pushes it out: fix it too
+                continue
+            r = _reduced_gradient(sysn, Df, Jf, w, g, scale, active)
+            wrong = (w == 0) & movable & ~released & ((lo_z & (r < 0)) | (hi_z & (r > 0)))
+            if not wrong.any():
                 break
-            w = np.where(out, 0.0, w)  # coupling through Φ pushes it out: fix it too
+            w = np.where(wrong, scale, w)
+            released |= wrong
         last = (x, gx)
         biggest = float(np.max(np.abs(d)))
         if biggest <= 0 or not np.isfinite(biggest):
             break
         alpha = 1.0 if pairs else radius / biggest
         alpha = min(alpha, opt.max_radius / biggest)
-        # ratio test: stop where the first free variable meets its bound (it joins the
-        # working set next iteration) instead of clipping the step out of the null space
+        # projected search: steps that carry variables past their bounds are clipped
+        # there (the restoration repairs the task); halving down to the ratio test's
+        # step, where the first free variable meets its bound, and below. With ~K·n_f
+        # joints near their limits, stopping at the first bound (one new bound per
+        # iteration) made the steps vanishingly short and ended the improvement early.
         with np.errstate(divide="ignore", invalid="ignore"):
-            room = np.where(step < 0, (lo - z) / step, np.where(step > 0, (hi - z) / step, np.inf))
-        alpha = min(alpha, float(np.min(np.maximum(room, 0.0))))
-        ok = False
-        while alpha * biggest >= opt.min_radius:
-            z_try, ev_try = restore(
-                problem, np.clip(z + alpha * step, lo, hi), opt.restore_iter, opt.restore_tolerance
+            room = np.where(
+                step < 0, (lo_e - z) / step, np.where(step > 0, (hi_e - z) / step, np.inf)
             )
+        first = min(alpha, float(np.min(np.maximum(room, 0.0))))
+        trials = []
+        while alpha > first and alpha * biggest >= opt.min_radius:
+            trials.append(alpha)
+            alpha *= 0.5
+        alpha = first
+        while alpha * biggest >= opt.min_radius:
+            trials.append(alpha)
+            alpha *= 0.5
+        ok = False
+        for alpha in trials:
+            z_try, ev_try = restore(
+                problem, np.clip(z + alpha * step, lo_e, hi_e), opt.restore_iter,
+                opt.restore_tolerance,
+            )  # fmt: skip
             if converged(problem, ev_try):
                 t_try = obj.terms(problem, z_try)
                 w_try, gw_try, in_try = _wall(problem, z_try, workspace, opt)
@@ -260,7 +357,6 @@ def improve(
                 if in_try and c_try < cost:
                     ok = True
                     break
-            alpha *= 0.5
         if not ok:
             if not pairs:
                 break

@@ -230,11 +230,19 @@ class Objective:
         c += sum(self.penalty * self._violation(n, terms.values[n]) ** 2 for n in self.levels)
         return float(c)
 
-    def gradient(self, terms: Terms) -> Array:
-        g = sum(self._factor(n) * terms.gradients[n] for n in self.names)
+    def slopes(self, terms: Terms) -> dict[str, float]:
+        """``∂ cost / ∂ f_i`` for every term in the cost (weighted or levelled) at
+        ``terms``: the weight factor plus the level penalty's derivative."""
+        out = {n: self._factor(n) for n in self.names}
         for n in self.levels:
             v = self._violation(n, terms.values[n])
             if v > 0:
                 scale = -OBJECTIVES[n] / self.reference.get(n, 1.0)
-                g = g + 2.0 * self.penalty * v * scale * terms.gradients[n]
+                out[n] = out.get(n, 0.0) + 2.0 * self.penalty * v * scale
+        return out
+
+    def gradient(self, terms: Terms) -> Array:
+        g = np.zeros_like(next(iter(terms.gradients.values())))
+        for n, s in self.slopes(terms).items():
+            g = g + s * terms.gradients[n]
         return np.asarray(g, dtype=np.float64)

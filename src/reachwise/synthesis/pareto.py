@@ -2,28 +2,57 @@
 
 Real design trades reach margin, conditioning, size and joint travel; one weighted sum
 gives one design. The front here is built from one design that reaches every pose (the
-reach-only best run), every design of it improved in the null space of the task
-(``improve``), so every design reaches every pose:
+reach-only best run); every design of it is improved in the null space of the task
+(``improve``) from a design that reaches every pose, so every design reaches every pose.
+With ``a`` the first objective and ``b`` the second:
 
-1. the two ends: the design improved for objective ``a`` alone and for ``b`` alone;
-2. between them, ``points − 2`` designs that improve ``a`` while ``b`` is held at evenly
-   spaced levels between its values at the two ends (the ε-constraint method, the level
-   enforced by a penalty, ``objectives.Objective.levels``), each starting from the
-   previous one (a continuation from the ``a`` end). A sweep of the weights alone would
-   reach only the convex hull of the front — on the SB60 family it jumps from one end
-   to the other — while the levels spread the designs along it;
-3. each end once more, from the best design for its objective that the sweep found (a
-   local method's first end can land short of what the continuation reached).
+1. **the two ends**: the design improved for ``a`` alone and for ``b`` alone;
+2. **fixed levels**: ``points − 2`` designs that improve ``a`` while ``b`` is held at
+   evenly spaced levels between its values at the two ends (the ε-constraint method,
+   the level enforced by a penalty, ``objectives.Objective.levels``), each starting from
+   the previous one (a continuation from the ``a`` end). A sweep of the weights alone
+   would reach only the convex hull of the front — on the SB60 family it jumps from one
+   end to the other — while the levels spread the designs along it;
+3. **ends polished**: each end once more from the best design for its objective that
+   the sweep found (a local method's first end can land short of what the continuation
+   reached), then improved for the other objective with its own held at the value
+   reached (a lexicographic end: of the designs as good in ``a``, the best in ``b``);
+4. **adaptive levels**: while the front has fewer than ``points`` designs, a new level
+   of ``b`` halfway across the largest gap between adjacent front designs (the distance
+   in objective space normalized by the front's extent), solved from each of the two
+   neighbours (warm starts); a gap that gave no new design is not tried again. The
+   sweep stops when the front has ``points`` designs, when no untried gap is wider than
+   two tolerances (none can hold a distinct design), or after ``max_solves``
+   improvements.
 
-Each design is measured by the objectives' own values (GCI and KCI as P-II Eq. 38–39
-define them, the others as ``objectives`` does), and the designs no other design beats in
-both (the non-dominated ones) form the front. Pure math.
+**When two designs are the same.** Objective values are compared in units of the
+front's extent (the range of each objective over the sweep's reaching designs). Two
+designs whose values differ by at most ``same`` (default 1 %) of that extent in both
+objectives are the same design for the front: the one found first is kept, the other
+is marked ``same_as`` it. A design is dominated when another is at least as good in
+both objectives up to that tolerance and better by more than it in one (ε-dominance):
+a design 0.01 % smaller but 30 % worse conditioned does not stand next to the better
+one as a trade-off.
+
+**Why the first version returned fewer designs than levels.** Its ε-points collapsed
+onto one design: once the continuation met the size term's kink (a length at 0, where
+``|d|`` is not differentiable) or a working set of joint limits that it never released,
+every later level started from that design and no step was accepted (``improve``
+explains both; they are fixed there). And its ``a`` end stopped short of designs the
+continuation found, so it was dominated. The front's size then depended on rounding
+(a 1e-15 change in the damped least squares moved it from 5 designs to 4).
+
+Every design is checked by forward kinematics (``fk_check``, independent of the
+solver's residual) and only designs that reach every pose count. Each design is
+measured by the objectives' own values (GCI and KCI as P-II Eq. 38–39 define them, the
+others as ``objectives`` does). Pure math.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -32,19 +61,32 @@ from reachwise.errors import InputError
 from reachwise.kinematics.indices import gci, kci, lci
 from reachwise.kinematics.robot import Robot
 from reachwise.synthesis.bound_hits import BoundHit, bound_hits
+from reachwise.synthesis.fk_check import reached_by_fk
 from reachwise.synthesis.improve import ImproveOptions, improve
 from reachwise.synthesis.objectives import OBJECTIVES, Objective, check_objective, evaluate_terms
 from reachwise.synthesis.problem import SynthesisProblem
 from reachwise.synthesis.solvers import Workspace
 
 Array = NDArray[np.float64]
+#: How a design of the sweep was found (module docstring, steps 1–4).
+Stage = Literal["start", "end", "level", "polish", "gap"]
+#: Two designs within this fraction of the front's extent in both objectives are one.
+SAME = 0.01
+#: Stiffness of the level penalty (``objectives.Objective.penalty``): a level is held
+#: to within ~0.5 % where the front is steep (30 let designs drift 10 % past it).
+LEVEL_PENALTY = 1000.0
+#: The improvement's stopping tolerance in the sweep (relative decrease over its
+#: window): designs are told apart at 1 % of the front's extent, 1e-4 bought nothing.
+SWEEP_OPTIONS = ImproveOptions(tolerance=1e-3)
 
 
 @dataclass(frozen=True, eq=False)
 class ParetoPoint:
     """One design of the front's sweep: its weights (and the level it held the second
     objective at, for an ε-constraint point), the design and joints, whether every pose
-    is reached, the objective values (``values``: every objective name) and its LCIs."""
+    is reached (forward kinematics, ``fk_check``), the objective values (``values``:
+    every objective name) and its LCIs; ``dominated`` when it is not on the front
+    (dominated, the same as the earlier design ``same_as``, or not reaching)."""
 
     index: int
     weights: dict[str, float]
@@ -57,6 +99,9 @@ class ParetoPoint:
     bound_hits: tuple[BoundHit, ...]
     dominated: bool = False
     level: float | None = None  # the second objective's level (ε-constraint point)
+    stage: Stage = "level"
+    same_as: int | None = None
+    z: Array = field(default_factory=lambda: np.zeros(0))  # the decision vector
 
     @property
     def all_reached(self) -> bool:
@@ -65,11 +110,15 @@ class ParetoPoint:
 
 @dataclass(frozen=True, eq=False)
 class ParetoResult:
-    """The sweep over two objectives ``names`` from the reach-only ``start`` design."""
+    """The sweep over two objectives ``names`` from the reach-only ``start`` design;
+    ``points`` holds every design tried, ``front`` the non-dominated distinct ones;
+    ``target`` is the number of front designs asked for, ``same`` the tolerance."""
 
     names: tuple[str, str]
     start: ParetoPoint
     points: tuple[ParetoPoint, ...]
+    target: int = 0
+    same: float = SAME
 
     @property
     def front(self) -> tuple[ParetoPoint, ...]:
@@ -86,12 +135,18 @@ def check_names(names: Sequence[str]) -> tuple[str, str]:
     return names[0], names[1]
 
 
-def dominated(values: Array, senses: Sequence[int], tol: float = 1e-9) -> NDArray[np.bool_]:
-    """Per row of ``values (m, k)``: is another row at least as good in every column and
-    better in one (``senses``: +1 higher is better, −1 lower)? Rows equal within ``tol``
-    (relative) to an earlier row count as dominated by it (one design, one point)."""
+def dominated(
+    values: Array, senses: Sequence[int], tol: float = 1e-9, scale: Array | None = None
+) -> NDArray[np.bool_]:
+    """Per row of ``values (m, k)``: is another row at least as good in every column
+    (up to ``tol``) and better by more than ``tol`` in one (``senses``: +1 higher is
+    better, −1 lower)? Rows within ``tol`` of an earlier row in every column count as
+    dominated by it (one design, one point). Differences are measured in units of
+    ``scale`` per column (default: the column's largest magnitude)."""
     v = np.asarray(values, dtype=np.float64) * np.asarray(senses, dtype=np.float64)
-    scale = np.maximum(np.abs(v).max(axis=0), 1e-300)
+    if scale is None:
+        scale = np.abs(v).max(axis=0) if len(v) else np.ones(v.shape[1])
+    scale = np.maximum(np.asarray(scale, dtype=np.float64), 1e-300)
     m = len(v)
     out = np.zeros(m, dtype=np.bool_)
     for i in range(m):
@@ -106,26 +161,69 @@ def dominated(values: Array, senses: Sequence[int], tol: float = 1e-9) -> NDArra
     return out
 
 
+def extent(values: Array) -> Array:
+    """Per column of ``values (m, k)``: its range, floored (a single design, or an
+    objective that does not change, gives a unit of 1e-9 of its magnitude)."""
+    v = np.asarray(values, dtype=np.float64).reshape(-1, 2)
+    if len(v) == 0:
+        return np.ones(2)
+    span = v.max(axis=0) - v.min(axis=0)
+    return np.asarray(np.maximum(span, np.maximum(1e-9 * np.abs(v).max(axis=0), 1e-300)))
+
+
+def classify(points: Sequence[ParetoPoint], names: tuple[str, str], same: float = SAME
+             ) -> list[ParetoPoint]:  # fmt: skip
+    """``points`` with ``dominated`` and ``same_as`` set (module docstring): designs that
+    do not reach every pose are off the front; of the others, those ε-dominated or the
+    same as an earlier one."""
+    a, b = names
+    ok = [p for p in points if p.all_reached]
+    vals = np.array([[p.values[a], p.values[b]] for p in ok]).reshape(-1, 2)
+    senses = (OBJECTIVES[a], OBJECTIVES[b])
+    scale = extent(vals)
+    dom = dominated(vals, senses, same, scale) if ok else np.zeros(0, dtype=np.bool_)
+    twin: dict[int, int | None] = {}
+    for i, p in enumerate(ok):
+        twin[p.index] = None
+        for j in range(i):
+            if np.all(np.abs(vals[j] - vals[i]) / scale <= same):
+                twin[p.index] = ok[j].index
+                break
+    flags = {p.index: bool(d) for p, d in zip(ok, dom, strict=True)}
+    return [
+        replace(p, dominated=flags.get(p.index, True), same_as=twin.get(p.index)) for p in points
+    ]
+
+
+def _on_front(
+    p: ParetoPoint, points: Sequence[ParetoPoint], names: tuple[str, str], same: float
+) -> bool:
+    """Is ``p`` (one of ``points``) a distinct, non-dominated design among them?"""
+    mine = [q for q in classify(points, names, same) if q.index == p.index]
+    return bool(mine) and not mine[0].dominated
+
+
 def measure(
     problem: SynthesisProblem,
     z: Array,
     index: int,
     weights: dict[str, float],
     level: float | None = None,
+    stage: Stage = "level",
 ) -> ParetoPoint:
-    """A design of the sweep, measured by every objective (GCI/KCI per P-II Eq. 38–39)."""
+    """A design of the sweep, measured by every objective (GCI/KCI per P-II Eq. 38–39)
+    and checked by forward kinematics at every posture (``fk_check``)."""
     design, Q = problem.split(z)
     robot = problem.robot_at(design, name=f"{problem.template.name}-pareto-{index}")
-    ev = problem.evaluate(z)
-    pos_ok, ori_ok, _ = problem.point_status(ev)
+    reached = reached_by_fk(robot, Q, problem.task) & problem.within_bounds(z)
     lcis = np.asarray(lci(robot, Q), dtype=np.float64)
     terms = evaluate_terms(
         problem, z, ("size", "limits", "bounds"), margin=problem.template.design.margin
     )
     values = {"gci": gci(lcis), "kci": kci(lcis), **terms.values}
     return ParetoPoint(
-        index, weights, robot, design.copy(), Q, pos_ok & ori_ok, values, lcis,
-        tuple(bound_hits(problem, design)), level=level,
+        index, weights, robot, design.copy(), Q, reached, values, lcis,
+        tuple(bound_hits(problem, design)), level=level, stage=stage, z=z.copy(),
     )  # fmt: skip
 
 
@@ -136,46 +234,83 @@ def pareto_sweep(
     points: int = 8,
     workspace: Workspace | None = None,
     options: ImproveOptions | None = None,
+    same: float = SAME,
+    max_solves: int | None = None,
 ) -> ParetoResult:
-    """The front of the module docstring from the reaching vector ``z0``."""
+    """The front of the module docstring from the reaching vector ``z0``: aims at
+    ``points`` non-dominated designs with at most ``max_solves`` improvements (default
+    ``4 · points + 4``)."""
     a, b = check_names(names)
     if points < 2:
         raise InputError("pareto", "points", f"at least 2, got {points}")
+    if not 0 < same < 0.5:
+        raise InputError("pareto", "same", f"must lie in (0, 0.5), got {same}")
+    budget = 4 * points + 4 if max_solves is None else int(max_solves)
     z0 = np.asarray(z0, dtype=np.float64)
-    start = measure(problem, z0, -1, {})
+    start = measure(problem, z0, -1, {}, stage="start")
     if not start.all_reached:
         raise InputError("pareto", "start", "the start design does not reach every pose")
     margin = problem.template.design.margin
     ref = Objective({a: 1.0, b: 1.0}, margin=margin).terms(problem, z0)
+    found: list[ParetoPoint] = []
 
-    def solve(z: Array, weights: dict[str, float], levels: dict[str, float]) -> Array:
-        obj = Objective(weights, margin=margin, levels=levels).referenced(ref)
-        return improve(problem, z, obj, workspace, options).z
+    def solve(z: Array, name: str, level: float | None = None, stage: Stage = "level"
+              ) -> ParetoPoint:  # fmt: skip
+        """Improve ``name`` from ``z`` (holding the other objective at ``level``)."""
+        other = b if name == a else a
+        levels = {} if level is None else {other: level}
+        obj = Objective(
+            {name: 1.0}, margin=margin, levels=levels, penalty=LEVEL_PENALTY
+        ).referenced(ref)
+        z1 = improve(problem, z, obj, workspace, options or SWEEP_OPTIONS).z
+        p = measure(problem, z1, len(found), {name: 1.0, other: 0.0}, level, stage)
+        found.append(p)
+        return p
 
-    def value(z: Array, name: str) -> float:
-        return Objective({name: 1.0}, margin=margin).terms(problem, z).values[name]
+    def best(name: str) -> ParetoPoint:
+        ok = [p for p in found if p.all_reached] or found
+        return max(ok, key=lambda p: OBJECTIVES[name] * p.values[name])
 
-    end_a = solve(z0, {a: 1.0}, {})
-    end_b = solve(z0, {b: 1.0}, {})
-    va, vb = value(end_a, b), value(end_b, b)
-    found: list[tuple[Array, dict[str, float], float | None]] = [(end_a, {a: 1.0, b: 0.0}, None)]
-    z = end_a
-    for t in np.linspace(0.0, 1.0, points)[1:-1]:
-        level = float(va + t * (vb - va))
-        z = solve(z, {a: 1.0}, {b: level})
-        found.append((z, {a: 1.0, b: 0.0}, level))
-    found.append((end_b, {a: 0.0, b: 1.0}, None))
-    # polish the ends from the best design the sweep found for each objective: a local
-    # method's end can land short of what the continuation reached
-    for name, w in ((a, {a: 1.0, b: 0.0}), (b, {a: 0.0, b: 1.0})):
-        sense = OBJECTIVES[name]
-        best = max((f[0] for f in found), key=lambda x: sense * value(x, name))
-        found.append((solve(best, {name: 1.0}, {}), w, None))
-    out = [measure(problem, x, i, w, lv) for i, (x, w, lv) in enumerate(found)]
-    senses = (OBJECTIVES[a], OBJECTIVES[b])
-    ok = [p for p in out if p.all_reached]
-    vals = np.array([[p.values[a], p.values[b]] for p in ok]).reshape(-1, 2)
-    dom = dominated(vals, senses) if ok else np.zeros(0, dtype=np.bool_)
-    flags = {p.index: bool(d) for p, d in zip(ok, dom, strict=True)}
-    marked = tuple(replace(p, dominated=flags.get(p.index, True)) for p in out)
-    return ParetoResult((a, b), start, marked)
+    # 1. the two ends
+    end_a = solve(z0, a, stage="end")
+    end_b = solve(z0, b, stage="end")
+    # 2. fixed levels of b, a continuation from each end: from the b end every level is
+    # looser than the last, so each ε-problem starts from a design that meets its level
+    # (the result is at least as good in a); from the a end the level pulls the design
+    # across. They follow different basins of the improvement; the front keeps the best
+    va, vb = end_a.values[b], end_b.values[b]
+    for ts, p in ((np.linspace(1.0, 0.0, points), end_b), (np.linspace(0.0, 1.0, points), end_a)):
+        for t in ts[1:-1]:
+            p = solve(p.z, a, float(va + t * (vb - va)))
+    # 3. the ends polished from the best design for each objective, then lexicographic
+    for name, other in ((a, b), (b, a)):
+        top = solve(best(name).z, name, stage="polish")
+        solve(top.z, other, top.values[name], stage="polish")
+    # 4. adaptive levels in the largest gaps of the front
+    tried: set[tuple[int, int]] = set()
+    while len(found) < budget:
+        marked = classify(found, (a, b), same)
+        front = sorted((q for q in marked if not q.dominated), key=lambda q: q.values[a])
+        if len(front) >= points:
+            break
+        vals = np.array([[q.values[a], q.values[b]] for q in front]).reshape(-1, 2)
+        unit = extent(vals)
+        gaps = []
+        for (i, left), right in zip(enumerate(front[:-1]), front[1:], strict=True):
+            key = (left.index, right.index)
+            width = float(np.linalg.norm((vals[i + 1] - vals[i]) / unit))
+            if key not in tried and width > 2.0 * same:
+                gaps.append((width, key, left, right))
+        if not gaps:
+            break
+        _, key, left, right = max(gaps, key=lambda g: g[0])
+        tried.add(key)
+        level = 0.5 * (left.values[b] + right.values[b])
+        # first from the neighbour better in b, which meets the level (a feasible start:
+        # the result is at least as good in a), from the other only if that gave no new
+        # front design
+        first, second = sorted((left, right), key=lambda q: -OBJECTIVES[b] * q.values[b])
+        new = solve(first.z, a, level, stage="gap")
+        if len(found) < budget and not _on_front(new, found, (a, b), same):
+            solve(second.z, a, level, stage="gap")
+    return ParetoResult((a, b), start, tuple(classify(found, (a, b), same)), points, same)
