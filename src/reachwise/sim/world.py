@@ -160,6 +160,21 @@ def _add_robots(
     return robots, solids
 
 
+def _link_mesh(sc: Scenario, rs: RobotSpec, link: str) -> Any:
+    """The scenario's ``link_clouds`` mesh of ``link``, placed in the link frame (a
+    trimesh.Trimesh); InputError naming the scenario field if it does not load."""
+    from reachwise.io.meshes import load_mesh
+
+    over = rs.link_clouds[link]
+    try:
+        mesh = load_mesh(sc.path(over.mesh))
+    except InputError as exc:
+        where = f"robots.{rs.name}.link_clouds.{link}.mesh"
+        raise InputError(sc.source, where, str(exc)) from None
+    mesh.apply_transform(over.pose.matrix())
+    return mesh
+
+
 def _link_cloud(
     sc: Scenario, rs: RobotSpec, robot: Robot, link: str, obj: str
 ) -> tuple[PointCloud, Solid]:
@@ -170,14 +185,8 @@ def _link_cloud(
     over = rs.link_clouds.get(link)
     if over is not None:
         from reachwise.geometry.cloud import sample_mesh_surface
-        from reachwise.io.meshes import load_mesh
 
-        try:
-            mesh = load_mesh(sc.path(over.mesh))
-        except InputError as exc:
-            where = f"robots.{rs.name}.link_clouds.{link}.mesh"
-            raise InputError(sc.source, where, str(exc)) from None
-        mesh.apply_transform(over.pose.matrix())
+        mesh = _link_mesh(sc, rs, link)
         rng = np.random.default_rng([rs.seed, robot.link_index(link)])
         cloud = sample_mesh_surface(mesh, n=over.points, seed=rng, frame=link, name=obj)
         return cloud, solid_of_mesh(mesh)
@@ -304,17 +313,10 @@ def _link_surface(
     mesh, or the union of the robot's shapes of that link) and its solid."""
     import trimesh
 
-    from reachwise.io.meshes import load_mesh
     from reachwise.io.robot_clouds import shape_meshes
 
-    over = rs.link_clouds.get(link)
-    if over is not None:
-        try:
-            mesh = load_mesh(sc.path(over.mesh))
-        except InputError as exc:
-            where = f"robots.{rs.name}.link_clouds.{link}.mesh"
-            raise InputError(sc.source, where, str(exc)) from None
-        mesh.apply_transform(over.pose.matrix())
+    if link in rs.link_clouds:
+        mesh = _link_mesh(sc, rs, link)
         solid = solid_of_mesh(mesh)
     else:
         parts = shape_meshes(robot, link)
