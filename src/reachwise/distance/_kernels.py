@@ -473,6 +473,8 @@ def dual_tree_query(  # type: ignore[no-untyped-def]
     point, input row of the B point, their tree-order indices] (-1 when none was
     found); returns the status (0 within the margin, 1 "no risk").
     """
+    if out.shape[0] < 10 or out_idx.shape[0] < 4:  # the kernel writes without bounds checks
+        raise ValueError("dual_tree_query: out needs 10 entries and out_idx 4")
     mA = boxA.shape[0]
     status, bi, bj = query_core(
         ptsA, boxA, infoA, cenA, ptsB, boxB, infoB, cenB, poseA, poseB, margin,
