@@ -352,3 +352,23 @@ def test_kernels_never_compile_during_a_query() -> None:
     closest_points(rng.normal(size=(30, 3)), rng.normal(size=(40, 3)), random_pose(rng))
     after = {name: len(k.signatures) for name, k in kernels.items()}
     assert before == after == {"dual_tree_query": 1, "build_tree": 1}
+
+
+def test_the_query_kernel_refuses_output_arrays_it_would_overrun() -> None:
+    """The kernel writes without bounds checks: too short an output must be refused,
+    not written past (it corrupted the heap before the check)."""
+    from reachwise.distance import _kernels as K
+    from reachwise.distance.index import build_index
+
+    rng = np.random.default_rng(7)
+    ta, tb = build_index(rng.normal(size=(20, 3))), build_index(rng.normal(size=(30, 3)))
+    args = (
+        ta.points, ta.boxes, ta.info, ta.perm, ta.centroid,
+        tb.points, tb.boxes, tb.info, tb.perm, tb.centroid,
+        np.eye(4), np.eye(4), math.inf, -1, -1, False,
+    )  # fmt: skip
+    for out, idx in ((np.empty(10), np.empty(2, np.int64)), (np.empty(9), np.empty(4, np.int64))):
+        with pytest.raises(ValueError, match="out needs 10 entries and out_idx 4"):
+            K.dual_tree_query(*args, out, idx)
+    idx = np.empty(4, np.int64)
+    assert K.dual_tree_query(*args, np.empty(10), idx) == 0 and idx.min() >= 0
