@@ -1,5 +1,6 @@
-"""The tree build (linear BVH in Morton order): the layout every query kernel relies on,
-checked node by node, and exact queries on clouds that stress the build."""
+"""The tree build (linear BVH in Morton order; a k-d tree for small clouds): the layout
+every query kernel relies on, checked node by node for both split rules, and exact
+queries on clouds that stress the build."""
 
 from __future__ import annotations
 
@@ -8,12 +9,25 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from reachwise.distance._build import _sorted_lsd, _sorted_msd, build_tree, morton_order, summary
+from reachwise.distance._build import (
+    MEDIAN_UP_TO,
+    _sorted_lsd,
+    _sorted_msd,
+    build_tree,
+    build_tree_as,
+    morton_order,
+    summary,
+)
 
 
-def check_layout(points: np.ndarray, leaf_size: int) -> None:
-    """Every property of the tree layout, against the input points."""
-    tp, perm, boxes, info = build_tree(np.ascontiguousarray(points, dtype=np.float64), leaf_size)
+def check_layout(points: np.ndarray, leaf_size: int, median: bool | None = None) -> None:
+    """Every property of the tree layout, against the input points (``median``: that
+    split rule; None: the one ``build_tree`` picks for the cloud's size)."""
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    if median is None:
+        tp, perm, boxes, info = build_tree(pts, leaf_size)
+    else:
+        tp, perm, boxes, info = build_tree_as(pts, summary(pts)[1], leaf_size, median)
     n = points.shape[0]
     assert sorted(perm.tolist()) == list(range(n))
     np.testing.assert_array_equal(tp, points[perm])
@@ -42,9 +56,10 @@ coords = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
 @given(
     arrays(np.float64, st.tuples(st.integers(1, 300), st.just(3)), elements=coords),
     st.integers(1, 16),
+    st.booleans(),
 )
-def test_layout_on_random_clouds(points: np.ndarray, leaf_size: int) -> None:
-    check_layout(points, leaf_size)
+def test_layout_on_random_clouds(points: np.ndarray, leaf_size: int, median: bool) -> None:
+    check_layout(points, leaf_size, median)
 
 
 def test_layout_on_clouds_that_share_cells() -> None:
@@ -54,7 +69,24 @@ def test_layout_on_clouds_that_share_cells() -> None:
     duplicates = np.repeat(rng.normal(size=(5, 3)), 200, axis=0)
     line = np.c_[np.linspace(0, 1, 1000), np.zeros(1000), np.zeros(1000)]
     for cloud in (np.vstack([dense, outliers]), duplicates, line, np.zeros((50, 3))):
-        check_layout(cloud, 8)
+        for median in (False, True):
+            check_layout(cloud, 8, median)
+
+
+def test_small_clouds_get_median_splits_and_large_ones_morton_cells() -> None:
+    """At and below MEDIAN_UP_TO points every split is at the median (the halves differ
+    by at most one point); above it the Morton rule's splits follow the octree cells."""
+    rng = np.random.default_rng(4)
+    for n, median in ((MEDIAN_UP_TO, True), (MEDIAN_UP_TO + 1, False)):
+        pts = rng.uniform(size=(n, 3)) ** 3  # skewed: cell splits are uneven
+        _, perm, _, info = build_tree(pts, 8)
+        ref = build_tree_as(pts, summary(pts)[1], 8, median)
+        np.testing.assert_array_equal(perm, ref[1])
+        inner = info[info[:, 2] >= 0]
+        sizes = inner[:, 1] - inner[:, 0]
+        # the left child holds info[right, 0] - start points: half of the range
+        balanced = np.abs(2 * (info[inner[:, 2], 0] - inner[:, 0]) - sizes) <= 1
+        assert balanced.all() == median
 
 
 def test_morton_order_sorts_by_interleaved_cell_bits() -> None:
