@@ -347,13 +347,15 @@ class SceneService:
             t0 = time.perf_counter()
             res = self.scene.query_all()
             compute = time.perf_counter() - t0
-            pairs = tuple(res.pairs)
-            if wanted is not None:
-                pairs = tuple(p for p in pairs if frozenset((p.a, p.b)) in wanted)
             layout = self._current_layout()
-            measured = self._measured_at(
-                pairs if wanted is not None else None, stamp, self._all_sources
-            )
+            if wanted is None:  # every pair: the scene's rows are the reply's (one array)
+                pairs: tuple[Any, ...] = ()
+                rows = res.rows
+                measured = self._measured_at(None, stamp, self._all_sources)
+            else:
+                pairs = tuple(p for p in res.pairs if frozenset((p.a, p.b)) in wanted)
+                rows = _rows(pairs)
+                measured = self._measured_at(pairs, stamp)
             seq = self.sequence.take()
             clouds = self._cloud_table(res.versions, res.cloud_stamps, layout)
             if wanted is None:
@@ -365,7 +367,7 @@ class SceneService:
                         compute_time=compute,
                         layout=layout.name,
                         pairs=None,
-                        rows=_rows(pairs),
+                        rows=rows,
                         objects=None,
                         robots=None,
                         clouds=clouds,
@@ -380,7 +382,7 @@ class SceneService:
                 compute,
                 name,
                 infos,
-                _rows(pairs),
+                rows,
                 layout.objects,
                 layout.robots,
                 clouds,
