@@ -28,11 +28,12 @@ With ``a`` the first objective and ``b`` the second:
 **When two designs are the same.** Objective values are compared in units of the
 front's extent (the range of each objective over the sweep's reaching designs). Two
 designs whose values differ by at most ``same`` (default 1 %) of that extent in both
-objectives are the same design for the front: the one found first is kept, the other
-is marked ``same_as`` it. A design is dominated when another is at least as good in
-both objectives up to that tolerance and better by more than it in one (ε-dominance):
-a design 0.01 % smaller but 30 % worse conditioned does not stand next to the better
-one as a trade-off.
+objectives are the same design for the front: of such twins, the first found that is
+not dominated is kept, the others are marked ``same_as`` it (a twin of a dominated
+design is judged on its own, ``classify``). A design is dominated when another is at
+least as good in both objectives up to that tolerance and better by more than it in
+one (ε-dominance): a design 0.01 % smaller but 30 % worse conditioned does not stand
+next to the better one as a trade-off.
 
 **Why the first version returned fewer designs than levels.** Its ε-points collapsed
 onto one design: once the continuation met the size term's kink (a length at 0, where
@@ -136,13 +137,17 @@ def check_names(names: Sequence[str]) -> tuple[str, str]:
 
 
 def dominated(
-    values: Array, senses: Sequence[int], tol: float = 1e-9, scale: Array | None = None
+    values: Array,
+    senses: Sequence[int],
+    tol: float = 1e-9,
+    scale: Array | None = None,
+    twins: bool = True,
 ) -> NDArray[np.bool_]:
     """Per row of ``values (m, k)``: is another row at least as good in every column
     (up to ``tol``) and better by more than ``tol`` in one (``senses``: +1 higher is
-    better, −1 lower)? Rows within ``tol`` of an earlier row in every column count as
-    dominated by it (one design, one point). Differences are measured in units of
-    ``scale`` per column (default: the column's largest magnitude)."""
+    better, −1 lower)? With ``twins``, rows within ``tol`` of an earlier row in every
+    column count as dominated by it (one design, one point). Differences are measured
+    in units of ``scale`` per column (default: the column's largest magnitude)."""
     v = np.asarray(values, dtype=np.float64) * np.asarray(senses, dtype=np.float64)
     if scale is None:
         scale = np.abs(v).max(axis=0) if len(v) else np.ones(v.shape[1])
@@ -155,7 +160,7 @@ def dominated(
                 continue
             d = (v[j] - v[i]) / scale
             same = bool(np.all(np.abs(d) <= tol))
-            if (same and j < i) or (not same and np.all(d >= -tol) and np.any(d > tol)):
+            if (twins and same and j < i) or (not same and np.all(d >= -tol) and np.any(d > tol)):
                 out[i] = True
                 break
     return out
@@ -174,22 +179,34 @@ def extent(values: Array) -> Array:
 def classify(points: Sequence[ParetoPoint], names: tuple[str, str], same: float = SAME
              ) -> list[ParetoPoint]:  # fmt: skip
     """``points`` with ``dominated`` and ``same_as`` set (module docstring): designs that
-    do not reach every pose are off the front; of the others, those ε-dominated or the
-    same as an earlier one."""
+    do not reach every pose are off the front; of the others, those ε-dominated, or the
+    same as an earlier design that is kept (in the order found).
+
+    A design is dropped as a twin only of a design that stays on the front: were it
+    dropped as the twin of an earlier design that is itself dominated, a chain of twins
+    and dominance could empty the front (seen on tunnel-87: 18 reaching designs, every
+    one marked). The ε-dominance alone never empties it: a design that ε-dominates
+    another is better by more than ``same`` in one objective and worse by at most
+    ``same`` in the other, so the sum of both (in units of the extent, signed so that
+    higher is better) grows strictly along it and the design with the largest sum is
+    not dominated; the first such design found is kept."""
     a, b = names
     ok = [p for p in points if p.all_reached]
     vals = np.array([[p.values[a], p.values[b]] for p in ok]).reshape(-1, 2)
     senses = (OBJECTIVES[a], OBJECTIVES[b])
     scale = extent(vals)
-    dom = dominated(vals, senses, same, scale) if ok else np.zeros(0, dtype=np.bool_)
+    beaten = dominated(vals, senses, same, scale, twins=False) if ok else np.zeros(0, bool)
+    flags: dict[int, bool] = {}
     twin: dict[int, int | None] = {}
+    kept: list[int] = []
     for i, p in enumerate(ok):
-        twin[p.index] = None
-        for j in range(i):
-            if np.all(np.abs(vals[j] - vals[i]) / scale <= same):
-                twin[p.index] = ok[j].index
-                break
-    flags = {p.index: bool(d) for p, d in zip(ok, dom, strict=True)}
+        twin[p.index] = next(
+            (ok[j].index for j in kept if np.all(np.abs(vals[j] - vals[i]) / scale <= same)),
+            None,
+        )
+        flags[p.index] = bool(beaten[i]) or twin[p.index] is not None
+        if not flags[p.index]:
+            kept.append(i)
     return [
         replace(p, dominated=flags.get(p.index, True), same_as=twin.get(p.index)) for p in points
     ]
