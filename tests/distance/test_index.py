@@ -110,3 +110,22 @@ def test_an_index_built_on_another_thread_is_installed_and_used() -> None:
     assert res.distance == pytest.approx(ref.distance, abs=1e-12)
     with pytest.raises(InputError, match="index"):
         registry.put(b, built[0])
+
+
+def test_a_lookup_never_returns_another_clouds_index() -> None:
+    """Entries are keyed by identity: an entry under a cloud's id whose reference gives
+    back another cloud (an id reused before the entry was dropped) is not its index,
+    and a freed cloud's entry goes with it."""
+    from reachwise.distance.index import IndexRegistry
+
+    reg = IndexRegistry()
+    a, b = clouds(2)
+    index_a = reg.get(a)
+    reg._entries[id(b)] = reg._entries[id(a)]  # b's id now points at a's entry
+    index_b = reg.get(b)
+    assert index_b is not index_a and len(index_b) == len(b)
+    np.testing.assert_allclose(index_b.centroid, b.points.mean(axis=0))
+    assert reg.builds == 2
+    del a, index_a
+    gc.collect()
+    assert list(reg._entries) == [id(b)]

@@ -86,14 +86,14 @@ def _run_default(
             ta.points, ta.boxes, ta.info, ta.perm, ta.centroid,
             pose_b, pose_a, margin, wb, wa, True, out, idx,
         )  # fmt: skip
-        ia, ib, ta_k, tb_k = int(idx[1]), int(idx[0]), int(idx[3]), int(idx[2])
+        ib, ia, tb_k, ta_k = idx.tolist()
     else:
         status = K.dual_tree_query(
             ta.points, ta.boxes, ta.info, ta.perm, ta.centroid,
             tb.points, tb.boxes, tb.info, tb.perm, tb.centroid,
             pose_a, pose_b, margin, wa, wb, False, out, idx,
         )  # fmt: skip
-        ia, ib, ta_k, tb_k = int(idx[0]), int(idx[1]), int(idx[2]), int(idx[3])
+        ia, ib, ta_k, tb_k = idx.tolist()
     if status != 0:
         return NO_RISK, (-1, -1)
     out.setflags(write=False)
@@ -120,6 +120,9 @@ _STRATEGY_FUNCS: dict[StrategyName, Strategy] = {
 
 
 def _check_strategy(strategy: object) -> Strategy:
+    fn = _STRATEGY_FUNCS.get(strategy) if type(strategy) is str else None  # type: ignore[call-overload]
+    if fn is not None:
+        return fn
     return _STRATEGY_FUNCS[check_choice(strategy, STRATEGIES, source="strategy", kind="strategy")]
 
 

@@ -10,9 +10,9 @@ frame (:mod:`reachwise.distance._build`), the centroid and the tight AABB — is
   thread — a worker that ingests a new scan while the control loop keeps querying the
   old one — and handed over whole; a :class:`CloudIndex` is immutable, so swapping one
   reference for another is atomic.
-- :class:`IndexRegistry` keeps the index of every cloud in use in a
-  ``weakref.WeakKeyDictionary`` keyed by the cloud: an entry lives as long as its cloud,
-  and repeated queries of the same cloud find it instead of rebuilding it
+- :class:`IndexRegistry` keeps the index of every cloud in use, keyed weakly by the
+  cloud (its identity, confirmed by a weak reference): an entry lives as long as its
+  cloud, and repeated queries of the same cloud find it instead of rebuilding it
   (:attr:`IndexRegistry.builds` counts the builds). :data:`INDICES` is the one the
   strategies and the scene use; :func:`cloud_index` looks a cloud up in it.
 
@@ -126,12 +126,15 @@ class IndexRegistry:
     :meth:`get` returns a cloud's index, building and keeping it on first use;
     :meth:`put` installs one built elsewhere (e.g. on a worker thread); :meth:`peek`
     looks without building. :attr:`builds` counts the indices :meth:`get` built.
+
+    Entries are keyed by the cloud's identity (``id``) next to a weak reference that
+    confirms it and removes the entry when the cloud is freed: a lookup is one dict
+    read and one dereference, no weak reference made per call (every single-pair
+    query makes two).
     """
 
     def __init__(self) -> None:
-        self._indices: weakref.WeakKeyDictionary[PointCloud, CloudIndex] = (
-            weakref.WeakKeyDictionary()
-        )
+        self._entries: dict[int, tuple[weakref.ref[PointCloud], CloudIndex]] = {}
         self._lock = threading.Lock()
         self._builds = 0
 
@@ -142,18 +145,25 @@ class IndexRegistry:
 
     def peek(self, cloud: PointCloud) -> CloudIndex | None:
         """The index kept for ``cloud``, or None (nothing is built)."""
-        return self._indices.get(cloud)
+        entry = self._entries.get(id(cloud))
+        if entry is not None and entry[0]() is cloud:
+            return entry[1]
+        return None
 
     def get(self, cloud: PointCloud) -> CloudIndex:
         """The index of ``cloud``: the one kept, else built now (outside the lock, so
         other lookups go on meanwhile) and kept for as long as the cloud lives."""
-        index = self._indices.get(cloud)
-        if index is None:
-            built = build_index(cloud.points)
-            with self._lock:
-                self._builds += 1
-                index = self._indices.setdefault(cloud, built)
-        return index
+        entry = self._entries.get(id(cloud))
+        if entry is not None and entry[0]() is cloud:
+            return entry[1]
+        built = build_index(cloud.points)
+        with self._lock:
+            kept = self.peek(cloud)
+            if kept is not None:  # another thread was first
+                return kept
+            self._builds += 1
+            self._keep(cloud, built)
+        return built
 
     def put(self, cloud: PointCloud, index: CloudIndex) -> None:
         """Keep ``index`` (built elsewhere from ``cloud``'s points) as ``cloud``'s."""
@@ -164,7 +174,22 @@ class IndexRegistry:
                 f"built from {len(index)} points, the cloud has {len(cloud)}",
             )
         with self._lock:
-            self._indices[cloud] = index
+            self._keep(cloud, index)
+
+    def _keep(self, cloud: PointCloud, index: CloudIndex) -> None:
+        """Store the entry (call under the lock)."""
+        key = id(cloud)
+        entries = self._entries
+
+        def forget(ref: weakref.ref[PointCloud]) -> None:
+            # the cloud is freed: drop its entry unless a newer cloud took its id. No
+            # lock: a collection may run this while the lock is held; a lookup never
+            # trusts an entry whose reference does not give back its cloud anyway
+            entry = entries.get(key)
+            if entry is not None and entry[0] is ref:
+                entries.pop(key, None)
+
+        entries[key] = (weakref.ref(cloud, forget), index)
 
 
 #: The registry the distance strategies and the scene use.
