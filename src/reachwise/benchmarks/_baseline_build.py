@@ -5,8 +5,9 @@ A frame became a :class:`~reachwise.geometry.cloud.PointCloud` (a copy and a NaN
 in numpy), then ``build_index`` copied the points again, built the tree with a
 two-pass 15-bit radix sort (a pass for the bounds, a separate gather), made the
 inverse permutation and took the mean in numpy. :func:`ingest_baseline` does exactly
-that; the tree kernel is the one of that commit, copied (its split and box helpers are
-unchanged in :mod:`reachwise.distance._build`).
+that: its sort and copies are the ones of that commit, copied here; the splits and
+boxes after the sort are unchanged since, so they are
+:func:`reachwise.distance._build.tree_of_sorted`.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from reachwise.distance._build import MORTON_BITS, _split, _spread
+from reachwise.distance._build import MORTON_BITS, _spread, tree_of_sorted
 from reachwise.geometry.cloud import PointCloud
 
 _RADIX = 1 << 15
@@ -102,71 +103,7 @@ def build_tree(points, leaf_size):  # type: ignore[no-untyped-def]
         pts[i, 0] = points[r, 0]
         pts[i, 1] = points[r, 1]
         pts[i, 2] = points[r, 2]
-    cap = 2 * (n // max(1, leaf_size // 2)) + 3
-    info = np.empty((cap, 3), np.int64)
-    st_s = np.empty(512, np.int64)
-    st_e = np.empty(512, np.int64)
-    st_p = np.empty(512, np.int64)
-    st_s[0] = 0
-    st_e[0] = n
-    st_p[0] = -1
-    sp = 1
-    count = 0
-    while sp > 0:
-        sp -= 1
-        s = st_s[sp]
-        e = st_e[sp]
-        parent = st_p[sp]
-        if count == info.shape[0]:
-            grown = np.empty((2 * count, 3), np.int64)
-            grown[:count] = info
-            info = grown
-        node = count
-        count += 1
-        if parent >= 0:
-            info[parent, 2] = node
-        info[node, 0] = s
-        info[node, 1] = e
-        info[node, 2] = -1
-        if e - s <= leaf_size:
-            continue
-        m = _split(pts, idx, codes, s, e)
-        st_s[sp] = m  # right child: pushed first, built after the whole left subtree
-        st_e[sp] = e
-        st_p[sp] = node
-        sp += 1
-        st_s[sp] = s  # left child: built next, so it gets id node + 1
-        st_e[sp] = m
-        st_p[sp] = -1
-        sp += 1
-    boxes = np.empty((count, 6))
-    for k in range(count - 1, -1, -1):
-        r = info[k, 2]
-        if r < 0:
-            lx = ly = lz = np.inf
-            hx = hy = hz = -np.inf
-            for i in range(info[k, 0], info[k, 1]):
-                x = pts[i, 0]
-                y = pts[i, 1]
-                z = pts[i, 2]
-                lx = min(lx, x)
-                hx = max(hx, x)
-                ly = min(ly, y)
-                hy = max(hy, y)
-                lz = min(lz, z)
-                hz = max(hz, z)
-            boxes[k, 0] = lx
-            boxes[k, 1] = ly
-            boxes[k, 2] = lz
-            boxes[k, 3] = hx
-            boxes[k, 4] = hy
-            boxes[k, 5] = hz
-        else:
-            left = k + 1
-            for c in range(3):
-                boxes[k, c] = min(boxes[left, c], boxes[r, c])
-                boxes[k, c + 3] = max(boxes[left, c + 3], boxes[r, c + 3])
-    return pts, idx, boxes, info[:count].copy()
+    return tree_of_sorted(pts, idx, codes, leaf_size, False)
 
 
 def ingest_baseline(points: NDArray[np.float64], leaf_size: int = 8) -> tuple[object, ...]:

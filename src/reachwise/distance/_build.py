@@ -477,18 +477,13 @@ _SIG_BUILD_AS = [
 ]
 
 
-@njit(_SIG_BUILD_AS, cache=True, nogil=True)
-def build_tree_as(points, bounds, leaf_size, median):  # type: ignore[no-untyped-def]
-    """The tree of ``points`` with one split rule: Morton cells (``median`` False; a
-    range within one cell still splits at its median) or the median of the widest axis
-    of every range (``median`` True: a k-d tree; the points are not Morton-sorted)."""
-    n = points.shape[0]
-    if median:
-        pts = points.copy()
-        idx = np.arange(n)
-        codes = np.zeros(n, np.int64)  # one cell: every range splits at its median
-    else:
-        pts, idx, codes = _sorted(points, bounds)
+@njit(cache=True, nogil=True)
+def tree_of_sorted(pts, idx, codes, leaf_size, median):  # type: ignore[no-untyped-def]
+    """The tree over ``pts`` (already gathered in the order ``idx`` of their Morton
+    ``codes``; any order for ``median``): ranges split top-down by :func:`_split`
+    (reordering ``pts`` and ``idx`` in place), then the boxes bottom-up. Returns what
+    :func:`build_tree` does."""
+    n = pts.shape[0]
     cap = 2 * (n // max(1, leaf_size // 2)) + 3
     info = np.empty((cap, 3), np.int64)
     st_s = np.empty(512, np.int64)
@@ -554,6 +549,21 @@ def build_tree_as(points, bounds, leaf_size, median):  # type: ignore[no-untyped
                 boxes[k, c] = min(boxes[left, c], boxes[r, c])
                 boxes[k, c + 3] = max(boxes[left, c + 3], boxes[r, c + 3])
     return pts, idx, boxes, info[:count].copy()
+
+
+@njit(_SIG_BUILD_AS, cache=True, nogil=True)
+def build_tree_as(points, bounds, leaf_size, median):  # type: ignore[no-untyped-def]
+    """The tree of ``points`` with one split rule: Morton cells (``median`` False; a
+    range within one cell still splits at its median) or the median of the widest axis
+    of every range (``median`` True: a k-d tree; the points are not Morton-sorted)."""
+    n = points.shape[0]
+    if median:
+        pts = points.copy()
+        idx = np.arange(n)
+        codes = np.zeros(n, np.int64)  # one cell: every range splits at its median
+    else:
+        pts, idx, codes = _sorted(points, bounds)
+    return tree_of_sorted(pts, idx, codes, leaf_size, median)
 
 
 @njit(_SIG_BUILD_IN, cache=True, nogil=True)
