@@ -11,8 +11,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from reachwise.errors import UnknownName
 from reachwise.geometry.checks import finite_number
@@ -23,6 +25,28 @@ from reachwise.geometry.scanner import LaserScanner
 __all__ = ["SCENES", "get_scene", "p5_floor_obstacle", "p5_occlusion"]
 
 _SRC = "scanner"
+
+
+def _floor_and_box(
+    obstacle_size: tuple[float, float, float], obstacle_center: tuple[float, float]
+) -> tuple[Any, Any, NDArray[np.float64]]:
+    """A 16 m square floor at z = 0 and a box of ``obstacle_size`` (x, y, z; m) standing
+    on it at ``obstacle_center`` (x, y; m): the two trimesh meshes and the box's
+    corners ``[[lo xyz], [hi xyz]]`` (InputError for a bad size or centre)."""
+    import trimesh
+
+    sx, sy, sz = (finite_number(v, _SRC, "obstacle_size", positive=True) for v in obstacle_size)
+    cx, cy = (finite_number(v, _SRC, "obstacle_center") for v in obstacle_center)
+    half = 8.0
+    floor = trimesh.Trimesh(
+        vertices=[[-half, -half, 0.0], [half, -half, 0.0], [half, half, 0.0], [-half, half, 0.0]],
+        faces=[[0, 1, 2], [0, 2, 3]],
+        process=False,
+    )
+    box = trimesh.creation.box(extents=(sx, sy, sz))
+    box.apply_translation((cx, cy, sz / 2.0))
+    corners = np.array([[cx - sx / 2, cy - sy / 2, 0.0], [cx + sx / 2, cy + sy / 2, sz]])
+    return floor, box, corners
 
 
 def p5_floor_obstacle(
@@ -57,18 +81,7 @@ def p5_floor_obstacle(
     x = 3.05 m to 3.91 m) lies inside the working area, as in P-V Fig. 3. The
     arguments change the obstacle; ``scanner`` replaces the default scanner.
     """
-    import trimesh
-
-    sx, sy, sz = (finite_number(v, _SRC, "obstacle_size", positive=True) for v in obstacle_size)
-    cx, cy = (finite_number(v, _SRC, "obstacle_center") for v in obstacle_center)
-    half = 8.0
-    floor = trimesh.Trimesh(
-        vertices=[[-half, -half, 0.0], [half, -half, 0.0], [half, half, 0.0], [-half, half, 0.0]],
-        faces=[[0, 1, 2], [0, 2, 3]],
-        process=False,
-    )
-    box = trimesh.creation.box(extents=(sx, sy, sz))
-    box.apply_translation((cx, cy, sz / 2.0))
+    floor, box, obstacle = _floor_and_box(obstacle_size, obstacle_center)
     if scanner is None:
         pose = np.eye(4)
         pose[:3, 3] = (0.0, 0.0, 2.5)
@@ -84,7 +97,7 @@ def p5_floor_obstacle(
         crop_min=np.array([1.5, -1.08, -0.1]),
         crop_max=np.array([4.0, 1.08, 1.0]),
         voxel=DEFAULT_VOXEL,
-        obstacles=(np.array([[cx - sx / 2, cy - sy / 2, 0.0], [cx + sx / 2, cy + sy / 2, sz]]),),
+        obstacles=(obstacle,),
         description="P-V stand-in: a floor with a box obstacle, nodding scanner 2.5 m up",
         ground=0.0,
     )
@@ -110,18 +123,7 @@ def p5_occlusion(
     around the obstacle and one face of it: whatever passes behind that face sees
     nothing, which :func:`shadow_points` fills.
     """
-    import trimesh
-
-    sx, sy, sz = (finite_number(v, _SRC, "obstacle_size", positive=True) for v in obstacle_size)
-    cx, cy = (finite_number(v, _SRC, "obstacle_center") for v in obstacle_center)
-    half = 8.0
-    floor = trimesh.Trimesh(
-        vertices=[[-half, -half, 0.0], [half, -half, 0.0], [half, half, 0.0], [-half, half, 0.0]],
-        faces=[[0, 1, 2], [0, 2, 3]],
-        process=False,
-    )
-    box = trimesh.creation.box(extents=(sx, sy, sz))
-    box.apply_translation((cx, cy, sz / 2.0))
+    floor, box, obstacle = _floor_and_box(obstacle_size, obstacle_center)
     if scanner is None:
         pose = np.eye(4)
         pose[:3, 3] = (-1.0, 0.0, 0.8)
@@ -137,7 +139,7 @@ def p5_occlusion(
         crop_min=np.array([1.5, -1.5, -0.1]),
         crop_max=np.array([4.0, 1.5, 1.5]),
         voxel=DEFAULT_VOXEL,
-        obstacles=(np.array([[cx - sx / 2, cy - sy / 2, 0.0], [cx + sx / 2, cy + sy / 2, sz]]),),
+        obstacles=(obstacle,),
         description="P-V occlusion variant: a 1 m box seen only from the front, scanner 0.8 m up",
         ground=0.0,
     )
