@@ -79,7 +79,19 @@ MARGIN = 0.05  # m, the panda-shelf scenario's environment margin
 FRAMES = 12  # distinct camera frames, handed over in turn
 ROOM = (np.array([-2.0, -2.5, 0.0]), np.array([3.0, 2.5, 2.8]))  # lo, hi corners (m)
 TABLE = (np.array([-0.9, 0.5, 0.0]), np.array([-0.3, 1.3, 0.75]))  # a box on the floor
-SHELF = (np.array([0.45, -0.4, 0.0]), np.array([0.75, 0.4, 0.9]))  # panda-shelf's shelf box
+#: panda-shelf's shelf (meshes/shelf.obj at x = 0.45 m) as its seven 0.02 m plates: four
+#: boards (bottoms at z = 0, 0.30, 0.62, 0.88 m), the back panel and two sides. Its
+#: compartments stay open, so the scenario's goal inside the middle one stays reachable.
+_SHELF_AT = np.array([0.45, 0.0, 0.0])
+SHELF_PLATES = tuple(
+    (np.array(lo) + _SHELF_AT, np.array(hi) + _SHELF_AT)
+    for lo, hi in [
+        *(([0.0, -0.4, z], [0.3, 0.4, z + 0.02]) for z in (0.0, 0.30, 0.62, 0.88)),
+        ([0.28, -0.4, 0.0], [0.3, 0.4, 0.9]),
+        ([0.0, -0.4, 0.0], [0.3, -0.38, 0.9]),
+        ([0.0, 0.38, 0.0], [0.3, 0.4, 0.9]),
+    ]
+)
 CAMERA_AT = np.array([2.2, -1.8, 1.9])
 CAMERA_LOOKS_AT = np.array([0.3, 0.0, 0.5])
 
@@ -131,7 +143,7 @@ def _ray_room(o: Any, d: Any) -> Any:
 
 def camera_frame(k: int, seed: int = 5) -> NDArray[np.float32]:
     """Depth frame ``k``: 640×480 pinhole rays (60° wide) from :data:`CAMERA_AT`, the
-    first hit of each in the room, the table, the shelf's box or a person (a 0.2 m
+    first hit of each in the room, the table, the shelf's plates or a person (a 0.2 m
     radius, 1.75 m cylinder approximated by its bounding box) walking past, 4 mm noise;
     every ray hits (the room is closed): 307 200 points, float32 as a camera gives them."""
     w, h = CAMERA_SIZE
@@ -149,7 +161,7 @@ def camera_frame(k: int, seed: int = 5) -> NDArray[np.float32]:
     person = np.array([1.2 + 0.3 * math.cos(phase), -0.9 + 0.6 * math.sin(phase), 0.0])
     body = (person - np.array([0.2, 0.2, 0.0]), person + np.array([0.2, 0.2, 1.75]))
     t = _ray_room(o, d)
-    for lo, hi in (TABLE, SHELF, body):
+    for lo, hi in (TABLE, *SHELF_PLATES, body):
         t = np.minimum(t, _ray_box(o, d, lo, hi))
     rng = np.random.default_rng([seed, k])
     pts = o + d * (t + rng.normal(scale=0.004, size=t.shape))[:, None]
@@ -199,6 +211,9 @@ class _Arm:
     goals: list[Goal]
     q: NDArray[np.float64]
     real: bool
+    #: The controller's margin of each of the scene's pairs where it differs from the
+    #: scene's (a scenario watches its pairs out to margin + monitor range).
+    margins: dict[tuple[str, str], float]
 
 
 def _real_arm() -> _Arm:
@@ -212,8 +227,16 @@ def _real_arm() -> _Arm:
     cfg = agent.controller.config
     ctrl = Controller(agent.robot, replace(cfg, safety=replace(cfg.safety, dt=DT)))
     goals = [g for g, _ in agent.own]
+    margins = {(p.a, p.b): float(m) for p, m in zip(world.scene.pairs, world.margins, strict=True)}
     return _Arm(
-        world.scene, agent.robot, ctrl, agent.converter, goals, np.array(agent.plant.q), True
+        world.scene,
+        agent.robot,
+        ctrl,
+        agent.converter,
+        goals,
+        np.array(agent.plant.q),
+        True,
+        margins,
     )
 
 
@@ -237,7 +260,7 @@ def _builtin_arm() -> _Arm:
     scene.watch_self(robot.name, 0.025)
     ctrl = Controller(robot, ControllerConfig(safety=SafetyConfig(dt=DT)))
     goals = [Goal.at([0.45, -0.2, 0.45]), Goal.at([0.25, 0.3, 0.7])]
-    return _Arm(scene, robot, ctrl, SceneConverter(scene, robot), goals, q0, False)
+    return _Arm(scene, robot, ctrl, SceneConverter(scene, robot), goals, q0, False, {})
 
 
 def _arm() -> tuple[_Arm, str]:
@@ -247,19 +270,33 @@ def _arm() -> tuple[_Arm, str]:
         return _builtin_arm(), f"built-in panda with capsule clouds ({exc})"
 
 
-def _loop(rep: BenchReport, quick: bool) -> None:
+def loop_scene(
+    room: NDArray[np.float64], camera: NDArray[np.float32]
+) -> tuple[_Arm, SceneConverter, str]:
+    """The loop's world: the arm (:func:`_arm`), the ``room`` scan and a first
+    ``camera`` frame, links 1–7 watched against both at :data:`MARGIN` (the base stands
+    on the floor), and the converter that gives the controller each pair's own margin
+    (the scenario's pairs are watched out to their margin plus its monitor range)."""
     arm, which = _arm()
     scene, robot = arm.scene, arm.robot
-    frames = [camera_frame(k) for k in range(FRAMES)]
-    scene.add_object("room", room_points())
-    scene.add_object("camera", frames[0])
+    scene.add_object("room", room)
+    scene.add_object("camera", camera)
     for o in scene.robot_objects(robot.name):
         link = o.source.link if isinstance(o.source, OnLink) else ""
         if link == robot.link_names[0]:
             continue  # the base stands on the floor
         scene.watch(o.name, "room", MARGIN, kind="robot-environment")
         scene.watch(o.name, "camera", MARGIN, kind="robot-environment")
-    converter = SceneConverter(scene, robot, tool_links=arm.converter.tool_links)
+    converter = SceneConverter(
+        scene, robot, tool_links=arm.converter.tool_links, margins=arm.margins
+    )
+    return arm, converter, which
+
+
+def _loop(rep: BenchReport, quick: bool) -> None:
+    frames = [camera_frame(k) for k in range(FRAMES)]
+    arm, converter, which = loop_scene(room_points(), frames[0])
+    scene, robot = arm.scene, arm.robot
     ctrl = arm.controller
     q = arm.q.copy()
     duration = 3.0 if quick else 10.0
