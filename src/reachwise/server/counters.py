@@ -39,10 +39,16 @@ class Metrics:
         self._compute = np.zeros(n, dtype=np.int64)
         self._handling = np.zeros(n, dtype=np.int64)
         self._pending: list[tuple[float, float]] = []
+        self._ticks = 0  # queries that came as binary ticks, counted apart (no lock)
 
     def request(self, op: str) -> None:
         with self._lock:
             self._requests[op] += 1
+
+    def tick(self) -> None:
+        """Count one query that came as a binary tick. Without a lock (the per-tick
+        path): call it under one lock that every caller holds (the service's)."""
+        self._ticks += 1
 
     def error(self, code: P.ErrorCode) -> None:
         with self._lock:
@@ -72,12 +78,20 @@ class Metrics:
             return P.MetricsReply(
                 uptime,
                 sequence,
-                dict(self._requests),
+                _with_ticks(self._requests, self._ticks),
                 dict(self._errors),
                 LATENCY_EDGES_US,
                 tuple(int(c) for c in self._compute),
                 tuple(int(c) for c in self._handling),
             )
+
+
+def _with_ticks(requests: Counter[str], ticks: int) -> dict[str, int]:
+    """The request counts, binary ticks counted as queries."""
+    out = dict(requests)
+    if ticks:
+        out["query"] = out.get("query", 0) + ticks
+    return out
 
 
 class SequenceCounter:

@@ -94,6 +94,17 @@ def _err(code: P.ErrorCode, field: str, message: str) -> P.ProtocolError:
     return P.ProtocolError(code, field, message)
 
 
+def _protocol_error(exc: Exception, op: str) -> P.ProtocolError:
+    """What a request's failure is on the wire: a :class:`ProtocolError` as it is,
+    a scene input error ``invalid``, anything unexpected ``internal`` (logged)."""
+    if isinstance(exc, P.ProtocolError):
+        return exc
+    if isinstance(exc, InputError):
+        return _err(P.ErrorCode.INVALID, exc.field or exc.source, str(exc))
+    log.exception("request %s failed", op)
+    return _err(P.ErrorCode.INTERNAL, "", f"{type(exc).__name__}: {exc}")
+
+
 def _names(names: Iterable[str], shown: int = 10) -> str:
     """A short sorted list of names for an error message."""
     all_ = sorted(names)
@@ -166,7 +177,7 @@ class SceneService:
         self._all_sources: tuple[tuple[str, str], ...] = ()  # of the layout's pairs
         # the cloud table of the answers, kept while neither the versions nor the
         # layout change (one per swap, not one per query)
-        self._clouds: tuple[object, int, NDArray[np.float64]] | None = None
+        self._clouds: tuple[object, int, NDArray[np.float64], bytes] | None = None
         # wire version = scene version + base (non-zero after a restore)
         self._version_base: dict[str, int] = {}
         # per object the newest handed-over cloud not saved yet
@@ -208,13 +219,8 @@ class SceneService:
             raise _err(P.ErrorCode.NOT_READY, "op", f"the server is {self.state}{why}")
         try:
             return self._handlers[type(request)](request)
-        except P.ProtocolError:
-            raise
-        except InputError as exc:
-            raise _err(P.ErrorCode.INVALID, exc.field or exc.source, str(exc)) from None
         except Exception as exc:
-            log.exception("request %s failed", request.OP)
-            raise _err(P.ErrorCode.INTERNAL, "", f"{type(exc).__name__}: {exc}") from None
+            raise _protocol_error(exc, request.OP) from None
 
     # ------------------------------------------------------------------ lookups
     def _robot(self, name: str, where: str) -> Robot:
@@ -321,92 +327,152 @@ class SceneService:
     def _query(self, req: P.Query) -> P.Reply:
         stamp = self.clock() if req.stamp is None else req.stamp
         with self.lock:
-            # every input is checked before any is applied: a query's inputs are atomic
-            for name, q in (req.joints or {}).items():
-                where = f"body.joints.{name}"
-                self._check_q(self._robot(name, where), q, where)
-            poses = {
-                name: self._checked_pose(name, pose, f"body.poses.{name}", f"body.poses.{name}")
-                for name, pose in (req.poses or {}).items()
-            }
-            wanted = None
             if req.pairs is not None:
-                watched = {frozenset((p.a, p.b)) for p in self.scene.pairs}
-                for i, (a, b) in enumerate(req.pairs):
-                    if frozenset((a, b)) not in watched:
-                        raise _err(
-                            P.ErrorCode.UNKNOWN_PAIR,
-                            f"body.pairs[{i}]",
-                            f"pair ({a!r}, {b!r}) is not watched",
-                        )
-                wanted = {frozenset(p) for p in req.pairs}
-            for name, q in (req.joints or {}).items():
-                self._store_joints(name, q, stamp)
-            for name, pose in poses.items():
-                self._store_pose(name, pose, stamp)
-            t0 = time.perf_counter()
-            res = self.scene.query_all()
-            compute = time.perf_counter() - t0
-            layout = self._current_layout()
-            if wanted is None:  # every pair: the scene's rows are the reply's (one array)
-                pairs: tuple[Any, ...] = ()
-                rows = res.rows
-                measured = self._measured_at(None, stamp, self._all_sources)
-            else:
-                pairs = tuple(p for p in res.pairs if frozenset((p.a, p.b)) in wanted)
-                rows = _rows(pairs)
-                measured = self._measured_at(pairs, stamp)
-            seq = self.sequence.take()
-            clouds = self._cloud_table(res.versions, res.cloud_stamps, layout)
-            if wanted is None:
-                if req.layout == layout.name:  # the per-tick answer: every field made here
-                    reply: P.QueryReply = P.unchecked(
-                        P.QueryReply,
-                        sequence=seq,
-                        measured_at=measured,
-                        compute_time=compute,
-                        layout=layout.name,
-                        pairs=None,
-                        rows=rows,
-                        objects=None,
-                        robots=None,
-                        clouds=clouds,
-                    )
-                    return reply
-                name, infos = layout.name, layout.pairs
-            else:
-                name, infos = "", tuple(P.PairInfo(p.a, p.b, p.margin, p.kind) for p in pairs)
+                return self._query_pairs(req, stamp)
+            layout = self._layout or self._current_layout()
+            seq, measured, compute, rows, clouds, _ = self._answer_every(
+                stamp, req.joints, req.poses, layout
+            )
+            if req.layout == layout.name:  # the per-tick answer: every field made here
+                reply: P.QueryReply = P.unchecked(
+                    P.QueryReply,
+                    sequence=seq,
+                    measured_at=measured,
+                    compute_time=compute,
+                    layout=layout.name,
+                    pairs=None,
+                    rows=rows,
+                    objects=None,
+                    robots=None,
+                    clouds=clouds,
+                )
+                return reply
             return P.QueryReply(
                 seq,
                 measured,
                 compute,
-                name,
-                infos,
+                layout.name,
+                layout.pairs,
                 rows,
                 layout.objects,
                 layout.robots,
                 clouds,
             )
 
-    def tick(self, raw: P.Buffer, limits: P.Limits) -> tuple[bytes, P.QueryReply | None]:
+    def _checked_inputs(
+        self,
+        joints: Mapping[str, NDArray[np.float64]] | None,
+        poses: Mapping[str, NDArray[np.float64]] | None,
+    ) -> dict[str, NDArray[np.float64]]:
+        """Check a query's joint states and poses (call under the lock); the checked
+        poses. Every input is checked before any is applied: a query's inputs are
+        atomic."""
+        for name, q in (joints or {}).items():
+            where = f"body.joints.{name}"
+            self._check_q(self._robot(name, where), q, where)
+        return {
+            name: self._checked_pose(name, pose, f"body.poses.{name}", f"body.poses.{name}")
+            for name, pose in (poses or {}).items()
+        }
+
+    def _apply_inputs(
+        self,
+        joints: Mapping[str, NDArray[np.float64]] | None,
+        poses: Mapping[str, NDArray[np.float64]],
+        stamp: float,
+    ) -> None:
+        """Apply checked joint states and poses (call under the lock)."""
+        for name, q in (joints or {}).items():
+            self._store_joints(name, q, stamp)
+        for name, pose in poses.items():
+            self._store_pose(name, pose, stamp)
+
+    def _answer_every(
+        self,
+        stamp: float,
+        joints: Mapping[str, NDArray[np.float64]] | None,
+        poses: Mapping[str, NDArray[np.float64]] | None,
+        layout: P.Layout,
+    ) -> tuple[int, float, float, NDArray[np.float64], NDArray[np.float64], bytes]:
+        """Apply a query's inputs and answer every watched pair (call under the lock,
+        ``layout`` the current one): sequence, measured_at, compute time, the rows (in
+        the layout's pair order), the cloud table and its bytes."""
+        if joints or poses:
+            self._apply_inputs(joints, self._checked_inputs(joints, poses), stamp)
+        clock = time.perf_counter
+        t0 = clock()
+        res = self.scene.query_all()
+        compute = clock() - t0
+        measured = self._measured_at(None, stamp, self._all_sources)
+        clouds, cloud_bytes = self._cloud_table(res.versions, res.cloud_stamps, layout)
+        return self.sequence.take(), measured, compute, res.rows, clouds, cloud_bytes
+
+    def _query_pairs(self, req: P.Query, stamp: float) -> P.Reply:
+        """A query of chosen watched pairs (call under the lock): their rows alone,
+        with their own list (no layout a tick can refer to)."""
+        poses = self._checked_inputs(req.joints, req.poses)
+        watched = {frozenset((p.a, p.b)) for p in self.scene.pairs}
+        for i, (a, b) in enumerate(req.pairs or ()):
+            if frozenset((a, b)) not in watched:
+                raise _err(
+                    P.ErrorCode.UNKNOWN_PAIR,
+                    f"body.pairs[{i}]",
+                    f"pair ({a!r}, {b!r}) is not watched",
+                )
+        wanted = {frozenset(p) for p in req.pairs or ()}
+        self._apply_inputs(req.joints, poses, stamp)
+        t0 = time.perf_counter()
+        res = self.scene.query_all()
+        compute = time.perf_counter() - t0
+        layout = self._current_layout()
+        pairs = tuple(p for p in res.pairs if frozenset((p.a, p.b)) in wanted)
+        measured = self._measured_at(pairs, stamp)
+        seq = self.sequence.take()
+        clouds, _ = self._cloud_table(res.versions, res.cloud_stamps, layout)
+        return P.QueryReply(
+            seq,
+            measured,
+            compute,
+            "",
+            tuple(P.PairInfo(p.a, p.b, p.margin, p.kind) for p in pairs),
+            _rows(pairs),
+            layout.objects,
+            layout.robots,
+            clouds,
+        )
+
+    def tick(self, raw: P.Buffer, limits: P.Limits) -> tuple[bytes, float | None]:
         """Answer one binary tick (:mod:`reachwise.server.protocol.tick`): the reply
-        frame (a tick, or a typed error frame) and the reply. The layout is held (the
-        lock) from decoding to answering, so the indices mean what the client meant."""
+        frame (a tick, or a typed error frame) and the answer's computation time (s;
+        None for an error). The layout is held (the lock) from decoding to answering,
+        so the indices mean what the client meant.
+
+        The per-tick path: the frame is read straight into the inputs and the reply
+        written from the answer's parts (no :class:`~reachwise.server.protocol.Query`
+        or :class:`~reachwise.server.protocol.QueryReply` is made); the answer, the
+        checks and the typed errors are :meth:`handle`'s for that query."""
+        rid = None
         try:
             with self.lock:
-                if not self.ready:
+                if self.state != "ready":
                     why = f": {self.reason}" if self.reason else ""
                     raise _err(P.ErrorCode.NOT_READY, "op", f"the server is {self.state}{why}")
-                layout = self._current_layout()
-                rid, req = P.decode_tick(raw, layout, limits)
-                self.metrics.request(req.OP)
-                reply = self.handle(req)
-        except P.ProtocolError as exc:
-            self.metrics.error(exc.code)
-            return P.encode_error(exc.request_id, P.ErrorReply.of(exc)), None
-        if not isinstance(reply, P.QueryReply):  # handle() answers a Query so
-            raise TypeError(f"a query was answered with {type(reply).__name__}")
-        return P.encode_tick_reply(rid, reply, layout), reply
+                layout = self._layout or self._current_layout()
+                rid, stamp, joints, poses = P.read_tick(raw, layout, limits)
+                self.metrics.tick()
+                seq, measured, compute, rows, clouds, cloud_bytes = self._answer_every(
+                    self.clock() if stamp is None else stamp, joints, poses, layout
+                )
+        except Exception as exc:
+            err = _protocol_error(exc, "query")
+            if err.request_id is None:
+                err.request_id = rid
+            self.metrics.error(err.code)
+            return P.encode_error(err.request_id, P.ErrorReply.of(err)), None
+        frame = P.tick_reply_frame(
+            rid, seq, layout.key, measured, compute, rows, clouds.shape[0], cloud_bytes
+        )
+        return frame, compute
 
     def _current_layout(self) -> P.Layout:
         """The layout of the answers: watched pairs, objects, robots (call under the lock)."""
@@ -426,13 +492,14 @@ class SceneService:
 
     def _cloud_table(
         self, versions: Mapping[str, int], stamps: Mapping[str, float], layout: P.Layout
-    ) -> NDArray[np.float64]:
-        """Version and stamp of each object's cloud in layout order (call under the
-        lock); the scene replaces its version map at every swap, so one table serves
-        every answer until the next swap or layout change."""
+    ) -> tuple[NDArray[np.float64], bytes]:
+        """Version and stamp of each object's cloud in layout order, and the table's
+        bytes in a tick reply (call under the lock); the scene replaces its version map
+        at every swap, so one table serves every answer until the next swap or layout
+        change."""
         cached = self._clouds
         if cached is not None and cached[0] is versions and cached[1] == layout.key:
-            return cached[2]
+            return cached[2], cached[3]
         base = self._version_base
         table = np.array(
             [
@@ -442,8 +509,8 @@ class SceneService:
             dtype=np.float64,
         ).reshape(len(layout.objects), P.CLOUD_COLUMNS)
         table.setflags(write=False)
-        self._clouds = (versions, layout.key, table)
-        return table
+        self._clouds = (versions, layout.key, table, table.tobytes())
+        return table, self._clouds[3]
 
     def _measured_at(
         self,

@@ -158,6 +158,8 @@ from reachwise.server.protocol.tick import (
     encode_tick_reply,
     is_tick,
     is_tick_reply,
+    read_tick,
+    tick_reply_frame,
 )
 
 __all__ = [
@@ -233,5 +235,7 @@ __all__ = [
     "is_tick",
     "is_tick_reply",
     "layout_key",
+    "read_tick",
+    "tick_reply_frame",
     "unchecked",
 ]

@@ -64,6 +64,8 @@ __all__ = [
     "encode_tick_reply",
     "is_tick",
     "is_tick_reply",
+    "read_tick",
+    "tick_reply_frame",
 ]
 
 TICK_MAGIC = b"RWq\x01"
@@ -131,6 +133,21 @@ def _error(code: ErrorCode, field: str, message: str, rid: int | None) -> Protoc
 def decode_tick(raw: Buffer, layout: Layout, limits: Limits) -> tuple[int, Query]:
     """Check one tick frame against the server's current ``layout`` and give the
     request id and the :class:`Query` it stands for; raises :class:`ProtocolError`."""
+    rid, stamp, joints, poses = read_tick(raw, layout, limits)
+    query: Query = unchecked(
+        Query, stamp=stamp, joints=joints, poses=poses, pairs=None, layout=layout.name
+    )
+    return rid, query
+
+
+def read_tick(
+    raw: Buffer, layout: Layout, limits: Limits
+) -> tuple[
+    int, float | None, dict[str, NDArray[np.float64]] | None, dict[str, NDArray[np.float64]] | None
+]:
+    """:func:`decode_tick` without making the :class:`Query`: the request id, the
+    stamp (None: none), the joint states and the poses (None: no entries of that kind),
+    every one checked as :func:`decode_tick` checks it (the server's per-tick path)."""
     n = len(raw)
     if n > limits.max_message_bytes:
         raise _error(
@@ -157,23 +174,16 @@ def decode_tick(raw: Buffer, layout: Layout, limits: Limits) -> tuple[int, Query
             f"layout {key} is not the current one; send the query in full",
             rid,
         )
-    if math.isinf(stamp):
+    if stamp != stamp:  # NaN: no stamp
+        stamp = None
+    elif math.isinf(stamp):
         raise _error(ErrorCode.NON_FINITE, "body.stamp", f"must be finite, got {stamp!r}", rid)
-    joints: dict[str, NDArray[np.float64]] | None = None
-    poses: dict[str, NDArray[np.float64]] | None = None
     if nj or npose:
         joints, poses = _entries(raw, n, rid, nj, npose, layout)
-    elif n != _REQUEST.size:
+        return rid, stamp, joints, poses
+    if n != _REQUEST.size:
         raise _error(ErrorCode.WRONG_SHAPE, "values", "a tick without entries has no values", rid)
-    query: Query = unchecked(
-        Query,
-        stamp=None if stamp != stamp else stamp,
-        joints=joints,
-        poses=poses,
-        pairs=None,
-        layout=layout.name,
-    )
-    return rid, query
+    return rid, stamp, None, None
 
 
 #: ``struct`` readers of the entries of a tick, by entry count.
@@ -233,7 +243,7 @@ def _entries(
                 rid,
             )
         name = names[i]
-        v = values[off : off + c]
+        v = values if ne == 1 else values[off : off + c]  # one entry: every value
         off += c
         if not finite:
             bad = c - int(np.count_nonzero(np.isfinite(v)))
@@ -272,24 +282,46 @@ def _entries(
 
 def encode_tick_reply(request_id: int, reply: QueryReply, layout: Layout) -> bytes:
     """The tick frame of ``reply`` (an answer to every pair of ``layout``)."""
-    rows = reply.rows
     clouds = reply.clouds
     if clouds is None:
         clouds = np.empty((0, CLOUD_COLUMNS))
-    head = _REPLY.pack(
-        TICK_REPLY_MAGIC,
-        0,
+    return tick_reply_frame(
         request_id,
         reply.sequence,
         layout.key,
         reply.measured_at,
         reply.compute_time,
-        rows.shape[0],
+        reply.rows,
         clouds.shape[0],
+        clouds.astype(_F8, copy=False).tobytes(),
     )
-    return b"".join(
-        (head, rows.astype(_F8, copy=False).tobytes(), clouds.astype(_F8, copy=False).tobytes())
+
+
+def tick_reply_frame(
+    request_id: int,
+    sequence: int,
+    key: int,
+    measured_at: float,
+    compute_time: float,
+    rows: NDArray[np.float64],
+    objects: int,
+    clouds: bytes,
+) -> bytes:
+    """:func:`encode_tick_reply` from the parts of the reply (the server's per-tick
+    path: no :class:`QueryReply` made): the (P, 13) ``rows`` and the cloud table of
+    ``objects`` rows as its float64 bytes (kept by the server while it holds)."""
+    head = _REPLY.pack(
+        TICK_REPLY_MAGIC,
+        0,
+        request_id,
+        sequence,
+        key,
+        measured_at,
+        compute_time,
+        rows.shape[0],
+        objects,
     )
+    return b"".join((head, rows.astype(_F8, copy=False).tobytes(), clouds))
 
 
 def decode_tick_reply(raw: Buffer, layout: Layout) -> tuple[int, QueryReply]:
@@ -316,7 +348,7 @@ def decode_tick_reply(raw: Buffer, layout: Layout) -> tuple[int, QueryReply]:
         raise _error(ErrorCode.WRONG_SHAPE, "message", f"{n} bytes do not match the counts", rid)
     if not math.isfinite(measured) or not (math.isfinite(compute) and compute >= 0.0):
         raise _error(ErrorCode.WRONG_TYPE, "message", "bad measured_at or compute_time", rid)
-    values = np.frombuffer(raw, dtype=_F8, offset=_REPLY.size)
+    # read-only views of the frame, each made in one call
     reply: QueryReply = unchecked(
         QueryReply,
         sequence=seq,
@@ -324,9 +356,9 @@ def decode_tick_reply(raw: Buffer, layout: Layout) -> tuple[int, QueryReply]:
         compute_time=compute,
         layout=layout.name,
         pairs=None,
-        rows=values[:n_rows].reshape(npairs, ROW_COLUMNS),
+        rows=np.ndarray((npairs, ROW_COLUMNS), _F8, raw, _REPLY.size),
         objects=None,
         robots=None,
-        clouds=values[n_rows:].reshape(nobj, CLOUD_COLUMNS),
+        clouds=np.ndarray((nobj, CLOUD_COLUMNS), _F8, raw, _REPLY.size + 8 * n_rows),
     )
     return rid, reply
