@@ -82,14 +82,25 @@ def test_sigkill_stops_the_robot_and_a_restart_restores_the_scene(
     answers: list[tuple[float, int, bool, str]] = []  # t, sequence, valid, reason
     before: list[P.DescribeReply] = []
     down = threading.Event()  # set from the kill until the first valid answer after it
-    real_call = SceneClient.call
+    real_call, real_query_all = SceneClient.call, SceneClient.query_all
 
     def call(self: SceneClient, request: P.Request, deadline: float | None = None) -> P.Reply:
         if isinstance(request, TICK_REQUESTS):
             deadline = DOWN_DEADLINE if down.is_set() else LIVE_DEADLINE
         return real_call(self, request, deadline)
 
+    def query_all(
+        self: SceneClient,
+        *,
+        pairs: list[tuple[str, str]] | None = None,
+        deadline: float | None = None,
+    ) -> SceneResult:
+        # the binary tick does not go through call(): its deadline is set here
+        deadline = DOWN_DEADLINE if down.is_set() else LIVE_DEADLINE
+        return real_query_all(self, pairs=pairs, deadline=deadline)
+
     monkeypatch.setattr(SceneClient, "call", call)
+    monkeypatch.setattr(SceneClient, "query_all", query_all)
 
     def chaos(t: float, q: dict[str, NDArray[np.float64]], res: SceneResult) -> None:
         answers.append((t, res.sequence, res.valid, res.reason))

@@ -176,3 +176,42 @@ def test_ticks_count_as_queries_in_the_metrics() -> None:
     m.request("query")
     m.request("health")
     assert m.snapshot(1.0, 0).requests == {"query": 3, "health": 1}
+
+
+def test_the_clients_tick_path_refuses_bad_inputs_and_goes_on(
+    crane: Robot, clouds: dict[str, NDArray[np.float64]]
+) -> None:
+    """A batched client that holds the layout (its queries go as ticks): a joint state
+    of the wrong length gets the full protocol's typed error from the tick, one of a
+    robot the layout does not hold goes in full and gets its typed error; the inputs
+    are dropped, and the next answers equal the in-process scene's."""
+    from reachwise.server.client import SceneClient, ServerInputError
+    from reachwise.server.transport import CollisionServer
+
+    server = CollisionServer("tcp://127.0.0.1:*")
+    local = Scene()
+    with server.background() as endpoint:
+        with SceneClient(endpoint, deadline=60.0, batch_inputs=True) as c:
+            for scene in (c, local):
+                scene.add_robot(crane, crane_q(crane, 0), stamp=1.0)
+                for link in LINKS:
+                    scene.add_object(link, clouds[link], robot=crane.name, link=link)
+                scene.add_object("environment", clouds["environment"])
+                scene.watch_environment(crane.name, 1.5)
+            assert c.query_all().valid and c.ticks == 0  # the first one in full
+            cases = [
+                (crane.name, np.zeros(2), E.WRONG_SHAPE, f"body.joints.{crane.name}"),
+                ("ghost", np.zeros(6), E.UNKNOWN_ID, "body.joints.ghost"),
+            ]
+            for k, (robot, q, code, field) in enumerate(cases):
+                c.set_joints(robot, q, stamp=2.0)
+                with pytest.raises(ServerInputError) as info:
+                    c.query_all()
+                assert (info.value.code, info.value.field) == (code, field)
+                q_ok = crane_q(crane, 50 * (k + 1))
+                c.set_joints(crane.name, q_ok, stamp=3.0)
+                local.set_joints(crane.name, q_ok, stamp=3.0)
+                ticks = c.ticks
+                r = c.query_all()
+                assert r.valid and c.ticks == ticks + 1 and r.measured_at == 3.0
+                np.testing.assert_array_equal(r.rows, local.query_all().rows)

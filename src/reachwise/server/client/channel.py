@@ -19,13 +19,19 @@ from __future__ import annotations
 import math
 import time
 
+import numpy as np
 import zmq
+from numpy.typing import NDArray
 
 import reachwise.server.protocol as P
 from reachwise.server.client.errors import ServerError, ServerInputError, ServerUnavailable
 from reachwise.server.security import ClientKeys, secure_client_socket
 
-__all__ = ["CLIENT_LIMITS", "Channel"]
+__all__ = ["CLIENT_LIMITS", "Channel", "TickAnswer"]
+
+#: A tick reply's parts (:func:`~reachwise.server.protocol.read_tick_reply`): request id,
+#: sequence, measured_at, compute_time, the rows and the cloud table.
+TickAnswer = tuple[int, int, float, float, NDArray[np.float64], NDArray[np.float64]]
 
 #: Replies the client accepts: describe with clouds can be large.
 CLIENT_LIMITS = P.Limits(max_message_bytes=4 * P.MAX_MESSAGE_BYTES)
@@ -79,6 +85,11 @@ class Channel:
             self._sock = None
             self._reconnects += 1
 
+    def next_id(self) -> int:
+        """A new request id."""
+        rid = self._next_id = self._next_id + 1
+        return rid
+
     def call(self, request: P.Request, deadline: float) -> P.Reply:
         """Send one request and wait for its reply until ``deadline`` seconds.
 
@@ -89,33 +100,64 @@ class Channel:
         end = time.monotonic() + deadline
         layout = self.layout
         if layout is not None and type(request) is P.Query:
-            rid = self._next_id = self._next_id + 1
+            rid = self.next_id()
             tick = P.encode_tick(rid, request, layout)
             if tick is not None:
-                raw = self._exchange(request, [tick], end, deadline)
-                if P.is_tick_reply(raw):
-                    try:
-                        got, reply = P.decode_tick_reply(raw, layout)
-                    except P.ProtocolError as exc:
-                        self.reset()
-                        raise ServerError(
-                            f"invalid reply to {request.OP}: {exc}", exc.code, exc.field
-                        ) from None
-                    self._check_id(got, rid)
-                    self.ticks += 1
+                got = self.tick(tick, rid, layout, end, deadline)
+                if isinstance(got, tuple):
+                    _, seq, measured, compute, rows, clouds = got
+                    reply: P.QueryReply = P.unchecked(
+                        P.QueryReply,
+                        sequence=seq,
+                        measured_at=measured,
+                        compute_time=compute,
+                        layout=layout.name,
+                        pairs=None,
+                        rows=rows,
+                        objects=None,
+                        robots=None,
+                        clouds=clouds,
+                    )
                     return reply
-                decoded = self._decode(request, raw, rid)
-                if decoded.error is None or decoded.error.code != P.ErrorCode.STALE_LAYOUT:
-                    return self._result(request, decoded)
-                self.layout = None  # the server moved on: the query again, in full
-                self.stale_ticks += 1
-        rid = self._next_id = self._next_id + 1
-        raw = self._exchange(request, P.encode_frames(rid, request), end, deadline)
-        return self._result(request, self._decode(request, raw, rid))
+                if got is not None:
+                    return self.result(request.OP, got)
+        return self.call_full(request, end, deadline)
 
-    def _exchange(
-        self, request: P.Request, frames: list[P.Buffer], end: float, deadline: float
-    ) -> bytes:
+    def call_full(self, request: P.Request, end: float, deadline: float) -> P.Reply:
+        """:meth:`call` in the full protocol (never a tick), waiting until ``end``
+        (monotonic s; ``deadline`` is the call's, for the message)."""
+        rid = self.next_id()
+        raw = self._exchange(request.OP, P.encode_frames(rid, request), end, deadline)
+        return self.result(request.OP, self._decode(request.OP, raw, rid))
+
+    def tick(
+        self, frame: bytes, rid: int, layout: P.Layout, end: float, deadline: float
+    ) -> TickAnswer | P.DecodedReply | None:
+        """Send one tick ``frame`` (request ``rid`` under ``layout``) and wait for its
+        reply until ``end`` (monotonic s): the parts of a tick reply
+        (:func:`~reachwise.server.protocol.read_tick_reply`), the decoded reply of any
+        other answer (a typed error), or None when the server has moved on to another
+        layout (the channel drops it: send the query in full). Raises as :meth:`call`
+        for no reply or an invalid one."""
+        raw = self._exchange("query", [frame], end, deadline)
+        if raw[:4] == P.TICK_REPLY_MAGIC:
+            try:
+                got = P.read_tick_reply(raw, layout)
+            except P.ProtocolError as exc:
+                self.reset()
+                raise ServerError(f"invalid reply to query: {exc}", exc.code, exc.field) from None
+            if got[0] != rid:
+                self._check_id(got[0], rid)
+            self.ticks += 1
+            return got
+        decoded = self._decode("query", raw, rid)
+        if decoded.error is not None and decoded.error.code == P.ErrorCode.STALE_LAYOUT:
+            self.layout = None  # the server moved on: the query again, in full
+            self.stale_ticks += 1
+            return None
+        return decoded
+
+    def _exchange(self, op: str, frames: list[P.Buffer], end: float, deadline: float) -> bytes:
         """Send ``frames`` and receive the reply frame before ``end`` (monotonic s)."""
         sock = self._socket()
         try:
@@ -125,12 +167,12 @@ class Channel:
                 sock.send_multipart(frames, zmq.NOBLOCK, copy=False)
         except zmq.Again:
             self.reset()
-            raise ServerUnavailable(f"cannot send {request.OP} to {self.address}") from None
+            raise ServerUnavailable(f"cannot send {op} to {self.address}") from None
         wait_ms = max(1, math.ceil((end - time.monotonic()) * 1e3))
         if not self._poller.poll(wait_ms):
             self.reset()
             raise ServerUnavailable(
-                f"no reply to {request.OP} from {self.address} within {deadline * 1e3:.1f} ms"
+                f"no reply to {op} from {self.address} within {deadline * 1e3:.1f} ms"
             )
         return sock.recv()
 
@@ -143,25 +185,25 @@ class Channel:
                 "id",
             )
 
-    def _decode(self, request: P.Request, raw: bytes, rid: int) -> P.DecodedReply:
+    def _decode(self, op: str, raw: bytes, rid: int) -> P.DecodedReply:
         try:
-            decoded = P.decode_reply(raw, P.REPLIES[request.OP], CLIENT_LIMITS)
+            decoded = P.decode_reply(raw, P.REPLIES[op], CLIENT_LIMITS)
         except P.ProtocolError as exc:
             self.reset()
-            raise ServerError(
-                f"invalid reply to {request.OP}: {exc}", exc.code, exc.field
-            ) from None
+            raise ServerError(f"invalid reply to {op}: {exc}", exc.code, exc.field) from None
         self._check_id(decoded.request_id, rid)
         return decoded
 
-    def _result(self, request: P.Request, decoded: P.DecodedReply) -> P.Reply:
+    def result(self, op: str, decoded: P.DecodedReply) -> P.Reply:
+        """The reply of a decoded answer to ``op`` (one that is not a tick reply: see
+        :meth:`tick`), or its typed error raised as :meth:`call` raises it."""
         if decoded.error is not None:
             err = decoded.error
             if err.code in P.INPUT_CODES:
                 raise ServerInputError(self.address, err)
-            raise ServerError(f"{request.OP}: {err.message} [{err.code}]", err.code, err.field)
+            raise ServerError(f"{op}: {err.message} [{err.code}]", err.code, err.field)
         if decoded.reply is None:  # decode_reply gives one of the two
-            raise ServerError(f"empty reply to {request.OP}", P.ErrorCode.BAD_MESSAGE)
+            raise ServerError(f"empty reply to {op}", P.ErrorCode.BAD_MESSAGE)
         return decoded.reply
 
     def close(self) -> None:

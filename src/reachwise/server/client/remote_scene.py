@@ -88,7 +88,7 @@ from reachwise.errors import CloudError, InputError, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_file import robot_from_dict, robot_to_dict
 from reachwise.kinematics.robot import Robot
-from reachwise.server.client.channel import Channel
+from reachwise.server.client.channel import Channel, TickAnswer
 from reachwise.server.client.errors import ServerError, ServerInputError, ServerUnavailable
 from reachwise.server.client.results import (
     ServerSceneResult,
@@ -542,23 +542,36 @@ class SceneClient:
         joint states and poses; missing data gives an invalid result, never raises."""
         stamp = self.clock()
         joints, poses = self._pending_joints, self._pending_poses
-        for _, t in joints.values():
-            if t < stamp:
-                stamp = t
-        for _, t in poses.values():
-            if t < stamp:
-                stamp = t
+        if joints or poses:
+            for _, t in joints.values():
+                if t < stamp:
+                    stamp = t
+            for _, t in poses.values():
+                if t < stamp:
+                    stamp = t
         held = self._layout
-        req: P.Query = P.unchecked(  # every field made here, as Query would check it
-            P.Query,
-            stamp=stamp,
-            joints={k: q for k, (q, _) in joints.items()} if joints else None,
-            poses={k: p for k, (p, _) in poses.items()} if poses else None,
-            pairs=None if pairs is None else tuple((str(a), str(b)) for a, b in pairs),
-            layout=None if held is None or pairs is not None else held.name,
-        )
+        limit = self.deadline if deadline is None else deadline
         try:
-            rep = self.call(req, self.deadline if deadline is None else deadline)
+            if (
+                pairs is None
+                and held is not None
+                and self._channel.layout is held
+                and (self._mirror is None or held.pairs is self._last_pairs)
+            ):
+                got = self._tick(stamp, held, joints, poses, limit)
+                if isinstance(got, tuple):
+                    return self._ticked(got, held)
+                rep = got
+            else:
+                req: P.Query = P.unchecked(  # every field made here, as Query would check it
+                    P.Query,
+                    stamp=stamp,
+                    joints={k: q for k, (q, _) in joints.items()} if joints else None,
+                    poses={k: p for k, (p, _) in poses.items()} if poses else None,
+                    pairs=None if pairs is None else tuple((str(a), str(b)) for a, b in pairs),
+                    layout=None if held is None or pairs is not None else held.name,
+                )
+                rep = self.call(req, limit)
         except ServerUnavailable as exc:
             return self._missing(str(exc))
         except ServerError as exc:
@@ -604,6 +617,59 @@ class SceneClient:
         lost, self._lost = self._lost, None
         return ServerSceneResult.of_reply(
             rep, layout, computed_at=arrived, valid=lost is None, reason=lost or ""
+        )
+
+    def _tick(
+        self,
+        stamp: float,
+        layout: P.Layout,
+        joints: dict[str, tuple[NDArray[np.float64], float]],
+        poses: dict[str, tuple[NDArray[np.float64], float]],
+        deadline: float,
+    ) -> TickAnswer | P.Reply:
+        """Every pair's answer as one binary tick under the held ``layout`` (the
+        per-tick path: no :class:`~reachwise.server.protocol.Query` or
+        :class:`~reachwise.server.protocol.QueryReply` is made): the tick reply's
+        parts, or the reply of the full protocol when the tick cannot carry the inputs
+        or the server has moved on to another layout (sent within the same
+        ``deadline``); raises as :meth:`call`."""
+        ch = self._channel
+        end = time.monotonic() + deadline
+        rid = ch.next_id()
+        jmap = {k: q for k, (q, _) in joints.items()} if joints else None
+        pmap = {k: p for k, (p, _) in poses.items()} if poses else None
+        frame = P.encode_tick_inputs(rid, layout, stamp, jmap, pmap)
+        if frame is not None:
+            got = ch.tick(frame, rid, layout, end, deadline)
+            if got is None:  # a stale layout: the same query in full
+                pass
+            elif isinstance(got, tuple):
+                return got
+            else:
+                return ch.result("query", got)
+        req: P.Query = P.unchecked(
+            P.Query, stamp=stamp, joints=jmap, poses=pmap, pairs=None, layout=layout.name
+        )
+        return ch.call_full(req, end, deadline)
+
+    def _ticked(self, got: TickAnswer, layout: P.Layout) -> ServerSceneResult:
+        """The result of a tick reply's parts (the reply is under the held ``layout``:
+        its rows are in that layout's pair order)."""
+        arrived = self.clock()
+        _, seq, measured, compute, rows, clouds = got
+        if self._pending_joints:
+            self._pending_joints = {}
+        if self._pending_poses:
+            self._pending_poses = {}
+        self._last_sequence = seq
+        self._last_measured = measured
+        self._last_pairs = layout.pairs
+        lost = self._lost
+        if lost is None:
+            return ServerSceneResult.of_rows(layout, seq, measured, compute, rows, clouds, arrived)
+        self._lost = None
+        return ServerSceneResult.of_rows(
+            layout, seq, measured, compute, rows, clouds, arrived, False, lost
         )
 
     def _missing(self, reason: str) -> ServerSceneResult:

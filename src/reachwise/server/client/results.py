@@ -69,15 +69,42 @@ class ServerSceneResult(SceneResult):
         reason: str = "",
     ) -> ServerSceneResult:
         """The result of ``reply`` to a query answered under ``layout``."""
+        return cls.of_rows(
+            layout,
+            reply.sequence,
+            reply.measured_at,
+            reply.compute_time,
+            reply.rows,
+            reply.clouds,
+            computed_at,
+            valid,
+            reason,
+        )
+
+    @classmethod
+    def of_rows(
+        cls,
+        layout: P.Layout,
+        sequence: int,
+        measured_at: float,
+        compute_time: float,
+        rows: NDArray[np.float64],
+        clouds: NDArray[np.float64] | None,
+        computed_at: float,
+        valid: bool = True,
+        reason: str = "",
+    ) -> ServerSceneResult:
+        """:meth:`of_reply` from the reply's parts (a tick reply's, read without
+        making the :class:`~reachwise.server.protocol.QueryReply`)."""
         out = object.__new__(cls)
         out.__dict__.update(
-            sequence=reply.sequence,
-            measured_at=reply.measured_at,
+            sequence=sequence,
+            measured_at=measured_at,
             computed_at=computed_at,
             valid=valid,
             reason=reason,
-            compute_time=reply.compute_time,
-            _reply=(layout, reply.rows, reply.clouds),
+            compute_time=compute_time,
+            _reply=(layout, rows, clouds),
         )
         return out
 

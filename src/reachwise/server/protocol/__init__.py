@@ -155,10 +155,12 @@ from reachwise.server.protocol.tick import (
     decode_tick,
     decode_tick_reply,
     encode_tick,
+    encode_tick_inputs,
     encode_tick_reply,
     is_tick,
     is_tick_reply,
     read_tick,
+    read_tick_reply,
     tick_reply_frame,
 )
 
@@ -231,11 +233,13 @@ __all__ = [
     "encode_reply",
     "encode_request",
     "encode_tick",
+    "encode_tick_inputs",
     "encode_tick_reply",
     "is_tick",
     "is_tick_reply",
     "layout_key",
     "read_tick",
+    "read_tick_reply",
     "tick_reply_frame",
     "unchecked",
 ]

@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import math
 import struct
+from collections.abc import Mapping
 
 import numpy as np
 from numpy.typing import NDArray
@@ -61,10 +62,12 @@ __all__ = [
     "decode_tick",
     "decode_tick_reply",
     "encode_tick",
+    "encode_tick_inputs",
     "encode_tick_reply",
     "is_tick",
     "is_tick_reply",
     "read_tick",
+    "read_tick_reply",
     "tick_reply_frame",
 ]
 
@@ -95,34 +98,51 @@ def encode_tick(request_id: int, query: Query, layout: Layout) -> bytes | None:
     """``query`` as one tick frame under ``layout``; None when a tick cannot carry it
     (chosen pairs, another layout, a name the layout does not hold, a wrong shape):
     the full protocol then does."""
-    if query.pairs is not None or query.layout != layout.name or not layout.key:
+    if query.pairs is not None or query.layout != layout.name:
         return None
+    return encode_tick_inputs(request_id, layout, query.stamp, query.joints, query.poses)
+
+
+def encode_tick_inputs(
+    request_id: int,
+    layout: Layout,
+    stamp: float | None,
+    joints: Mapping[str, NDArray[np.float64]] | None = None,
+    poses: Mapping[str, NDArray[np.float64]] | None = None,
+) -> bytes | None:
+    """The tick frame of a query of every pair under ``layout`` carrying ``joints``
+    and ``poses`` (:func:`encode_tick` without making the :class:`Query`: a client's
+    per-tick path); None when a tick cannot carry them."""
+    if not layout.key:
+        return None
+    if not joints and not poses:  # the usual tick: the header alone
+        return _REQUEST.pack(
+            TICK_MAGIC, 0, request_id, layout.key, math.nan if stamp is None else stamp, 0, 0
+        )
     entries: list[int] = []
     values: list[bytes] = []
     nj = 0
-    if query.joints:
+    if joints:
         index = layout.robot_index
-        for name, q in query.joints.items():
+        for name, q in joints.items():
             i = index.get(name)
             if i is None or q.ndim != 1:
                 return None
             entries += (i, q.shape[0])
             values.append(q.astype(_F8, copy=False).tobytes())
-        nj = len(query.joints)
+        nj = len(joints)
     npose = 0
-    if query.poses:
+    if poses:
         index = layout.object_index
-        for name, pose in query.poses.items():
+        for name, pose in poses.items():
             i = index.get(name)
             if i is None or pose.shape != (4, 4):
                 return None
             entries += (i, POSE_VALUES)
             values.append(np.ascontiguousarray(pose, dtype=_F8).tobytes())
-        npose = len(query.poses)
-    stamp = math.nan if query.stamp is None else query.stamp
+        npose = len(poses)
+    stamp = math.nan if stamp is None else stamp
     head = _REQUEST.pack(TICK_MAGIC, 0, request_id, layout.key, stamp, nj, npose)
-    if not entries:
-        return head
     return b"".join((head, np.array(entries, dtype=_I4).tobytes(), *values))
 
 
@@ -327,6 +347,29 @@ def tick_reply_frame(
 def decode_tick_reply(raw: Buffer, layout: Layout) -> tuple[int, QueryReply]:
     """The request id and the :class:`QueryReply` of one tick reply frame, checked
     against the ``layout`` the request was sent under; raises :class:`ProtocolError`."""
+    rid, seq, measured, compute, rows, clouds = read_tick_reply(raw, layout)
+    reply: QueryReply = unchecked(
+        QueryReply,
+        sequence=seq,
+        measured_at=measured,
+        compute_time=compute,
+        layout=layout.name,
+        pairs=None,
+        rows=rows,
+        objects=None,
+        robots=None,
+        clouds=clouds,
+    )
+    return rid, reply
+
+
+def read_tick_reply(
+    raw: Buffer, layout: Layout
+) -> tuple[int, int, float, float, NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`decode_tick_reply` without making the :class:`QueryReply` (a client's
+    per-tick path): request id, sequence, measured_at, compute_time, the rows and the
+    cloud table (read-only views of ``raw``), checked as :func:`decode_tick_reply`
+    checks them."""
     n = len(raw)
     if n < _REPLY.size:
         raise _error(ErrorCode.BAD_MESSAGE, "message", "too short for a tick reply", None)
@@ -349,16 +392,6 @@ def decode_tick_reply(raw: Buffer, layout: Layout) -> tuple[int, QueryReply]:
     if not math.isfinite(measured) or not (math.isfinite(compute) and compute >= 0.0):
         raise _error(ErrorCode.WRONG_TYPE, "message", "bad measured_at or compute_time", rid)
     # read-only views of the frame, each made in one call
-    reply: QueryReply = unchecked(
-        QueryReply,
-        sequence=seq,
-        measured_at=measured,
-        compute_time=compute,
-        layout=layout.name,
-        pairs=None,
-        rows=np.ndarray((npairs, ROW_COLUMNS), _F8, raw, _REPLY.size),
-        objects=None,
-        robots=None,
-        clouds=np.ndarray((nobj, CLOUD_COLUMNS), _F8, raw, _REPLY.size + 8 * n_rows),
-    )
-    return rid, reply
+    rows = np.ndarray((npairs, ROW_COLUMNS), _F8, raw, _REPLY.size)
+    clouds = np.ndarray((nobj, CLOUD_COLUMNS), _F8, raw, _REPLY.size + 8 * n_rows)
+    return rid, seq, measured, compute, rows, clouds
