@@ -367,12 +367,18 @@ class SceneService:
         """Check a query's joint states and poses (call under the lock); the checked
         poses. Every input is checked before any is applied: a query's inputs are
         atomic."""
-        for name, q in (joints or {}).items():
-            where = f"body.joints.{name}"
-            self._check_q(self._robot(name, where), q, where)
+        if joints:
+            robots = self._robots
+            for name, q in joints.items():
+                robot = robots.get(name)
+                if robot is None or q.shape != (robot.n,):  # the error, named
+                    where = f"body.joints.{name}"
+                    self._check_q(self._robot(name, where), q, where)
+        if not poses:
+            return {}
         return {
             name: self._checked_pose(name, pose, f"body.poses.{name}", f"body.poses.{name}")
-            for name, pose in (poses or {}).items()
+            for name, pose in poses.items()
         }
 
     def _apply_inputs(

@@ -76,7 +76,6 @@ TICK_REPLY_MAGIC = b"RWr\x01"
 _REQUEST = struct.Struct("<4sIQQdII")
 _REPLY = struct.Struct("<4sIQQQddII")
 _F8 = np.dtype(FLOAT)
-_I4 = np.dtype("<i4")
 #: Values of one pose entry (a 4 x 4 matrix, row-major).
 POSE_VALUES = 16
 
@@ -143,7 +142,7 @@ def encode_tick_inputs(
         npose = len(poses)
     stamp = math.nan if stamp is None else stamp
     head = _REQUEST.pack(TICK_MAGIC, 0, request_id, layout.key, stamp, nj, npose)
-    return b"".join((head, np.array(entries, dtype=_I4).tobytes(), *values))
+    return b"".join((head, _entry_struct(nj + npose).pack(*entries), *values))
 
 
 def _error(code: ErrorCode, field: str, message: str, rid: int | None) -> ProtocolError:
@@ -206,8 +205,18 @@ def read_tick(
     return rid, stamp, None, None
 
 
-#: ``struct`` readers of the entries of a tick, by entry count.
-_ENTRY_READERS: dict[int, struct.Struct] = {}
+#: ``struct`` formats of the entries of a tick, by entry count.
+_ENTRY_STRUCTS: dict[int, struct.Struct] = {}
+
+
+def _entry_struct(entries: int) -> struct.Struct:
+    """The format of ``entries`` entries (int32 index, int32 count each)."""
+    fmt = _ENTRY_STRUCTS.get(entries)
+    if fmt is None:
+        fmt = _ENTRY_STRUCTS[entries] = struct.Struct(f"<{2 * entries}i")
+    return fmt
+
+
 #: Up to this many values are checked for finiteness in Python (numpy below its
 #: per-call cost for small arrays).
 _SMALL = 64
@@ -229,10 +238,7 @@ def _entries(
     start = _REQUEST.size + 8 * ne
     if n < start:
         raise _error(ErrorCode.WRONG_SHAPE, "entries", f"{ne} entries need {start} bytes", rid)
-    reader = _ENTRY_READERS.get(ne)
-    if reader is None:
-        reader = _ENTRY_READERS[ne] = struct.Struct(f"<{2 * ne}i")
-    ent = reader.unpack_from(raw, _REQUEST.size)
+    ent = _entry_struct(ne).unpack_from(raw, _REQUEST.size)
     counts = ent[1::2]
     total = sum(counts)
     if min(counts) < 0 or n != start + 8 * total:
@@ -248,6 +254,15 @@ def _entries(
         if total <= _SMALL
         else bool(np.isfinite(values).all())
     )
+    if ne == 1 and finite:  # the usual tick: one robot's joint state (or one pose)
+        i = ent[0]
+        names = layout.objects if npose else layout.robots
+        if 0 <= i < len(names):
+            if not npose:
+                return {names[i]: values}, None
+            if total == POSE_VALUES:
+                return None, {names[i]: values.reshape(4, 4)}
+    # several entries, or an error to name: entry by entry
     joints: dict[str, NDArray[np.float64]] | None = None
     poses: dict[str, NDArray[np.float64]] | None = None
     off = 0
@@ -263,7 +278,7 @@ def _entries(
                 rid,
             )
         name = names[i]
-        v = values if ne == 1 else values[off : off + c]  # one entry: every value
+        v = values[off : off + c]
         off += c
         if not finite:
             bad = c - int(np.count_nonzero(np.isfinite(v)))
