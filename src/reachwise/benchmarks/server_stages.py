@@ -9,8 +9,14 @@ applying the joint state, the sequence, time stamps, the layout and cloud table,
 rows of the reply), its encoding of the reply, the client's decoding, and the result
 the client returns (``full``: every pair result built, as the client did before;
 ``tick``: the lazy result, pairs built when first read; ``tick.result_pairs`` is that
-reading). The server's handling is the median of ``handle(query) − query_all()`` over
-interleaved pairs of calls, which cancels the computation and most load swings.
+reading). The ``tick`` stages time the functions the per-tick path calls (no
+:class:`~reachwise.server.protocol.Query` or
+:class:`~reachwise.server.protocol.QueryReply` is made on it). The server's handling
+is the median of ``handle(query) − query_all()`` over interleaved pairs of calls
+(``full``), which cancels the computation and most load swings; ``tick.server_tick``
+is the median of ``SceneService.tick(frame) − query_all()``, the server's whole tick
+(decoding, handling, encoding), and the tick's handling is that minus its decoding and
+encoding.
 """
 
 from __future__ import annotations
@@ -76,11 +82,18 @@ def stage_costs(rep: BenchReport, robot: Robot, repeat: int) -> None:
         raise RuntimeError("the query was not answered")
     full_reply = P.encode_reply(1, reply)
     tick_reply = P.encode_tick_reply(1, reply, layout)
-    _, decoded = P.decode_tick_reply(tick_reply, layout)
+    parts = P.read_tick_reply(tick_reply, layout)
     limits = P.DEFAULT_LIMITS
+    if reply.clouds is None:
+        raise RuntimeError("the reply has no cloud table")
+    clouds, cloud_bytes = reply.clouds, reply.clouds.tobytes()
 
     def result(r: P.QueryReply) -> ServerSceneResult:
         return ServerSceneResult.of_reply(r, layout, computed_at=1.0)
+
+    def tick_result() -> ServerSceneResult:
+        _, seq, measured, compute, rows, table = parts
+        return ServerSceneResult.of_rows(layout, seq, measured, compute, rows, table, 1.0)
 
     full: dict[str, Callable[[int], object]] = {
         "client_request": lambda i: P.encode_request(
@@ -92,42 +105,54 @@ def stage_costs(rep: BenchReport, robot: Robot, repeat: int) -> None:
         "client_result": lambda i: result(reply).pairs,
     }
     tick: dict[str, Callable[[int], object]] = {
-        "client_request": lambda i: P.encode_tick(
-            1, P.Query(1.0, {robot.name: q}, None, None, name), layout
+        "client_request": lambda i: P.encode_tick_inputs(1, layout, 1.0, {robot.name: q}),
+        "server_decode": lambda i: P.read_tick(tick_raw, layout, limits),
+        "server_encode": lambda i: P.tick_reply_frame(
+            1,
+            reply.sequence,
+            layout.key,
+            reply.measured_at,
+            reply.compute_time,
+            reply.rows,
+            clouds.shape[0],
+            cloud_bytes,
         ),
-        "server_decode": lambda i: P.decode_tick(tick_raw, layout, limits),
-        "server_encode": lambda i: P.encode_tick_reply(1, reply, layout),
-        "client_decode": lambda i: P.decode_tick_reply(tick_reply, layout),
-        "client_result": lambda i: result(decoded),
-        "result_pairs": lambda i: result(decoded).pairs,
+        "client_decode": lambda i: P.read_tick_reply(tick_reply, layout),
+        "client_result": lambda i: tick_result(),
+        "result_pairs": lambda i: tick_result().pairs,
     }
     samples = time_interleaved(
         {
             **{f"full.{k}": v for k, v in full.items()},
             **{f"tick.{k}": v for k, v in tick.items()},
             "handle": lambda i: svc.handle(query),
+            "tick": lambda i: svc.tick(tick_raw, limits),
             "query_all": lambda i: svc.scene.query_all(),
         },
         repeat,
         warmup=50,
     )
-    handling = float(np.median(samples["handle"] - samples["query_all"]))
+    med = {k: float(np.median(v)) for k, v in samples.items()}
+    server_tick = float(np.median(samples["tick"] - samples["query_all"]))
+    handling = {
+        "full": float(np.median(samples["handle"] - samples["query_all"])),
+        "tick": server_tick - med["tick.server_decode"] - med["tick.server_encode"],
+    }
     for path in ("full", "tick"):
         total = 0.0
         for stage in STAGES:
-            v = (
-                handling
-                if stage == "server_handling"
-                else float(np.median(samples[f"{path}.{stage}"]))
-            )
+            v = handling[path] if stage == "server_handling" else med[f"{path}.{stage}"]
             rep.metrics[f"stage.{path}.{stage}"] = v
             total += v
         rep.metrics[f"stage.{path}.total"] = total
-    rep.metrics["stage.tick.result_pairs"] = float(np.median(samples["tick.result_pairs"]))
-    rep.metrics["stage.query_all"] = float(np.median(samples["query_all"]))
+    rep.metrics["stage.tick.server_tick"] = server_tick
+    rep.metrics["stage.tick.result_pairs"] = med["tick.result_pairs"]
+    rep.metrics["stage.query_all"] = med["query_all"]
     rep.notes.append(
         "stage.*: each stage of the request path timed alone in this process (no network), "
-        "interleaved; server_handling = median(handle(query) - query_all()), shared by both "
-        "paths; full.client_result builds every pair result, tick.client_result is the lazy "
+        "interleaved; full.server_handling = median(handle(query) - query_all()); "
+        "tick.server_tick = median(SceneService.tick(frame) - query_all()), "
+        "tick.server_handling = that minus the tick's decoding and encoding; "
+        "full.client_result builds every pair result, tick.client_result is the lazy "
         "result (tick.result_pairs: reading its pairs)"
     )
