@@ -40,11 +40,12 @@ import ctypes.util
 import gc
 import os
 import sys
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 
-__all__ = ["RealtimeApplied", "keep_freed_memory", "realtime_settings"]
+__all__ = ["RealtimeApplied", "fifo_refusal", "keep_freed_memory", "realtime_settings"]
 
 _M_TRIM_THRESHOLD = -1
 _M_MMAP_THRESHOLD = -3
@@ -80,6 +81,14 @@ class RealtimeApplied:
     refused: str = ""
 
 
+_NOT_PERMITTED = "not permitted (needs root, CAP_SYS_NICE or an rtprio limit)"
+
+
+def _check_priority(priority: object) -> None:
+    if not (isinstance(priority, int) and not isinstance(priority, bool) and 1 <= priority <= 99):
+        raise ValueError(f"priority must be an integer from 1 to 99, got {priority!r}")
+
+
 def _fifo(priority: int) -> tuple[tuple[int, int] | None, str]:
     """Put the calling thread under ``SCHED_FIFO`` at ``priority``: the policy and
     priority to restore, or None and why it was not possible."""
@@ -90,8 +99,25 @@ def _fifo(priority: int) -> tuple[tuple[int, int] | None, str]:
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
     except PermissionError:
-        return None, "not permitted (needs root, CAP_SYS_NICE or an rtprio limit)"
+        return None, _NOT_PERMITTED
     return (policy, param.sched_priority), ""
+
+
+def fifo_refusal(priority: int) -> str:
+    """Why a thread of this process may not run under ``SCHED_FIFO`` at ``priority``
+    ("" when it may), found by trying in a short-lived thread of its own (the caller's
+    policy is untouched). For threads that cannot be asked afterwards: libzmq's I/O
+    threads take their policy when they start and abort the process if it is refused."""
+    _check_priority(priority)
+    out: list[str] = []
+
+    def probe() -> None:
+        out.append(_fifo(priority)[1])  # the policy dies with this thread
+
+    thread = threading.Thread(target=probe, name="reachwise-fifo-probe")
+    thread.start()
+    thread.join()
+    return out[0]
 
 
 @contextmanager
@@ -113,10 +139,8 @@ def realtime_settings(
     Yields :class:`RealtimeApplied`."""
     if not switch_interval > 0:
         raise ValueError(f"switch_interval must be > 0 s, got {switch_interval!r}")
-    if priority is not None and not (
-        isinstance(priority, int) and not isinstance(priority, bool) and 1 <= priority <= 99
-    ):
-        raise ValueError(f"priority must be an integer from 1 to 99, got {priority!r}")
+    if priority is not None:
+        _check_priority(priority)
     kept = keep_freed_memory() if keep_memory else False
     if freeze:
         gc.collect()
