@@ -23,6 +23,8 @@ def test_settings_apply_inside_the_block_and_are_restored() -> None:
     with pytest.raises(ValueError, match="switch_interval"), realtime_settings(switch_interval=0):
         pass
     assert sys.getswitchinterval() == before
+    with realtime_settings(freeze=False) as applied:  # by default: the interval as it is
+        assert sys.getswitchinterval() == before == applied.switch_interval
 
 
 @pytest.mark.skipif(platform.libc_ver()[0] != "glibc", reason="mallopt is glibc's")

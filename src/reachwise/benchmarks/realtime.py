@@ -51,7 +51,7 @@ The whole run keeps freed memory for reuse (glibc's trim and mmap thresholds rai
 :func:`reachwise.control.realtime.keep_freed_memory`; builds otherwise spend a third of
 their time on page faults), and the loop runs inside
 :func:`reachwise.control.realtime.realtime_settings` (the garbage collector's existing
-objects frozen after setup, the GIL switch interval at 0.1 ms instead of 5 ms, the loop
+objects frozen after setup, the GIL switch interval left at 5 ms, the loop
 thread under ``SCHED_FIFO`` at :data:`LOOP_PRIORITY` where the OS permits it, as
 libfranka and ros2_control run theirs): see the README's realtime section.
 

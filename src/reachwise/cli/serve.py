@@ -147,9 +147,9 @@ def serve(
         # sight, a full collection takes microseconds instead of a 100 ms pause mid-tick
         gc.collect()
         gc.freeze()
-        # the request thread under SCHED_FIFO (threads it starts later, the indexing
-        # worker, drop that); the GIL switch interval and glibc's kept memory as for a
-        # 1 kHz loop (reachwise.control.realtime)
+        # the request thread under SCHED_FIFO (the indexing worker it starts later
+        # drops that) and glibc's freed memory kept, as for a 1 kHz loop
+        # (reachwise.control.realtime)
         with realtime_settings(priority=priority, freeze=False):
             server.serve_forever(max_runtime)
     finally:

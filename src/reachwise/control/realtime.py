@@ -9,11 +9,15 @@ then is the interpreter and the C library around it:
   holds — numba's, scipy's, the scene's — and takes milliseconds. ``gc.freeze()``
   after the setup moves those objects out of its sight, so the collections the tick's
   few allocations trigger are short;
-- **the GIL's switch interval**: a thread that wants the GIL (the camera thread
-  handing over a frame, the ingestion worker between two compiled passes) waits for
-  the running thread to give it up, forcibly after ``sys.getswitchinterval()``, 5 ms
-  by default. 0.1 ms bounds how long the loop thread and a hand-over wait for each
-  other (their own Python is a few microseconds at a time);
+- **the GIL's switch interval** (left at Python's 5 ms by default): a thread that
+  wants the GIL asks the running one to give it up after ``sys.getswitchinterval()``.
+  The loop's tick (0.1–0.5 ms) is shorter than 5 ms and it sleeps between ticks, so
+  the other threads (a camera handing over a frame, the ingestion worker between two
+  compiled passes: microseconds of Python each) take the GIL while it sleeps and it
+  is never made to give the GIL away mid-tick. A short interval does just that:
+  measured in ``bench realtime``'s loop under ``SCHED_FIFO``, 0.1 ms had the loop
+  switched out mid-tick in 14–21 ticks of 10 000 (p99.9 0.43–0.48 ms), 5 ms in 1–3
+  (0.38–0.40 ms). ``switch_interval`` sets it for the block if wanted;
 - **the scheduler**: a loop thread woken by its timer waits on the run queue while both
   cores run other threads (the ingestion worker's builds, another process) — measured
   in ``reachwise bench realtime``, up to 5 ms inside one tick at normal priority. Real
@@ -123,21 +127,21 @@ def fifo_refusal(priority: int) -> str:
 @contextmanager
 def realtime_settings(
     *,
-    switch_interval: float = 1e-4,
+    switch_interval: float | None = None,
     freeze: bool = True,
     keep_memory: bool = True,
     priority: int | None = None,
 ) -> Iterator[RealtimeApplied]:
     """Within the block: the garbage collector's existing objects frozen
     (``gc.freeze()`` after a collection), the GIL switch interval at
-    ``switch_interval`` seconds, freed memory kept (:func:`keep_freed_memory`) and,
+    ``switch_interval`` seconds (None: as it is), freed memory kept (:func:`keep_freed_memory`) and,
     with ``priority`` (1–99), the calling thread under ``SCHED_FIFO`` at that priority
     where the OS permits it. On exit the switch interval and the thread's scheduling
     policy are restored and the frozen objects are handed back to the collector.
     Enter it after the setup (robots, scene, clouds, controller) and a first tick, so
     that everything made once is frozen; run the loop in the thread that enters it.
     Yields :class:`RealtimeApplied`."""
-    if not switch_interval > 0:
+    if switch_interval is not None and not switch_interval > 0:
         raise ValueError(f"switch_interval must be > 0 s, got {switch_interval!r}")
     if priority is not None:
         _check_priority(priority)
@@ -146,11 +150,12 @@ def realtime_settings(
         gc.collect()
         gc.freeze()
     previous = sys.getswitchinterval()
-    sys.setswitchinterval(switch_interval)
+    interval = previous if switch_interval is None else switch_interval
+    sys.setswitchinterval(interval)
     restore, refused = _fifo(priority) if priority is not None else (None, "")
     try:
         yield RealtimeApplied(
-            priority if restore is not None else None, kept, freeze, switch_interval, refused
+            priority if restore is not None else None, kept, freeze, interval, refused
         )
     finally:
         if restore is not None:
