@@ -15,8 +15,9 @@ from reachwise.benchmarks.realtime import stall_gaps
 GAP = 0.004  # s, the injected gap
 
 
-def _probe_with(handler: object) -> tuple[float, float]:
-    """The probe's longest gap (wall, CPU; µs) while a timer runs ``handler`` once."""
+def _probe_with(handler: object) -> list[tuple[float, float]]:
+    """The probe's gaps (wall, CPU; µs) while a timer runs ``handler`` once (on a busy
+    machine other gaps come with it: the tests look for the injected one)."""
     previous = signal.signal(signal.SIGALRM, handler)  # type: ignore[arg-type]
     try:
         signal.setitimer(signal.ITIMER_REAL, 0.05)
@@ -24,8 +25,7 @@ def _probe_with(handler: object) -> tuple[float, float]:
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0.0)
         signal.signal(signal.SIGALRM, previous)
-    k = int(wall.argmax())
-    return float(wall[k]), float(cpu[k])
+    return list(zip(wall.tolist(), cpu.tolist(), strict=True))
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="SIGALRM")
@@ -35,9 +35,9 @@ def test_a_gap_the_thread_spent_running_other_code_is_charged_cpu() -> None:
         while time.thread_time() < end:
             pass
 
-    wall, cpu = _probe_with(spin)
-    assert cpu >= GAP * 1e6
-    assert wall >= 0.99 * GAP * 1e6  # the two clocks are read one after the other
+    gaps = _probe_with(spin)
+    # the two clocks are read one after the other: wall may trail cpu by microseconds
+    assert any(cpu >= GAP * 1e6 and wall >= 0.99 * GAP * 1e6 for wall, cpu in gaps), gaps
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="SIGALRM")
@@ -45,6 +45,5 @@ def test_a_gap_the_thread_slept_through_is_not_charged_cpu() -> None:
     def nap(*_: object) -> None:
         time.sleep(GAP)
 
-    wall, cpu = _probe_with(nap)
-    assert wall >= GAP * 1e6
-    assert cpu < 0.5 * wall
+    gaps = _probe_with(nap)
+    assert any(wall >= GAP * 1e6 and cpu < 0.5 * wall for wall, cpu in gaps), gaps
