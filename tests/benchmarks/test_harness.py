@@ -137,3 +137,18 @@ def test_unknown_benchmark_is_refused() -> None:
     res = CliRunner().invoke(app, ["bench", "no-such-bench", "--json"])
     assert isinstance(res.exception, UnknownName) and res.exception.exit_code == 2
     assert "no-such-bench" in str(res.exception) and "kinematics" in str(res.exception)
+
+
+def test_bench_json_is_standard_json_when_a_figure_is_not_finite() -> None:
+    rep = BenchReport("gaps")
+    rep.metrics["measured"] = 1.5
+    rep.metrics["not_measured"] = math.nan
+    rep.metrics["beyond_last_bucket"] = math.inf
+    rep.targets["t"] = Target(math.nan, 2.0)
+
+    def refuse(name: str) -> float:
+        raise AssertionError(f"{name} is not JSON")
+
+    obj = json.loads(rep.to_json(), parse_constant=refuse)
+    assert obj["metrics"] == {"measured": 1.5, "not_measured": None, "beyond_last_bucket": None}
+    assert obj["targets"]["t"] == {"value": None, "limit": 2.0, "met": False}

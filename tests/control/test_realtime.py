@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import gc
+import os
 import platform
 import sys
 
@@ -22,8 +23,48 @@ def test_settings_apply_inside_the_block_and_are_restored() -> None:
     with pytest.raises(ValueError, match="switch_interval"), realtime_settings(switch_interval=0):
         pass
     assert sys.getswitchinterval() == before
+    with realtime_settings(freeze=False) as applied:  # by default: the interval as it is
+        assert sys.getswitchinterval() == before == applied.switch_interval
 
 
 @pytest.mark.skipif(platform.libc_ver()[0] != "glibc", reason="mallopt is glibc's")
 def test_memory_setting_applies_with_glibc() -> None:
     assert keep_freed_memory()
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setscheduler"), reason="POSIX scheduling")
+def test_priority_puts_the_thread_under_fifo_inside_the_block_or_says_why_not() -> None:
+    policy, param = os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+    with realtime_settings(priority=10, freeze=False) as applied:
+        inside = os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+    assert (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority) == (policy, param)
+    if applied.priority is None:  # an unprivileged user: nothing changed, and why
+        assert "not permitted" in applied.refused
+        assert inside == (policy, param)
+    else:
+        assert applied.priority == 10 and applied.refused == ""
+        assert inside == (os.SCHED_FIFO, 10)
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setscheduler"), reason="POSIX scheduling")
+def test_a_refused_priority_leaves_the_policy_and_says_so(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    def refuse(*_: object) -> None:
+        raise PermissionError(1, "Operation not permitted")
+
+    policy = os.sched_getscheduler(0)
+    monkeypatch.setattr(os, "sched_setscheduler", refuse)
+    with realtime_settings(priority=50, freeze=False) as applied:
+        assert os.sched_getscheduler(0) == policy
+    assert applied.priority is None
+    assert "not permitted" in applied.refused
+
+
+@pytest.mark.parametrize("bad", [0, 100, 1.5, True, "50"])
+def test_a_priority_outside_1_to_99_is_refused_before_anything_changes(bad: object) -> None:
+    before = sys.getswitchinterval()
+    with pytest.raises(ValueError, match="priority must be an integer from 1 to 99"):
+        with realtime_settings(priority=bad):  # type: ignore[arg-type]
+            pass
+    assert sys.getswitchinterval() == before

@@ -361,3 +361,43 @@ def test_the_worker_builds_at_a_lower_priority_than_the_loop(rng: np.random.Gene
     here = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
     assert os.getpriority(os.PRIO_PROCESS, worker.native_id) == min(19, here + 10)
     scene.close()
+
+
+def _fifo_allowed() -> bool:
+    if not hasattr(os, "sched_setscheduler"):
+        return False
+    result: list[bool] = []
+
+    def probe() -> None:
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
+            result.append(True)
+        except PermissionError:
+            result.append(False)
+
+    t = threading.Thread(target=probe)  # its own thread: the policy dies with it
+    t.start()
+    t.join()
+    return result[0]
+
+
+@pytest.mark.skipif(not _fifo_allowed(), reason="SCHED_FIFO not permitted here")
+def test_a_worker_started_by_a_fifo_loop_builds_under_the_normal_policy(
+    rng: np.random.Generator,
+) -> None:
+    scene, _ = _camera_scene(rng)
+    got: dict[str, int] = {}
+
+    def loop() -> None:  # a control loop under SCHED_FIFO makes the first hand-over
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(20))
+        got["version"] = scene.replace_cloud("camera", rng.normal(size=(200, 3)))
+        got["worker"] = scene.ingest._thread.native_id  # type: ignore[union-attr]
+
+    t = threading.Thread(target=loop)
+    t.start()
+    t.join()
+    try:
+        assert scene.ingest.wait("camera", got["version"], timeout=WAIT)
+        assert os.sched_getscheduler(got["worker"]) == os.SCHED_OTHER
+    finally:
+        scene.close()

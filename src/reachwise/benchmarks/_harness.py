@@ -6,6 +6,7 @@ Times are in microseconds unless a key says otherwise (``..._s``).
 from __future__ import annotations
 
 import json
+import math
 import os
 import platform
 import time
@@ -70,7 +71,21 @@ class BenchReport:
         }
 
     def to_json(self) -> str:
-        return json.dumps(self.to_dict(), indent=2)
+        """:meth:`to_dict` as standard JSON: a figure that is not finite (NaN: not
+        measured; inf: beyond the last bucket) is ``null``, which every parser reads
+        (Python's ``NaN``/``Infinity`` extensions are not JSON)."""
+        return json.dumps(_finite(self.to_dict()), indent=2, allow_nan=False)
+
+
+def _finite(obj: Any) -> Any:
+    """``obj`` with every non-finite float replaced by None (dicts and lists walked)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    return obj
 
 
 def machine_info() -> dict[str, Any]:

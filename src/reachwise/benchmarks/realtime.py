@@ -27,13 +27,23 @@ One run measures:
    (``handoff``: the hand-over only), the clouds swapped in per second
    (``loop.swaps_per_s``), the queries answered while a build was running
    (``loop.ticks_during_build``) and, of those, the ticks longer than the 1 ms period
-   (``loop.ticks_waited_for_build``: a tick that waited for a build would be one of
-   them; the scene itself never waits — it takes a built cloud only when the worker
-   does not hold the lock, ``loop.swaps_deferred``).
+   (``loop.slow_ticks_during_build``) and the ones among them in which the loop's
+   thread was switched out (``loop.ticks_waited_for_build``: it blocked on a lock or
+   the GIL, or another thread took its core; the scene itself never waits — it takes a
+   built cloud only when the worker does not hold the lock, ``loop.swaps_deferred``).
+   Every tick over 1 ms is put in one class by the thread's context switches over it
+   (Linux): ``loop.slow.waited`` (it blocked), ``loop.slow.preempted`` (another thread
+   ran on its core) or ``loop.slow.charged`` (never switched out: the tick's own work,
+   or a stall of the machine that charges the thread for time it did not run — see
+   ``machine.stall`` below).
    Without example-robot-data (the ``robots`` extra) the loop runs the built-in
    ``panda`` (the same kinematics, published DH) with capsule-shaped link clouds and
    says so in the notes.
-3. **The server** (``reachwise.benchmarks.server.streaming_figures``, when present):
+3. **The machine's own stalls**: a bare busy loop of clock reads as long as the loop
+   ran (:func:`stall_gaps`): the longest time the machine kept a running thread from
+   running its code while charging it CPU time (a virtual CPU the hypervisor paused).
+   No tick can be shorter than a stall that falls into it.
+4. **The server** (``reachwise.benchmarks.server.streaming_figures``, when present):
    a camera process streaming to ``reachwise serve`` at 30 Hz while this process
    queries at 1 kHz, and the protocol's work beyond a bare ZeroMQ echo.
 
@@ -41,8 +51,9 @@ The whole run keeps freed memory for reuse (glibc's trim and mmap thresholds rai
 :func:`reachwise.control.realtime.keep_freed_memory`; builds otherwise spend a third of
 their time on page faults), and the loop runs inside
 :func:`reachwise.control.realtime.realtime_settings` (the garbage collector's existing
-objects frozen after setup, the GIL switch interval at 0.1 ms instead of 5 ms): see
-the README's realtime section.
+objects frozen after setup, the GIL switch interval left at 5 ms, the loop
+thread under ``SCHED_FIFO`` at :data:`LOOP_PRIORITY` where the OS permits it, as
+libfranka and ros2_control run theirs): see the README's realtime section.
 
 Targets (issue 17): tick median ≤ 300 µs, p99.9 ≤ 1 ms, max ≤ 3 ms; 0 ticks waited
 for a build; ≥ 29 swaps/s; hand-off p99 ≤ 2 ms; builds: 300 k ≤ 20 ms, 1 M ≤ 80 ms.
@@ -75,6 +86,10 @@ ROOM_POINTS = 1_000_000
 CAMERA_SIZE = (640, 480)
 CAMERA_HZ = 30.0
 DT = 1e-3  # s: the control period
+#: The loop thread's SCHED_FIFO priority where permitted (ros2_control's default, 50).
+LOOP_PRIORITY = 50
+#: A gap between two clock reads of the stall probe longer than this (s) is recorded.
+STALL_GAP = 2e-4
 MARGIN = 0.05  # m, the panda-shelf scenario's environment margin
 FRAMES = 12  # distinct camera frames, handed over in turn
 ROOM = (np.array([-2.0, -2.5, 0.0]), np.array([3.0, 2.5, 2.8]))  # lo, hi corners (m)
@@ -293,6 +308,23 @@ def loop_scene(
     return arm, converter, which
 
 
+def _switch_counter() -> tuple[Any, bool]:
+    """A function giving the calling thread's (voluntary, involuntary) context switches
+    so far, and whether it counts them (Linux's ``RUSAGE_THREAD``; elsewhere (0, 0))."""
+    try:
+        import resource
+
+        who = resource.RUSAGE_THREAD  # type: ignore[attr-defined,unused-ignore]
+    except (ImportError, AttributeError):
+        return (lambda: (0, 0)), False
+
+    def switches() -> tuple[int, int]:
+        r = resource.getrusage(who)
+        return r.ru_nvcsw, r.ru_nivcsw
+
+    return switches, True
+
+
 def _loop(rep: BenchReport, quick: bool) -> None:
     frames = [camera_frame(k) for k in range(FRAMES)]
     arm, converter, which = loop_scene(room_points(), frames[0])
@@ -304,6 +336,7 @@ def _loop(rep: BenchReport, quick: bool) -> None:
     tick_us = np.empty(ticks)
     cpu_us = np.empty(ticks)
     during = np.zeros(ticks, np.bool_)
+    switched = np.zeros((ticks, 2), np.int64)  # voluntary, involuntary context switches
     handoff: list[float] = []
     goal_index = 0
     reached = 0
@@ -333,7 +366,8 @@ def _loop(rep: BenchReport, quick: bool) -> None:
     swaps0, deferred0, during0 = scene.swaps, scene.swaps_deferred, scene.queries_during_build
     clock = time.perf_counter_ns
     cpu = time.thread_time_ns
-    with realtime_settings():
+    switches, counted = _switch_counter()
+    with realtime_settings(priority=LOOP_PRIORITY) as applied:
         thread.start()
         try:
             start = time.perf_counter()
@@ -345,6 +379,7 @@ def _loop(rep: BenchReport, quick: bool) -> None:
                 now = time.perf_counter() - start
                 goal = arm.goals[goal_index]
                 building = scene.ingest.building is not None
+                s0 = switches()
                 c0 = cpu()
                 t0 = clock()
                 scene.set_joints(robot.name, q, stamp=now)
@@ -353,6 +388,7 @@ def _loop(rep: BenchReport, quick: bool) -> None:
                 cmd, status = ctrl.step(q, goal, pts, now)
                 tick_us[k] = (clock() - t0) * 1e-3
                 cpu_us[k] = (cpu() - c0) * 1e-3
+                switched[k] = np.subtract(switches(), s0)
                 during[k] = building or scene.ingest.building is not None
                 if status.state == "reached":
                     goal_index = (goal_index + 1) % len(arm.goals)
@@ -379,9 +415,23 @@ def _loop(rep: BenchReport, quick: bool) -> None:
     rep.metrics["loop.handoffs"] = float(len(handoff))
     rep.metrics["loop.swaps_deferred"] = float(scene.swaps_deferred - deferred0)
     rep.metrics["loop.ticks_during_build"] = float(scene.queries_during_build - during0)
-    waited = int(np.count_nonzero(during & (tick_us > DT * 1e6)))
+    slow = tick_us > DT * 1e6
+    if counted:
+        out = switched.sum(axis=1) > 0
+        rep.metrics["loop.slow.waited"] = float(np.count_nonzero(slow & (switched[:, 0] > 0)))
+        rep.metrics["loop.slow.preempted"] = float(
+            np.count_nonzero(slow & (switched[:, 0] == 0) & (switched[:, 1] > 0))
+        )
+        rep.metrics["loop.slow.charged"] = float(np.count_nonzero(slow & ~out))
+    else:  # no per-thread switch counts here: every slow tick during a build counts
+        out = np.ones(ticks, np.bool_)
+        rep.notes.append("loop: no per-thread context-switch counts on this platform")
+    rep.metrics["loop.slow_ticks"] = float(np.count_nonzero(slow))
+    rep.metrics["loop.slow_ticks_during_build"] = float(np.count_nonzero(slow & during))
+    waited = int(np.count_nonzero(slow & during & out))
     rep.metrics["loop.ticks_waited_for_build"] = float(waited)
     rep.metrics["loop.goals_reached"] = float(reached)
+    rep.metrics["loop.fifo_priority"] = float(applied.priority or 0)
     rep.metrics["loop.protective_stops"] = float(stopped)
     rep.metrics["loop.superseded"] = float(scene.ingest.superseded)
     rep.add_samples("handoff", np.array(handoff))
@@ -395,7 +445,56 @@ def _loop(rep: BenchReport, quick: bool) -> None:
     rep.notes.append(
         f"loop: {which}; {len(scene.pairs)} pairs; {ticks} ticks at dt = 1 ms paced in real "
         f"time ({elapsed:.1f} s); a {CAMERA_SIZE[0]}x{CAMERA_SIZE[1]} camera frame handed "
-        f"over {CAMERA_HZ:g} times a second from another thread; room {ROOM_POINTS} points"
+        f"over {CAMERA_HZ:g} times a second from another thread; room {ROOM_POINTS} points; "
+        + (
+            f"the loop thread under SCHED_FIFO at priority {applied.priority}"
+            if applied.priority is not None
+            else f"the loop thread at normal priority (SCHED_FIFO {applied.refused})"
+        )
+    )
+
+
+# --------------------------------------------------------------------------- the machine
+
+
+def stall_gaps(seconds: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Run a bare busy loop of clock reads for ``seconds`` on this thread; every gap
+    between two reads longer than :data:`STALL_GAP`: its wall time and the thread's
+    CPU time over it (µs). A gap whose CPU time is (nearly) its wall time is a stall
+    of the machine: the thread was charged for the time but ran none of its code (the
+    hypervisor did not run the virtual CPU, or an interrupt took it); a gap with
+    little CPU time is the scheduler running another thread."""
+    wall_ns, cpu_ns = time.perf_counter_ns, time.thread_time_ns
+    limit = int(STALL_GAP * 1e9)
+    gaps: list[tuple[int, int]] = []
+    t_prev, c_prev = wall_ns(), cpu_ns()
+    end = t_prev + int(seconds * 1e9)
+    while t_prev < end:
+        t, c = wall_ns(), cpu_ns()
+        if t - t_prev > limit:
+            gaps.append((t - t_prev, c - c_prev))
+        t_prev, c_prev = t, c
+    arr = np.array(gaps, dtype=np.float64).reshape(-1, 2) * 1e-3
+    return arr[:, 0], arr[:, 1]
+
+
+def _machine(rep: BenchReport, quick: bool) -> None:
+    """How long the machine itself stops a running thread: a bare busy loop of clock
+    reads (:func:`stall_gaps`), as long as the loop ran, right after it. A tick can
+    never be shorter than a stall that falls into it."""
+    seconds = 3.0 if quick else 10.0
+    wall, cpu = stall_gaps(seconds)
+    stalls = wall[cpu >= 0.9 * wall]
+    rep.metrics["machine.seconds"] = seconds
+    rep.metrics["machine.stall.max"] = float(stalls.max()) if stalls.size else 0.0
+    rep.metrics["machine.stalls_over_1ms"] = float(np.count_nonzero(stalls > 1000.0))
+    rep.metrics["machine.stalls_over_3ms"] = float(np.count_nonzero(stalls > 3000.0))
+    rep.metrics["machine.preempted.max"] = float(wall[cpu < 0.9 * wall].max(initial=0.0))
+    rep.notes.append(
+        f"machine: a bare busy loop of clock reads for {seconds:g} s after the loop (no "
+        "other work): the longest gap between two reads with the thread's CPU clock "
+        "running (machine.stall.max: the virtual CPU not running it) and without "
+        "(machine.preempted.max: another thread ran)"
     )
 
 
@@ -435,5 +534,6 @@ def run(quick: bool = False) -> BenchReport:
     rep.notes.append(f"freed memory kept for reuse (glibc mallopt): {kept}")
     _builds(rep, quick)
     _loop(rep, quick)
+    _machine(rep, quick)
     _server(rep, quick)
     return rep

@@ -63,6 +63,7 @@ from reachwise.benchmarks.server_setup import (
     ROBOT,
     EchoProcess,
     ServerProcess,
+    bench_priority,
     build_scene,
     crane_q,
     rss_bytes,
@@ -123,11 +124,12 @@ def _round_trip(
     part: NDArray[np.float64],
     env: NDArray[np.float64],
     n: int,
+    priority: int | None = None,
 ) -> None:
     local = Scene()
     build_scene(local, robot, part, env)
     clock = time.perf_counter_ns
-    echo = EchoProcess(workdir, 600.0)
+    echo = EchoProcess(workdir, 600.0, priority)  # scheduled as the server is
     with (
         SceneClient(endpoint, deadline=1.0) as remote,
         SceneClient(endpoint, deadline=1.0, batch_inputs=True) as batched,
@@ -326,11 +328,11 @@ def streaming_figures(
         opts["seconds"] = float(seconds)
     _load_note(rep)
     with tempfile.TemporaryDirectory(prefix="reachwise-bench-stream-") as tmp:
-        with ServerProcess(Path(tmp), opts["seconds"] + 900.0) as server:
+        with ServerProcess(Path(tmp), opts["seconds"] + 900.0, priority=bench_priority()) as server:
             with SceneClient(server.endpoint) as c:
                 c.wait_ready(60.0)
             part, env = part_points(1000, seed=1), environment_points(5500, seed=2)
-            _round_trip(rep, Path(tmp), server.endpoint, robot, part, env, n_rt)
+            _round_trip(rep, Path(tmp), server.endpoint, robot, part, env, n_rt, server.priority)
             stream(rep, server, robot, **opts)
     d = rep.to_dict()
     return {k: d[k] for k in ("metrics", "ratios", "targets", "notes")}
@@ -339,7 +341,13 @@ def streaming_figures(
 def _load_note(rep: BenchReport) -> None:
     rep.notes.append(
         f"server: separate process on tcp://127.0.0.1 with a state directory; load average "
-        f"at start {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs"
+        f"at start {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs; "
+        + (
+            f"the server (its request and ZeroMQ I/O threads), its echo twin and the "
+            f"querying loop under SCHED_FIFO {priority}, as real-time processes run"
+            if (priority := bench_priority()) is not None
+            else "every process at normal priority (SCHED_FIFO not permitted here)"
+        )
     )
 
 
@@ -355,10 +363,12 @@ def run(quick: bool = False) -> BenchReport:
     _load_note(rep)
     with tempfile.TemporaryDirectory(prefix="reachwise-bench-server-") as tmp:
         soak_s = (WARMUP_TICKS + ticks) / RATE_HZ
-        with ServerProcess(Path(tmp), soak_s + opts["seconds"] + 900.0) as server:
+        with ServerProcess(
+            Path(tmp), soak_s + opts["seconds"] + 900.0, priority=bench_priority()
+        ) as server:
             with SceneClient(server.endpoint) as c:
                 c.wait_ready(60.0)
-            _round_trip(rep, Path(tmp), server.endpoint, robot, part, env, n_rt)
+            _round_trip(rep, Path(tmp), server.endpoint, robot, part, env, n_rt, server.priority)
             _soak(rep, server, robot, ticks, scans)
             stream(rep, server, robot, **opts)
     stage_costs(rep, robot, 500 if quick else 3000)

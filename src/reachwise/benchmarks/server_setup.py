@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from reachwise.control.realtime import fifo_refusal
 from reachwise.kinematics.robot import Robot
 from reachwise.server.client import SceneLike
 
@@ -30,12 +31,15 @@ __all__ = [
     "ENV_X",
     "LINKS",
     "MARGIN",
+    "PRIORITY",
     "RATE_HZ",
     "ROBOT",
     "EchoProcess",
     "ServerProcess",
+    "bench_priority",
     "build_scene",
     "crane_q",
+    "priority_args",
     "rss_bytes",
 ]
 
@@ -72,12 +76,28 @@ def build_scene(
     scene.watch_environment(robot.name, MARGIN)
 
 
+#: The SCHED_FIFO priority the server benchmarks run the server, its echo twin and the
+#: querying loop at (ros2_control's default), where the OS permits it.
+PRIORITY = 50
+
+
+def bench_priority() -> int | None:
+    """:data:`PRIORITY` where this machine permits SCHED_FIFO, else None."""
+    return PRIORITY if sys.platform == "linux" and not fifo_refusal(PRIORITY) else None
+
+
+def priority_args(priority: int | None) -> tuple[str, ...]:
+    """``reachwise serve``'s options for ``priority`` (none for None)."""
+    return ("--priority", str(priority)) if priority is not None else ()
+
+
 class ServerProcess:
     """``reachwise serve`` as a child process: loopback ``bind`` (a free
     port by default), a state directory in ``workdir``, its log in
     ``workdir/server.log``. Entering starts it and waits for its endpoint; leaving
     stops it (SIGTERM, then SIGKILL after ``stop_timeout`` s). The server also stops by
-    itself after ``max_runtime`` s, so none outlives its user."""
+    itself after ``max_runtime`` s, so none outlives its user. ``priority``: serve under
+    SCHED_FIFO at that priority (``--priority``; :func:`bench_priority`), or None."""
 
     def __init__(
         self,
@@ -87,8 +107,10 @@ class ServerProcess:
         bind: str = "tcp://127.0.0.1:*",
         extra: tuple[str, ...] = (),
         stop_timeout: float = 10.0,
+        priority: int | None = None,
     ) -> None:
         self.workdir = workdir
+        self.priority = priority
         self.stop_timeout = stop_timeout
         self.endpoint_file = workdir / "endpoint"
         self.cmd = [
@@ -103,6 +125,7 @@ class ServerProcess:
             str(self.endpoint_file),
             "--max-runtime",
             str(max_runtime),
+            *priority_args(priority),
             *extra,
         ]
         self.proc: subprocess.Popen[bytes] | None = None
@@ -151,8 +174,13 @@ class ServerProcess:
 
 #: A bare pyzmq ROUTER echo: the transport's own round trip on this machine, as a floor.
 _ECHO = """
-import sys, time, zmq
-ctx = zmq.Context(); s = ctx.socket(zmq.ROUTER); s.linger = 0
+import os, sys, time, zmq
+priority = int(sys.argv[4])
+ctx = zmq.Context(2)
+if priority:  # the server's scheduling (bench_priority), so that the floor is its twin
+    os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    ctx.set(zmq.THREAD_SCHED_POLICY, os.SCHED_FIFO); ctx.set(zmq.THREAD_PRIORITY, priority)
+s = ctx.socket(zmq.ROUTER); s.linger = 0
 s.bind("tcp://127.0.0.1:*")
 open(sys.argv[1], "w").write(s.getsockopt_string(zmq.LAST_ENDPOINT))
 reply = b"r" * int(sys.argv[2]); end = time.monotonic() + float(sys.argv[3])
@@ -168,15 +196,16 @@ ECHO_REPLY_BYTES = 600
 
 
 class EchoProcess:
-    """The bare echo server of :data:`_ECHO` in a child process, and a REQ socket to it."""
+    """The bare echo server of :data:`_ECHO` in a child process, and a REQ socket to it;
+    ``priority``: its thread and ZeroMQ's I/O threads under SCHED_FIFO at that priority
+    (give it the server's, :func:`bench_priority`), or None."""
 
-    def __init__(self, workdir: Path, max_runtime: float) -> None:
+    def __init__(self, workdir: Path, max_runtime: float, priority: int | None = None) -> None:
         import zmq
 
         path = workdir / "echo-endpoint"
-        self.proc = subprocess.Popen(
-            [sys.executable, "-c", _ECHO, str(path), str(ECHO_REPLY_BYTES), str(max_runtime)]
-        )
+        args = [str(path), str(ECHO_REPLY_BYTES), str(max_runtime), str(priority or 0)]
+        self.proc = subprocess.Popen([sys.executable, "-c", _ECHO, *args])
         end = time.monotonic() + 30.0
         while not path.exists() or not path.read_text():
             if self.proc.poll() is not None or time.monotonic() > end:

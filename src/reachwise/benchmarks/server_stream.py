@@ -20,7 +20,6 @@ on :func:`time.monotonic`, the clock every process on this host shares).
 
 from __future__ import annotations
 
-import gc
 import json
 import math
 import subprocess
@@ -32,6 +31,7 @@ from numpy.typing import NDArray
 
 from reachwise.benchmarks._harness import BenchReport, Target
 from reachwise.benchmarks.server_setup import MARGIN, ServerProcess, crane_q
+from reachwise.control.realtime import realtime_settings
 from reachwise.io.atomic import atomic_write
 from reachwise.kinematics.robot import Robot
 from reachwise.server.client import SceneClient
@@ -115,7 +115,7 @@ def stream(
         setup.add_object(CAMERA, camera_frame(points, 0), dynamic=False)
         setup.watch_environment(robot.name, MARGIN, [CAMERA])
     # the same loop on the same scene without the camera first: the machine's own tails
-    idle = _control_loop(server.endpoint, robot, query_hz, seconds)
+    idle = _control_loop(server.endpoint, robot, query_hz, seconds, server.priority)
     before = _handling(server.endpoint)
     args = [server.endpoint, str(work), str(points), str(stream_hz), str(frames)]
     cam = subprocess.Popen([sys.executable, "-c", _CAMERA, *args])
@@ -126,7 +126,7 @@ def stream(
                 raise RuntimeError("the camera process did not start")
             time.sleep(0.02)
         q_times, lost, reasons, seen, ages, regressions = _control_loop(
-            server.endpoint, robot, query_hz, seconds
+            server.endpoint, robot, query_hz, seconds, server.priority
         )
     finally:
         atomic_write(work / "camera-stop", b"1")
@@ -200,21 +200,22 @@ def _upper_edge(edges: NDArray[np.float64], counts: NDArray[np.int64], q: float)
 
 
 def _control_loop(
-    endpoint: str, robot: Robot, rate_hz: float, seconds: float
+    endpoint: str, robot: Robot, rate_hz: float, seconds: float, priority: int | None = None
 ) -> tuple[NDArray[np.float64], int, list[str], set[int], NDArray[np.float64], int]:
     """The controller: query times (µs), lost replies, their first reasons, the camera
-    versions seen, the camera cloud's age per answer (µs) and version regressions."""
+    versions seen, the camera cloud's age per answer (µs) and version regressions. It
+    runs as a real-time loop does (:func:`realtime_settings`: no full collection of the
+    setup's objects; under SCHED_FIFO at ``priority``, given as the server's), its
+    client made inside, so that ZeroMQ's I/O thread shares the loop's scheduling."""
     n = int(seconds * rate_hz)
     warm = int(0.2 * rate_hz)
     period = 1.0 / rate_hz
-    with SceneClient(endpoint, deadline=LOST_DEADLINE, batch_inputs=True) as client:
-        gc.collect()
-        gc.freeze()  # as a real-time loop does: no full collection of the setup's objects
+    with (
+        realtime_settings(priority=priority),
+        SceneClient(endpoint, deadline=LOST_DEADLINE, batch_inputs=True) as client,
+    ):
         start = time.perf_counter() + 0.05
-        try:
-            return _ticks(client, robot, start, period, warm, n)
-        finally:
-            gc.unfreeze()
+        return _ticks(client, robot, start, period, warm, n)
 
 
 def _ticks(

@@ -71,10 +71,25 @@ def serve(
         typer.Option("--endpoint-file", help="Write the bound endpoint to this file."),
     ] = None,
     verbose: bool = typer.Option(False, "--verbose", "-v", help="Log every state change."),
+    priority: Annotated[
+        int | None,
+        typer.Option(
+            "--priority",
+            min=1,
+            max=99,
+            help="Serve queries under SCHED_FIFO at this priority (Linux; needs root, "
+            "CAP_SYS_NICE or an rtprio limit): the request thread and ZeroMQ's I/O "
+            "threads; cloud indexing stays at a low normal priority.",
+        ),
+    ] = None,
+    io_threads: int = typer.Option(
+        2, "--io-threads", min=1, help="ZeroMQ I/O threads (connections are spread over them)."
+    ),
 ) -> None:
     """Run the collision server until SIGINT/SIGTERM (or --max-runtime)."""
     if ctx.invoked_subcommand is not None:
         return
+    from reachwise.control.realtime import fifo_refusal, realtime_settings
     from reachwise.distance.engine import STRATEGIES
     from reachwise.errors import check_choice
     from reachwise.io.atomic import atomic_write
@@ -91,6 +106,13 @@ def serve(
     except ValueError as exc:
         typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
         raise typer.Exit(2) from None
+    if priority is not None and (refused := fifo_refusal(priority)):
+        typer.secho(
+            f"warning: --priority {priority}: SCHED_FIFO {refused}; serving at normal priority",
+            err=True,
+            fg=typer.colors.YELLOW,
+        )
+        priority = None
     server = CollisionServer(
         bind,
         state,
@@ -98,6 +120,8 @@ def serve(
         insecure=insecure,
         strategy=check_choice(strategy, STRATEGIES, source="--strategy", kind="strategy"),
         limits=limits,
+        io_threads=io_threads,
+        io_priority=priority,
     )
     if not server.plan.local and not server.plan.curve:
         typer.secho(
@@ -115,14 +139,19 @@ def serve(
         typer.echo(
             f"reachwise serve: listening on {endpoint} "
             f"(CURVE {'on' if server.plan.curve else 'off'}, "
-            f"state {state if state is not None else 'not kept'})"
+            f"state {state if state is not None else 'not kept'}, "
+            f"{f'SCHED_FIFO {priority}' if priority is not None else 'normal priority'})"
         )
         sys.stdout.flush()
         # what is loaded by now lives as long as the process: out of the collector's
         # sight, a full collection takes microseconds instead of a 100 ms pause mid-tick
         gc.collect()
         gc.freeze()
-        server.serve_forever(max_runtime)
+        # the request thread under SCHED_FIFO (the indexing worker it starts later
+        # drops that) and glibc's freed memory kept, as for a 1 kHz loop
+        # (reachwise.control.realtime)
+        with realtime_settings(priority=priority, freeze=False):
+            server.serve_forever(max_runtime)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)

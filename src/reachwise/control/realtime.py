@@ -9,19 +9,31 @@ then is the interpreter and the C library around it:
   holds — numba's, scipy's, the scene's — and takes milliseconds. ``gc.freeze()``
   after the setup moves those objects out of its sight, so the collections the tick's
   few allocations trigger are short;
-- **the GIL's switch interval**: a thread that wants the GIL (the camera thread
-  handing over a frame, the ingestion worker between two compiled passes) waits for
-  the running thread to give it up, forcibly after ``sys.getswitchinterval()``, 5 ms
-  by default. 0.1 ms bounds how long the loop thread and a hand-over wait for each
-  other (their own Python is a few microseconds at a time);
+- **the GIL's switch interval** (left at Python's 5 ms by default): a thread that
+  wants the GIL asks the running one to give it up after ``sys.getswitchinterval()``.
+  The loop's tick (0.1–0.5 ms) is shorter than 5 ms and it sleeps between ticks, so
+  the other threads (a camera handing over a frame, the ingestion worker between two
+  compiled passes: microseconds of Python each) take the GIL while it sleeps and it
+  is never made to give the GIL away mid-tick. A short interval does just that:
+  measured in ``bench realtime``'s loop under ``SCHED_FIFO``, 0.1 ms had the loop
+  switched out mid-tick in 14–21 ticks of 10 000 (p99.9 0.43–0.48 ms), 5 ms in 1–3
+  (0.38–0.40 ms). ``switch_interval`` sets it for the block if wanted;
+- **the scheduler**: a loop thread woken by its timer waits on the run queue while both
+  cores run other threads (the ingestion worker's builds, another process) — measured
+  in ``reachwise bench realtime``, up to 5 ms inside one tick at normal priority. Real
+  1 kHz loops (libfranka, ros2_control) run their control thread under ``SCHED_FIFO``:
+  it then takes a core from any normal thread at once. ``priority`` (1–99) asks Linux
+  for that for the calling thread; it needs the right to (root, ``CAP_SYS_NICE`` or an
+  ``rtprio`` limit): without it the thread keeps its policy and the block says so;
 - **the C library's memory**: glibc returns freed blocks of more than 128 kB (up to
   32 MB, adaptively) to the kernel, so the next cloud's arrays are new pages, each
   zeroed by the kernel on first touch — 20 000 page faults, a third of the time of a
   million-point build. ``mallopt`` thresholds of 1 GiB keep freed memory for reuse
   (the process's resident size then stays at its peak).
 
-:func:`realtime_settings` applies the three for the duration of a ``with`` block
-(memory settings stay: they are process-wide and harmless to keep);
+:func:`realtime_settings` applies them for the duration of a ``with`` block (memory
+settings stay: they are process-wide and harmless to keep) and yields what took effect
+(:class:`RealtimeApplied`);
 ``reachwise bench realtime`` runs its loop inside it.
 """
 
@@ -30,11 +42,14 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import gc
+import os
 import sys
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 
-__all__ = ["keep_freed_memory", "realtime_settings"]
+__all__ = ["RealtimeApplied", "fifo_refusal", "keep_freed_memory", "realtime_settings"]
 
 _M_TRIM_THRESHOLD = -1
 _M_MMAP_THRESHOLD = -3
@@ -56,28 +71,95 @@ def keep_freed_memory() -> bool:
     return bool(mallopt(_M_TRIM_THRESHOLD, _KEEP) == 1 and ok)
 
 
+@dataclass(frozen=True)
+class RealtimeApplied:
+    """What :func:`realtime_settings` could apply: ``priority``, the ``SCHED_FIFO``
+    priority the calling thread runs at (None: its policy is unchanged, ``refused``
+    says why when one was asked for), ``memory_kept`` (glibc ``mallopt``),
+    ``frozen`` (the collector's objects) and the GIL ``switch_interval`` (s)."""
+
+    priority: int | None
+    memory_kept: bool
+    frozen: bool
+    switch_interval: float
+    refused: str = ""
+
+
+_NOT_PERMITTED = "not permitted (needs root, CAP_SYS_NICE or an rtprio limit)"
+
+
+def _check_priority(priority: object) -> None:
+    if not (isinstance(priority, int) and not isinstance(priority, bool) and 1 <= priority <= 99):
+        raise ValueError(f"priority must be an integer from 1 to 99, got {priority!r}")
+
+
+def _fifo(priority: int) -> tuple[tuple[int, int] | None, str]:
+    """Put the calling thread under ``SCHED_FIFO`` at ``priority``: the policy and
+    priority to restore, or None and why it was not possible."""
+    if not hasattr(os, "sched_setscheduler"):
+        return None, f"SCHED_FIFO is not available on {sys.platform}"
+    policy = os.sched_getscheduler(0)
+    param = os.sched_getparam(0)
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except PermissionError:
+        return None, _NOT_PERMITTED
+    return (policy, param.sched_priority), ""
+
+
+def fifo_refusal(priority: int) -> str:
+    """Why a thread of this process may not run under ``SCHED_FIFO`` at ``priority``
+    ("" when it may), found by trying in a short-lived thread of its own (the caller's
+    policy is untouched). For threads that cannot be asked afterwards: libzmq's I/O
+    threads take their policy when they start and abort the process if it is refused."""
+    _check_priority(priority)
+    out: list[str] = []
+
+    def probe() -> None:
+        out.append(_fifo(priority)[1])  # the policy dies with this thread
+
+    thread = threading.Thread(target=probe, name="reachwise-fifo-probe")
+    thread.start()
+    thread.join()
+    return out[0]
+
+
 @contextmanager
 def realtime_settings(
-    *, switch_interval: float = 1e-4, freeze: bool = True, keep_memory: bool = True
-) -> Iterator[None]:
+    *,
+    switch_interval: float | None = None,
+    freeze: bool = True,
+    keep_memory: bool = True,
+    priority: int | None = None,
+) -> Iterator[RealtimeApplied]:
     """Within the block: the garbage collector's existing objects frozen
     (``gc.freeze()`` after a collection), the GIL switch interval at
-    ``switch_interval`` seconds, freed memory kept (:func:`keep_freed_memory`). On exit
-    the switch interval is restored and the frozen objects are handed back to the
-    collector. Enter it after the setup (robots, scene, clouds, controller) and a
-    first tick, so that everything made once is frozen."""
-    if not switch_interval > 0:
+    ``switch_interval`` seconds (None: as it is), freed memory kept (:func:`keep_freed_memory`) and,
+    with ``priority`` (1–99), the calling thread under ``SCHED_FIFO`` at that priority
+    where the OS permits it. On exit the switch interval and the thread's scheduling
+    policy are restored and the frozen objects are handed back to the collector.
+    Enter it after the setup (robots, scene, clouds, controller) and a first tick, so
+    that everything made once is frozen; run the loop in the thread that enters it.
+    Yields :class:`RealtimeApplied`."""
+    if switch_interval is not None and not switch_interval > 0:
         raise ValueError(f"switch_interval must be > 0 s, got {switch_interval!r}")
-    if keep_memory:
-        keep_freed_memory()
+    if priority is not None:
+        _check_priority(priority)
+    kept = keep_freed_memory() if keep_memory else False
     if freeze:
         gc.collect()
         gc.freeze()
     previous = sys.getswitchinterval()
-    sys.setswitchinterval(switch_interval)
+    interval = previous if switch_interval is None else switch_interval
+    sys.setswitchinterval(interval)
+    restore, refused = _fifo(priority) if priority is not None else (None, "")
     try:
-        yield
+        yield RealtimeApplied(
+            priority if restore is not None else None, kept, freeze, interval, refused
+        )
     finally:
+        if restore is not None:
+            os.sched_setscheduler(0, restore[0], os.sched_param(restore[1]))
         sys.setswitchinterval(previous)
         if freeze:
             gc.unfreeze()

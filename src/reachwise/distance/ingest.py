@@ -125,6 +125,21 @@ def _frame_array(points: ArrayLike, name: str) -> NDArray[np.floating]:
 Build = Callable[[str, int, "NDArray[np.float64] | PointCloud", float, "float | None"], Ready]
 
 
+def _lower_priority(nice: int) -> None:
+    """Make the calling (worker) thread yield to a control loop: a real-time policy
+    inherited from the thread that started it (a loop under ``SCHED_FIFO`` that made
+    the first hand-over) is dropped for the normal one — a build under it would hold a
+    core for its whole length — and the nice value is raised by ``nice``."""
+    try:
+        if os.sched_getscheduler(0) in (os.SCHED_FIFO, os.SCHED_RR):
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+        if nice:
+            tid = threading.get_native_id()
+            os.setpriority(os.PRIO_PROCESS, tid, os.getpriority(os.PRIO_PROCESS, tid) + nice)
+    except OSError:
+        pass  # not allowed here: build at the inherited priority
+
+
 class CloudIngest:
     """One worker thread that builds handed-over clouds (see the module docstring).
 
@@ -133,7 +148,8 @@ class CloudIngest:
     ``voxel`` (m, optional): thin every handed-over cloud to one point per voxel.
     ``build``: what the worker runs per hand-over (:func:`ready_cloud`; a test may wrap
     it to hold a build open). ``nice``: on Linux the worker lowers its own scheduling
-    priority by this much when it starts (10 by default; 0 keeps it), so that a
+    priority by this much when it starts (10 by default; 0 keeps it), and never keeps
+    a real-time policy inherited from the thread that started it, so that a
     control loop sharing the cores is not preempted by a build: measured in
     ``reachwise bench realtime``, the loop's p99.9 tick fell from 1–2.5 ms to
     0.6 ms, at the same 30 swaps/s. Set it before the first hand-over.
@@ -251,14 +267,8 @@ class CloudIngest:
 
     # ------------------------------------------------------------------ worker
     def _run(self) -> None:
-        if self.nice and sys.platform == "linux":  # per thread there (a tid is a pid)
-            tid = threading.get_native_id()
-            try:
-                os.setpriority(
-                    os.PRIO_PROCESS, tid, os.getpriority(os.PRIO_PROCESS, tid) + self.nice
-                )
-            except OSError:
-                pass  # not allowed here: build at the inherited priority
+        if sys.platform == "linux":  # per thread there (a tid is a pid)
+            _lower_priority(self.nice)
         while True:
             self._retired.clear()  # free swapped-out clouds here, on the worker
             with self._cond:

@@ -28,6 +28,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
+import os
 import queue
 import threading
 import time
@@ -41,7 +42,9 @@ import zmq
 import zmq.auth.thread
 
 import reachwise.server.protocol as P
+from reachwise.control.realtime import fifo_refusal
 from reachwise.distance.engine import StrategyName
+from reachwise.errors import InputError
 from reachwise.server.security import DEFAULT_BIND, BindPlan, plan_bind, secure_server_socket
 from reachwise.server.service import LIVE_INTERVAL, CloudWait, SceneService, answer
 from reachwise.server.state import StateStore
@@ -111,7 +114,20 @@ class CollisionServer:
         strategy: StrategyName = "default",
         limits: P.Limits = P.DEFAULT_LIMITS,
         live_interval: float = LIVE_INTERVAL,
+        io_threads: int = 2,
+        io_priority: int | None = None,
     ) -> None:
+        if not (isinstance(io_threads, int) and io_threads >= 1):
+            raise InputError("server", "io_threads", f"must be an integer >= 1, got {io_threads!r}")
+        if io_priority is not None:
+            refused = fifo_refusal(io_priority)
+            if refused:
+                raise InputError("server", "io_priority", f"SCHED_FIFO {refused}")
+        #: ZeroMQ I/O threads (2: a camera's frames and a controller's queries arrive on
+        #: different connections, so a frame being read does not hold up a query) and
+        #: their SCHED_FIFO priority (None: the normal policy).
+        self.io_threads = io_threads
+        self.io_priority = io_priority
         self.plan: BindPlan = plan_bind(bind, keys, insecure)
         self.limits = limits
         self.live_interval = live_interval
@@ -134,7 +150,10 @@ class CollisionServer:
         directory first) and return the bound endpoint."""
         if self._ctx is not None:
             raise RuntimeError("the server is already started")
-        ctx: zmq.Context[zmq.Socket[bytes]] = zmq.Context()
+        ctx: zmq.Context[zmq.Socket[bytes]] = zmq.Context(self.io_threads)
+        if self.io_priority is not None:  # permitted: checked in __init__
+            ctx.set(zmq.THREAD_SCHED_POLICY, os.SCHED_FIFO)
+            ctx.set(zmq.THREAD_PRIORITY, self.io_priority)
         self._ctx = ctx
         try:
             if self.plan.keys is not None:

@@ -1,0 +1,49 @@
+"""The stall probe of ``reachwise bench realtime`` judges the machine: it must find a
+gap it is known to contain, and tell a gap its thread was charged for (a stall) from
+one in which the thread slept (another thread or process ran)."""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time
+
+import pytest
+
+from reachwise.benchmarks.realtime import stall_gaps
+
+GAP = 0.004  # s, the injected gap
+
+
+def _probe_with(handler: object) -> list[tuple[float, float]]:
+    """The probe's gaps (wall, CPU; µs) while a timer runs ``handler`` once (on a busy
+    machine other gaps come with it: the tests look for the injected one)."""
+    previous = signal.signal(signal.SIGALRM, handler)  # type: ignore[arg-type]
+    try:
+        signal.setitimer(signal.ITIMER_REAL, 0.05)
+        wall, cpu = stall_gaps(0.3)
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
+        signal.signal(signal.SIGALRM, previous)
+    return list(zip(wall.tolist(), cpu.tolist(), strict=True))
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="SIGALRM")
+def test_a_gap_the_thread_spent_running_other_code_is_charged_cpu() -> None:
+    def spin(*_: object) -> None:  # GAP seconds of this thread's CPU time
+        end = time.thread_time() + GAP
+        while time.thread_time() < end:
+            pass
+
+    gaps = _probe_with(spin)
+    # the two clocks are read one after the other: wall may trail cpu by microseconds
+    assert any(cpu >= GAP * 1e6 and wall >= 0.99 * GAP * 1e6 for wall, cpu in gaps), gaps
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="SIGALRM")
+def test_a_gap_the_thread_slept_through_is_not_charged_cpu() -> None:
+    def nap(*_: object) -> None:
+        time.sleep(GAP)
+
+    gaps = _probe_with(nap)
+    assert any(wall >= GAP * 1e6 and cpu < 0.5 * wall for wall, cpu in gaps), gaps
