@@ -335,6 +335,7 @@ def streaming_figures(
         ) as server:
             with SceneClient(server.endpoint) as c:
                 c.wait_ready(60.0)
+                build_scene(c, robot, part, env)
             stream(rep, server, robot, **opts)
     d = rep.to_dict()
     return {k: d[k] for k in ("metrics", "ratios", "targets", "notes")}
@@ -399,6 +400,7 @@ def run(quick: bool = False) -> BenchReport:
         ) as server:
             with SceneClient(server.endpoint) as c:
                 c.wait_ready(60.0)
+                build_scene(c, robot, part, env)
             _soak(rep, server, robot, ticks, scans)
             stream(rep, server, robot, **opts)
     stage_costs(rep, robot, 500 if quick else 3000)
