@@ -14,6 +14,7 @@ from reachwise.control.realtime import keep_freed_memory, realtime_settings
 
 def test_settings_apply_inside_the_block_and_are_restored() -> None:
     before = sys.getswitchinterval()
+    gc.unfreeze()  # whatever an earlier test left frozen
     frozen = gc.get_freeze_count()
     with realtime_settings(switch_interval=2e-4):
         assert sys.getswitchinterval() == pytest.approx(2e-4)
@@ -68,3 +69,16 @@ def test_a_priority_outside_1_to_99_is_refused_before_anything_changes(bad: obje
         with realtime_settings(priority=bad):  # type: ignore[arg-type]
             pass
     assert sys.getswitchinterval() == before
+
+
+def test_objects_frozen_before_the_block_stay_frozen_after_it() -> None:
+    gc.collect()
+    gc.freeze()
+    try:
+        frozen = gc.get_freeze_count()
+        assert frozen > 0
+        with realtime_settings():
+            pass
+        assert gc.get_freeze_count() >= frozen
+    finally:
+        gc.unfreeze()

@@ -5,6 +5,7 @@ warning."""
 
 from __future__ import annotations
 
+import gc
 import os
 import sys
 from pathlib import Path
@@ -71,6 +72,7 @@ def test_serve_priority_refused_falls_back_to_normal_priority_with_a_warning(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     monkeypatch.setattr(RT, "fifo_refusal", lambda _p: "not permitted (test)")
+    gc.unfreeze()
     runner = CliRunner()
     got = runner.invoke(
         app, ["--bind", "tcp://127.0.0.1:*", "--priority", "50", "--max-runtime", "0.3"]
@@ -78,3 +80,4 @@ def test_serve_priority_refused_falls_back_to_normal_priority_with_a_warning(
     assert got.exit_code == 0, got.output
     assert "SCHED_FIFO not permitted (test); serving at normal priority" in got.output
     assert "normal priority)" in got.output
+    assert gc.get_freeze_count() == 0  # serve hands back what it froze, in process too

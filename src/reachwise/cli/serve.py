@@ -156,6 +156,7 @@ def serve(
         for sig, handler in previous.items():
             signal.signal(sig, handler)
         server.close()
+        gc.unfreeze()  # called in-process (a test, an embedding): hand them back
     typer.echo("reachwise serve: stopped")
 
 

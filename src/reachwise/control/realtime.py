@@ -137,7 +137,8 @@ def realtime_settings(
     ``switch_interval`` seconds (None: as it is), freed memory kept (:func:`keep_freed_memory`) and,
     with ``priority`` (1–99), the calling thread under ``SCHED_FIFO`` at that priority
     where the OS permits it. On exit the switch interval and the thread's scheduling
-    policy are restored and the frozen objects are handed back to the collector.
+    policy are restored and the frozen objects are handed back to the collector
+    (unless objects were frozen before the block: those stay frozen, and so do these).
     Enter it after the setup (robots, scene, clouds, controller) and a first tick, so
     that everything made once is frozen; run the loop in the thread that enters it.
     Yields :class:`RealtimeApplied`."""
@@ -146,6 +147,9 @@ def realtime_settings(
     if priority is not None:
         _check_priority(priority)
     kept = keep_freed_memory() if keep_memory else False
+    # objects frozen by someone else before the block stay frozen after it (the
+    # collector can only unfreeze everything at once)
+    unfreeze = freeze and gc.get_freeze_count() == 0
     if freeze:
         gc.collect()
         gc.freeze()
@@ -161,5 +165,5 @@ def realtime_settings(
         if restore is not None:
             os.sched_setscheduler(0, restore[0], os.sched_param(restore[1]))
         sys.setswitchinterval(previous)
-        if freeze:
+        if unfreeze:
             gc.unfreeze()
