@@ -468,12 +468,16 @@ def stall_gaps(seconds: float) -> tuple[NDArray[np.float64], NDArray[np.float64]
     limit = int(STALL_GAP * 1e9)
     gaps: list[tuple[int, int]] = []
     t_prev, c_prev = wall_ns(), cpu_ns()
+    c_before = c_prev
     end = t_prev + int(seconds * 1e9)
     while t_prev < end:
         t, c = wall_ns(), cpu_ns()
         if t - t_prev > limit:
-            gaps.append((t - t_prev, c - c_prev))
-        t_prev, c_prev = t, c
+            # the CPU clock over this gap and the one before it: a pause between the
+            # previous wall and CPU reads falls in this wall gap but in the previous
+            # CPU window (the two clocks cannot be read at one instant)
+            gaps.append((t - t_prev, c - c_before))
+        t_prev, c_before, c_prev = t, c_prev, c
     arr = np.array(gaps, dtype=np.float64).reshape(-1, 2) * 1e-3
     return arr[:, 0], arr[:, 1]
 
