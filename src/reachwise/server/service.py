@@ -334,19 +334,7 @@ class SceneService:
                 stamp, req.joints, req.poses, layout
             )
             if req.layout == layout.name:  # the per-tick answer: every field made here
-                reply: P.QueryReply = P.unchecked(
-                    P.QueryReply,
-                    sequence=seq,
-                    measured_at=measured,
-                    compute_time=compute,
-                    layout=layout.name,
-                    pairs=None,
-                    rows=rows,
-                    objects=None,
-                    robots=None,
-                    clouds=clouds,
-                )
-                return reply
+                return P.tick_query_reply(layout, seq, measured, compute, rows, clouds)
             return P.QueryReply(
                 seq,
                 measured,

@@ -106,19 +106,7 @@ class Channel:
                 got = self.tick(tick, rid, layout, end, deadline)
                 if isinstance(got, tuple):
                     _, seq, measured, compute, rows, clouds = got
-                    reply: P.QueryReply = P.unchecked(
-                        P.QueryReply,
-                        sequence=seq,
-                        measured_at=measured,
-                        compute_time=compute,
-                        layout=layout.name,
-                        pairs=None,
-                        rows=rows,
-                        objects=None,
-                        robots=None,
-                        clouds=clouds,
-                    )
-                    return reply
+                    return P.tick_query_reply(layout, seq, measured, compute, rows, clouds)
                 if got is not None:
                     return self.result(request.OP, got)
         return self.call_full(request, end, deadline)

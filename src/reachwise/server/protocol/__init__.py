@@ -161,6 +161,7 @@ from reachwise.server.protocol.tick import (
     is_tick_reply,
     read_tick,
     read_tick_reply,
+    tick_query_reply,
     tick_reply_frame,
 )
 
@@ -240,6 +241,7 @@ __all__ = [
     "layout_key",
     "read_tick",
     "read_tick_reply",
+    "tick_query_reply",
     "tick_reply_frame",
     "unchecked",
 ]

@@ -363,11 +363,24 @@ def decode_tick_reply(raw: Buffer, layout: Layout) -> tuple[int, QueryReply]:
     """The request id and the :class:`QueryReply` of one tick reply frame, checked
     against the ``layout`` the request was sent under; raises :class:`ProtocolError`."""
     rid, seq, measured, compute, rows, clouds = read_tick_reply(raw, layout)
+    return rid, tick_query_reply(layout, seq, measured, compute, rows, clouds)
+
+
+def tick_query_reply(
+    layout: Layout,
+    sequence: int,
+    measured_at: float,
+    compute_time: float,
+    rows: NDArray[np.float64],
+    clouds: NDArray[np.float64] | None,
+) -> QueryReply:
+    """The per-tick :class:`QueryReply` under ``layout``: the answer rows and the cloud
+    table, no pairs, objects or robots (made without checks: every field is ours)."""
     reply: QueryReply = unchecked(
         QueryReply,
-        sequence=seq,
-        measured_at=measured,
-        compute_time=compute,
+        sequence=sequence,
+        measured_at=measured_at,
+        compute_time=compute_time,
         layout=layout.name,
         pairs=None,
         rows=rows,
@@ -375,7 +388,7 @@ def decode_tick_reply(raw: Buffer, layout: Layout) -> tuple[int, QueryReply]:
         robots=None,
         clouds=clouds,
     )
-    return rid, reply
+    return reply
 
 
 def read_tick_reply(
