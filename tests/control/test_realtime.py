@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ctypes
 import gc
 import os
 import platform
@@ -82,3 +83,51 @@ def test_objects_frozen_before_the_block_stay_frozen_after_it() -> None:
         assert gc.get_freeze_count() >= frozen
     finally:
         gc.unfreeze()
+
+
+def _thp_enabled() -> int | None:
+    """The kernel's own word on this process: ``THP_enabled`` in /proc/self/status."""
+    try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith("THP_enabled:"):
+                    return int(line.split()[1])
+    except OSError:
+        pass
+    return None
+
+
+needs_thp_status = pytest.mark.skipif(
+    _thp_enabled() is None, reason="no THP_enabled in /proc/self/status"
+)
+
+
+@needs_thp_status
+def test_huge_pages_are_off_for_the_process_inside_the_block_and_back_after() -> None:
+    before = _thp_enabled()
+    if before == 0:
+        pytest.skip("transparent huge pages are off for this process (or kernel)")
+    with realtime_settings(freeze=False) as applied:
+        inside = _thp_enabled()
+    assert applied.huge_pages_off
+    assert inside == 0
+    assert _thp_enabled() == before
+    with realtime_settings(freeze=False, huge_pages=True) as kept:
+        assert _thp_enabled() == before
+    assert not kept.huge_pages_off
+
+
+@needs_thp_status
+def test_huge_pages_turned_off_before_the_block_stay_off_after_it() -> None:
+    if _thp_enabled() == 0:
+        pytest.skip("transparent huge pages are off for this process (or kernel)")
+    prctl = ctypes.CDLL(None).prctl
+    assert prctl(41, 1, 0, 0, 0) == 0  # PR_SET_THP_DISABLE, as a caller might have
+    try:
+        with realtime_settings(freeze=False) as applied:
+            assert _thp_enabled() == 0
+        assert applied.huge_pages_off
+        assert _thp_enabled() == 0
+    finally:
+        prctl(41, 0, 0, 0, 0)
+    assert _thp_enabled() == 1

@@ -53,7 +53,9 @@ their time on page faults), and the loop runs inside
 :func:`reachwise.control.realtime.realtime_settings` (the garbage collector's existing
 objects frozen after setup, the GIL switch interval left at 5 ms, the loop
 thread under ``SCHED_FIFO`` at :data:`LOOP_PRIORITY` where the OS permits it, as
-libfranka and ros2_control run theirs): see the README's realtime section.
+libfranka and ros2_control run theirs, transparent huge pages off for the process so
+that the kernel never write-locks its memory map to collapse them under a tick): see
+the README's realtime section.
 
 Targets (issue 17): tick median ≤ 300 µs, p99.9 ≤ 1 ms, max ≤ 3 ms; 0 ticks waited
 for a build; ≥ 29 swaps/s; hand-off p99 ≤ 2 ms; builds: 300 k ≤ 20 ms, 1 M ≤ 80 ms.
@@ -432,6 +434,7 @@ def _loop(rep: BenchReport, quick: bool) -> None:
     rep.metrics["loop.ticks_waited_for_build"] = float(waited)
     rep.metrics["loop.goals_reached"] = float(reached)
     rep.metrics["loop.fifo_priority"] = float(applied.priority or 0)
+    rep.metrics["loop.huge_pages_off"] = float(applied.huge_pages_off)
     rep.metrics["loop.protective_stops"] = float(stopped)
     rep.metrics["loop.superseded"] = float(scene.ingest.superseded)
     rep.add_samples("handoff", np.array(handoff))
@@ -451,6 +454,7 @@ def _loop(rep: BenchReport, quick: bool) -> None:
             if applied.priority is not None
             else f"the loop thread at normal priority (SCHED_FIFO {applied.refused})"
         )
+        + ("; transparent huge pages off" if applied.huge_pages_off else "")
     )
 
 
