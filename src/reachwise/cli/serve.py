@@ -148,8 +148,8 @@ def serve(
         gc.collect()
         gc.freeze()
         # the request thread under SCHED_FIFO (the indexing worker it starts later
-        # drops that) and glibc's freed memory kept, as for a 1 kHz loop
-        # (reachwise.control.realtime)
+        # drops that), glibc's freed memory kept and transparent huge pages off, as
+        # for a 1 kHz loop (reachwise.control.realtime)
         with realtime_settings(priority=priority, freeze=False):
             server.serve_forever(max_runtime)
     finally:
