@@ -131,3 +131,20 @@ def test_huge_pages_turned_off_before_the_block_stay_off_after_it() -> None:
     finally:
         prctl(41, 0, 0, 0, 0)
     assert _thp_enabled() == 1
+
+
+@needs_thp_status
+def test_overlapping_blocks_keep_huge_pages_off_until_the_last_one_ends() -> None:
+    if _thp_enabled() == 0:
+        pytest.skip("transparent huge pages are off for this process (or kernel)")
+    # a loop's block and a server's in one process, on two threads: the first to
+    # start ends first
+    first, second = realtime_settings(freeze=False), realtime_settings(freeze=False)
+    first.__enter__()
+    applied = second.__enter__()
+    first.__exit__(None, None, None)
+    between = _thp_enabled()  # the second block still holds them off
+    second.__exit__(None, None, None)
+    assert applied.huge_pages_off
+    assert between == 0
+    assert _thp_enabled() == 1

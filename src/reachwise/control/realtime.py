@@ -125,25 +125,53 @@ _PR_SET_THP_DISABLE = 41
 _PR_GET_THP_DISABLE = 42
 
 
-def _huge_pages_off() -> tuple[bool, bool]:
-    """Turn transparent huge pages off for this process (Linux ``prctl``): whether
-    they are off now, and whether this call turned them off (to turn back on)."""
-    if sys.platform != "linux":
-        return False, False
-    try:
-        prctl = ctypes.CDLL(None, use_errno=True).prctl
-    except (OSError, AttributeError):
-        return False, False
-    before = prctl(_PR_GET_THP_DISABLE, 0, 0, 0, 0)
-    if before < 0:  # a kernel without the setting
-        return False, False
-    if before & 1:
-        return True, False
-    return prctl(_PR_SET_THP_DISABLE, 1, 0, 0, 0) == 0, True
+class _HugePages:
+    """Transparent huge pages off for this process (Linux ``prctl``) while at least
+    one :func:`realtime_settings` block holds them off — the setting is the process's,
+    and blocks may overlap (a server and a client loop in one process) — and back on
+    after the last one, unless they were off before the first."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._holders = 0
+        self._turned_off = False
+
+    def hold_off(self) -> bool:
+        """Hold them off; whether they are off (False: no such setting here)."""
+        with self._lock:
+            if self._holders == 0:
+                off, self._turned_off = self._turn_off()
+                if not off:
+                    return False
+            self._holders += 1
+            return True
+
+    def release(self) -> None:
+        """Let go of one :meth:`hold_off` that returned True."""
+        with self._lock:
+            self._holders -= 1
+            if self._holders == 0 and self._turned_off:
+                ctypes.CDLL(None).prctl(_PR_SET_THP_DISABLE, 0, 0, 0, 0)
+                self._turned_off = False
+
+    @staticmethod
+    def _turn_off() -> tuple[bool, bool]:
+        """Whether they are off now, and whether this call turned them off."""
+        if sys.platform != "linux":
+            return False, False
+        try:
+            prctl = ctypes.CDLL(None).prctl
+        except (OSError, AttributeError):
+            return False, False
+        before = prctl(_PR_GET_THP_DISABLE, 0, 0, 0, 0)
+        if before < 0:  # a kernel without the setting
+            return False, False
+        if before & 1:
+            return True, False
+        return prctl(_PR_SET_THP_DISABLE, 1, 0, 0, 0) == 0, True
 
 
-def _huge_pages_on() -> None:
-    ctypes.CDLL(None).prctl(_PR_SET_THP_DISABLE, 0, 0, 0, 0)
+_HUGE_PAGES = _HugePages()
 
 
 def fifo_refusal(priority: int) -> str:
@@ -173,13 +201,14 @@ def realtime_settings(
     huge_pages: bool = False,
 ) -> Iterator[RealtimeApplied]:
     """Within the block: the garbage collector's existing objects frozen
-    (``gc.freeze()`` after a collection), the GIL switch interval at
-    ``switch_interval`` seconds (None: as it is), freed memory kept (:func:`keep_freed_memory`) and,
-    with ``priority`` (1–99), the calling thread under ``SCHED_FIFO`` at that priority
-    where the OS permits it, and (unless ``huge_pages``) transparent huge pages off for
-    the process on Linux. On exit the switch interval, the thread's scheduling policy
-    and the huge-page setting are restored and the frozen objects are handed back to the collector
-    (unless objects were frozen before the block: those stay frozen, and so do these).
+    (``gc.freeze()`` after a collection), the GIL switch interval at ``switch_interval``
+    seconds (None: as it is), freed memory kept (:func:`keep_freed_memory`), with
+    ``priority`` (1–99) the calling thread under ``SCHED_FIFO`` at that priority where
+    the OS permits it, and (unless ``huge_pages``) transparent huge pages off for the
+    process on Linux. On exit the switch interval, the thread's scheduling policy and
+    (after the last of overlapping blocks) the huge-page setting are restored, and the
+    frozen objects are handed back to the collector (unless objects were frozen before
+    the block: those stay frozen, and so do these).
     Enter it after the setup (robots, scene, clouds, controller) and a first tick, so
     that everything made once is frozen; run the loop in the thread that enters it.
     Yields :class:`RealtimeApplied`."""
@@ -198,7 +227,7 @@ def realtime_settings(
     interval = previous if switch_interval is None else switch_interval
     sys.setswitchinterval(interval)
     restore, refused = _fifo(priority) if priority is not None else (None, "")
-    pages_off, turned_off = (False, False) if huge_pages else _huge_pages_off()
+    pages_off = False if huge_pages else _HUGE_PAGES.hold_off()
     try:
         yield RealtimeApplied(
             priority if restore is not None else None,
@@ -209,8 +238,8 @@ def realtime_settings(
             pages_off,
         )
     finally:
-        if turned_off:
-            _huge_pages_on()
+        if pages_off:
+            _HUGE_PAGES.release()
         if restore is not None:
             os.sched_setscheduler(0, restore[0], os.sched_param(restore[1]))
         sys.setswitchinterval(previous)
