@@ -28,14 +28,18 @@ One run measures:
    (``loop.swaps_per_s``), the queries answered while a build was running
    (``loop.ticks_during_build``) and, of those, the ticks longer than the 1 ms period
    (``loop.slow_ticks_during_build``) and the ones among them in which the loop's
-   thread was switched out (``loop.ticks_waited_for_build``: it blocked on a lock or
+   thread was switched out (``loop.ticks_waited_for_build``: it blocked on a lock, a page fault or
    the GIL, or another thread took its core; the scene itself never waits — it takes a
    built cloud only when the worker does not hold the lock, ``loop.swaps_deferred``).
    Every tick over 1 ms is put in one class by the thread's context switches over it
    (Linux): ``loop.slow.waited`` (it blocked), ``loop.slow.preempted`` (another thread
    ran on its core) or ``loop.slow.charged`` (never switched out: the tick's own work,
    or a stall of the machine that charges the thread for time it did not run — see
-   ``machine.stall`` below).
+   ``machine.stall`` below). Across those classes, ``loop.slow.faulted`` counts the
+   slow ticks in which the loop's thread took a page fault (a fault waits while
+   something holds the process's memory map write-locked, as the kernel's huge-page
+   collapsing did before :func:`~reachwise.control.realtime.realtime_settings` turned
+   it off); ``loop.page_faults`` and ``loop.ticks_faulted`` count them over the loop.
    Without example-robot-data (the ``robots`` extra) the loop runs the built-in
    ``panda`` (the same kinematics, published DH) with capsule-shaped link clouds and
    says so in the notes.
@@ -310,19 +314,20 @@ def loop_scene(
     return arm, converter, which
 
 
-def _switch_counter() -> tuple[Any, bool]:
+def thread_counters() -> tuple[Any, bool]:
     """A function giving the calling thread's (voluntary, involuntary) context switches
-    so far, and whether it counts them (Linux's ``RUSAGE_THREAD``; elsewhere (0, 0))."""
+    and page faults so far, and whether it counts them (Linux's ``RUSAGE_THREAD``;
+    elsewhere (0, 0, 0))."""
     try:
         import resource
 
         who = resource.RUSAGE_THREAD  # type: ignore[attr-defined,unused-ignore]
     except (ImportError, AttributeError):
-        return (lambda: (0, 0)), False
+        return (lambda: (0, 0, 0)), False
 
-    def switches() -> tuple[int, int]:
+    def switches() -> tuple[int, int, int]:
         r = resource.getrusage(who)
-        return r.ru_nvcsw, r.ru_nivcsw
+        return r.ru_nvcsw, r.ru_nivcsw, r.ru_minflt + r.ru_majflt
 
     return switches, True
 
@@ -338,7 +343,8 @@ def _loop(rep: BenchReport, quick: bool) -> None:
     tick_us = np.empty(ticks)
     cpu_us = np.empty(ticks)
     during = np.zeros(ticks, np.bool_)
-    switched = np.zeros((ticks, 2), np.int64)  # voluntary, involuntary context switches
+    # voluntary and involuntary context switches, page faults
+    switched = np.zeros((ticks, 3), np.int64)
     handoff: list[float] = []
     goal_index = 0
     reached = 0
@@ -368,7 +374,7 @@ def _loop(rep: BenchReport, quick: bool) -> None:
     swaps0, deferred0, during0 = scene.swaps, scene.swaps_deferred, scene.queries_during_build
     clock = time.perf_counter_ns
     cpu = time.thread_time_ns
-    switches, counted = _switch_counter()
+    switches, counted = thread_counters()
     with realtime_settings(priority=LOOP_PRIORITY) as applied:
         thread.start()
         try:
@@ -419,7 +425,11 @@ def _loop(rep: BenchReport, quick: bool) -> None:
     rep.metrics["loop.ticks_during_build"] = float(scene.queries_during_build - during0)
     slow = tick_us > DT * 1e6
     if counted:
-        out = switched.sum(axis=1) > 0
+        out = switched[:, :2].sum(axis=1) > 0
+        faulted = switched[:, 2] > 0
+        rep.metrics["loop.slow.faulted"] = float(np.count_nonzero(slow & faulted))
+        rep.metrics["loop.page_faults"] = float(switched[:, 2].sum())
+        rep.metrics["loop.ticks_faulted"] = float(np.count_nonzero(faulted))
         rep.metrics["loop.slow.waited"] = float(np.count_nonzero(slow & (switched[:, 0] > 0)))
         rep.metrics["loop.slow.preempted"] = float(
             np.count_nonzero(slow & (switched[:, 0] == 0) & (switched[:, 1] > 0))
