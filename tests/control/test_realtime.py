@@ -148,3 +148,23 @@ def test_overlapping_blocks_keep_huge_pages_off_until_the_last_one_ends() -> Non
     assert applied.huge_pages_off
     assert between == 0
     assert _thp_enabled() == 1
+
+
+@needs_thp_status
+def test_huge_pages_off_except_where_advised_come_back_as_they_were() -> None:
+    prctl = ctypes.CDLL(None).prctl
+    # PR_SET_THP_DISABLE with PR_THP_DISABLE_EXCEPT_ADVISED (Linux 6.18 and on): numpy's
+    # madvised arrays would still be collapsed, so the block turns them off completely
+    if _thp_enabled() == 0 or prctl(41, 1, 2, 0, 0) != 0:
+        pytest.skip("no PR_THP_DISABLE_EXCEPT_ADVISED in this kernel")
+    try:
+        before = prctl(42, 0, 0, 0, 0)
+        with realtime_settings(freeze=False) as applied:
+            inside = prctl(42, 0, 0, 0, 0)
+        after = prctl(42, 0, 0, 0, 0)
+    finally:
+        prctl(41, 0, 0, 0, 0)
+    assert before == 3  # off (1), except where advised (2)
+    assert applied.huge_pages_off
+    assert inside == 1
+    assert after == before

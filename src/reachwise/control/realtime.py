@@ -55,9 +55,10 @@ import gc
 import os
 import sys
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import cast
 
 __all__ = ["RealtimeApplied", "fifo_refusal", "keep_freed_memory", "realtime_settings"]
 
@@ -128,21 +129,28 @@ _PR_GET_THP_DISABLE = 42
 class _HugePages:
     """Transparent huge pages off for this process (Linux ``prctl``) while at least
     one :func:`realtime_settings` block holds them off — the setting is the process's,
-    and blocks may overlap (a server and a client loop in one process) — and back on
-    after the last one, unless they were off before the first."""
+    and blocks may overlap (a server and a client loop in one process) — and back as
+    they were after the last one."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self._holders = 0
-        self._turned_off = False
+        self._restore: int | None = None  # the PR_GET_THP_DISABLE value before
 
     def hold_off(self) -> bool:
         """Hold them off; whether they are off (False: no such setting here)."""
         with self._lock:
             if self._holders == 0:
-                off, self._turned_off = self._turn_off()
-                if not off:
+                prctl = _prctl()
+                if prctl is None:  # not Linux
                     return False
+                before = prctl(_PR_GET_THP_DISABLE, 0, 0, 0, 0)
+                if before < 0:  # a kernel without the setting
+                    return False
+                if before != 1:  # on, or off except where madvised (Linux 6.18 and on)
+                    if prctl(_PR_SET_THP_DISABLE, 1, 0, 0, 0) != 0:
+                        return False
+                    self._restore = before
             self._holders += 1
             return True
 
@@ -150,25 +158,25 @@ class _HugePages:
         """Let go of one :meth:`hold_off` that returned True."""
         with self._lock:
             self._holders -= 1
-            if self._holders == 0 and self._turned_off:
-                ctypes.CDLL(None).prctl(_PR_SET_THP_DISABLE, 0, 0, 0, 0)
-                self._turned_off = False
+            prctl = _prctl()
+            if self._holders == 0 and self._restore is not None and prctl is not None:
+                # the value read is the flag (bit 0) or'ed with the mode's flags
+                # (PR_THP_DISABLE_EXCEPT_ADVISED), as setting it takes them
+                prctl(_PR_SET_THP_DISABLE, self._restore & 1, self._restore & ~1, 0, 0)
+                self._restore = None
 
-    @staticmethod
-    def _turn_off() -> tuple[bool, bool]:
-        """Whether they are off now, and whether this call turned them off."""
-        if sys.platform != "linux":
-            return False, False
-        try:
-            prctl = ctypes.CDLL(None).prctl
-        except (OSError, AttributeError):
-            return False, False
-        before = prctl(_PR_GET_THP_DISABLE, 0, 0, 0, 0)
-        if before < 0:  # a kernel without the setting
-            return False, False
-        if before & 1:
-            return True, False
-        return prctl(_PR_SET_THP_DISABLE, 1, 0, 0, 0) == 0, True
+
+def _prctl() -> Callable[..., int] | None:
+    """Linux's ``prctl(option, arg2, arg3, arg4, arg5)`` (None elsewhere)."""
+    if sys.platform != "linux":
+        return None
+    try:
+        prctl = ctypes.CDLL(None).prctl
+    except (OSError, AttributeError):
+        return None
+    prctl.argtypes = [ctypes.c_int] + [ctypes.c_ulong] * 4
+    prctl.restype = ctypes.c_int
+    return cast("Callable[..., int]", prctl)
 
 
 _HUGE_PAGES = _HugePages()
