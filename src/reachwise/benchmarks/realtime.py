@@ -28,9 +28,11 @@ One run measures:
    (``loop.swaps_per_s``), the queries answered while a build was running
    (``loop.ticks_during_build``) and, of those, the ticks longer than the 1 ms period
    (``loop.slow_ticks_during_build``) and the ones among them in which the loop's
-   thread was switched out (``loop.ticks_waited_for_build``: it blocked on a lock, a page fault or
-   the GIL, or another thread took its core; the scene itself never waits — it takes a
-   built cloud only when the worker does not hold the lock, ``loop.swaps_deferred``).
+   thread was kept from running by what a build can cause
+   (``loop.ticks_waited_for_build``: it blocked on a lock, the GIL or a page fault, or
+   — at normal priority — another thread took its core: :func:`slow_tick_classes`;
+   the scene itself never waits — it takes a built cloud only when the worker does
+   not hold the lock, ``loop.swaps_deferred``).
    Every tick over 1 ms is put in one class by the thread's context switches over it
    (Linux): ``loop.slow.waited`` (it blocked), ``loop.slow.preempted`` (another thread
    ran on its core) or ``loop.slow.charged`` (never switched out: the tick's own work,
@@ -423,25 +425,13 @@ def _loop(rep: BenchReport, quick: bool) -> None:
     rep.metrics["loop.handoffs"] = float(len(handoff))
     rep.metrics["loop.swaps_deferred"] = float(scene.swaps_deferred - deferred0)
     rep.metrics["loop.ticks_during_build"] = float(scene.queries_during_build - during0)
-    slow = tick_us > DT * 1e6
-    if counted:
-        out = switched[:, :2].sum(axis=1) > 0
-        faulted = switched[:, 2] > 0
-        rep.metrics["loop.slow.faulted"] = float(np.count_nonzero(slow & faulted))
-        rep.metrics["loop.page_faults"] = float(switched[:, 2].sum())
-        rep.metrics["loop.ticks_faulted"] = float(np.count_nonzero(faulted))
-        rep.metrics["loop.slow.waited"] = float(np.count_nonzero(slow & (switched[:, 0] > 0)))
-        rep.metrics["loop.slow.preempted"] = float(
-            np.count_nonzero(slow & (switched[:, 0] == 0) & (switched[:, 1] > 0))
-        )
-        rep.metrics["loop.slow.charged"] = float(np.count_nonzero(slow & ~out))
-    else:  # no per-thread switch counts here: every slow tick during a build counts
-        out = np.ones(ticks, np.bool_)
+    classes = slow_tick_classes(
+        tick_us, during, switched, fifo=applied.priority is not None, counted=counted
+    )
+    rep.metrics.update({f"loop.{k}": v for k, v in classes.items()})
+    waited = int(classes["ticks_waited_for_build"])
+    if not counted:
         rep.notes.append("loop: no per-thread context-switch counts on this platform")
-    rep.metrics["loop.slow_ticks"] = float(np.count_nonzero(slow))
-    rep.metrics["loop.slow_ticks_during_build"] = float(np.count_nonzero(slow & during))
-    waited = int(np.count_nonzero(slow & during & out))
-    rep.metrics["loop.ticks_waited_for_build"] = float(waited)
     rep.metrics["loop.goals_reached"] = float(reached)
     rep.metrics["loop.fifo_priority"] = float(applied.priority or 0)
     rep.metrics["loop.huge_pages_off"] = float(applied.huge_pages_off)
@@ -466,6 +456,51 @@ def _loop(rep: BenchReport, quick: bool) -> None:
         )
         + ("; transparent huge pages off" if applied.huge_pages_off else "")
     )
+
+
+def slow_tick_classes(
+    tick_us: NDArray[np.float64],
+    during: NDArray[np.bool_],
+    switched: NDArray[np.int64],
+    *,
+    fifo: bool,
+    counted: bool = True,
+) -> dict[str, float]:
+    """The loop's ticks over the period :data:`DT`, classed by what its thread did in
+    them: ``tick_us`` (µs), ``during`` (a build was running), ``switched`` (per tick:
+    voluntary and involuntary context switches and page faults, :func:`thread_counters`;
+    ``counted`` False where the platform has none).
+
+    ``ticks_waited_for_build``: the slow ticks during a build in which the thread was
+    kept from running by something a build can cause — it blocked (a lock, the GIL, a
+    page fault behind a write-locked memory map) or, at normal priority (``fifo``
+    False), another thread took its core. Under ``SCHED_FIFO`` no normal thread (the
+    build's worker is one) can take its core: only the kernel's own stop-class and
+    real-time threads can (traced with ``perf sched`` in this loop: ``migration/1``
+    alone, microseconds at a time), so such a preemption is counted apart
+    (``slow_preempted_during_build``). Without counts every slow tick during a build
+    counts as waited."""
+    slow = tick_us > DT * 1e6
+    vol, invol, faults = switched[:, 0] > 0, switched[:, 1] > 0, switched[:, 2] > 0
+    if not counted:
+        vol = invol = np.ones(len(tick_us), np.bool_)
+    kept_off = vol | invol if not fifo else vol
+    out: dict[str, Any] = {
+        "slow_ticks": np.count_nonzero(slow),
+        "slow_ticks_during_build": np.count_nonzero(slow & during),
+        "ticks_waited_for_build": np.count_nonzero(slow & during & kept_off),
+        "slow_preempted_during_build": np.count_nonzero(slow & during & invol & ~vol),
+    }
+    if counted:
+        out |= {
+            "slow.waited": np.count_nonzero(slow & vol),
+            "slow.preempted": np.count_nonzero(slow & ~vol & invol),
+            "slow.charged": np.count_nonzero(slow & ~vol & ~invol),
+            "slow.faulted": np.count_nonzero(slow & faults),
+            "page_faults": switched[:, 2].sum(),
+            "ticks_faulted": np.count_nonzero(faults),
+        }
+    return {k: float(v) for k, v in out.items()}
 
 
 # --------------------------------------------------------------------------- the machine
