@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 
 import numpy as np
 import zmq
@@ -99,17 +100,39 @@ class Channel:
         """
         end = time.monotonic() + deadline
         layout = self.layout
-        if layout is not None and type(request) is P.Query:
-            rid = self.next_id()
-            tick = P.encode_tick(rid, request, layout)
-            if tick is not None:
-                got = self.tick(tick, rid, layout, end, deadline)
-                if isinstance(got, tuple):
-                    _, seq, measured, compute, rows, clouds = got
-                    return P.tick_query_reply(layout, seq, measured, compute, rows, clouds)
-                if got is not None:
-                    return self.result(request.OP, got)
-        return self.call_full(request, end, deadline)
+        if layout is None or type(request) is not P.Query:
+            return self.call_full(request, end, deadline)
+        rid = self.next_id()
+        query = request
+        got = self.query_every(
+            P.encode_tick(rid, query, layout), rid, layout, end, deadline, lambda: query
+        )
+        if isinstance(got, tuple):
+            _, seq, measured, compute, rows, clouds = got
+            return P.tick_query_reply(layout, seq, measured, compute, rows, clouds)
+        return got
+
+    def query_every(
+        self,
+        frame: bytes | None,
+        rid: int,
+        layout: P.Layout,
+        end: float,
+        deadline: float,
+        full: Callable[[], P.Query],
+    ) -> TickAnswer | P.Reply:
+        """A query of every pair under ``layout``: as the tick ``frame`` (request
+        ``rid``; None when a tick cannot carry the query), the parts of its tick reply;
+        in the full protocol (the query ``full`` makes) when there is no frame or the
+        server has moved on to another layout, its reply. Waits until ``end``
+        (monotonic s); raises as :meth:`call`."""
+        if frame is not None:
+            got = self.tick(frame, rid, layout, end, deadline)
+            if isinstance(got, tuple):
+                return got
+            if got is not None:
+                return self.result("query", got)
+        return self.call_full(full(), end, deadline)
 
     def call_full(self, request: P.Request, end: float, deadline: float) -> P.Reply:
         """:meth:`call` in the full protocol (never a tick), waiting until ``end``
@@ -128,14 +151,13 @@ class Channel:
         layout (the channel drops it: send the query in full). Raises as :meth:`call`
         for no reply or an invalid one."""
         raw = self._exchange("query", [frame], end, deadline)
-        if raw[:4] == P.TICK_REPLY_MAGIC:
+        if P.is_tick_reply(raw):
             try:
                 got = P.read_tick_reply(raw, layout)
             except P.ProtocolError as exc:
                 self.reset()
                 raise ServerError(f"invalid reply to query: {exc}", exc.code, exc.field) from None
-            if got[0] != rid:
-                self._check_id(got[0], rid)
+            self._check_id(got[0], rid)
             self.ticks += 1
             return got
         decoded = self._decode("query", raw, rid)

@@ -639,18 +639,16 @@ class SceneClient:
         jmap = {k: q for k, (q, _) in joints.items()} if joints else None
         pmap = {k: p for k, (p, _) in poses.items()} if poses else None
         frame = P.encode_tick_inputs(rid, layout, stamp, jmap, pmap)
-        if frame is not None:
-            got = ch.tick(frame, rid, layout, end, deadline)
-            if got is None:  # a stale layout: the same query in full
-                pass
-            elif isinstance(got, tuple):
-                return got
-            else:
-                return ch.result("query", got)
-        req: P.Query = P.unchecked(
-            P.Query, stamp=stamp, joints=jmap, poses=pmap, pairs=None, layout=layout.name
+        return ch.query_every(
+            frame,
+            rid,
+            layout,
+            end,
+            deadline,
+            lambda: P.unchecked(
+                P.Query, stamp=stamp, joints=jmap, poses=pmap, pairs=None, layout=layout.name
+            ),
         )
-        return ch.call_full(req, end, deadline)
 
     def _ticked(self, got: TickAnswer, layout: P.Layout) -> ServerSceneResult:
         """The result of a tick reply's parts (the reply is under the held ``layout``:
@@ -664,12 +662,9 @@ class SceneClient:
         self._last_sequence = seq
         self._last_measured = measured
         self._last_pairs = layout.pairs
-        lost = self._lost
-        if lost is None:
-            return ServerSceneResult.of_rows(layout, seq, measured, compute, rows, clouds, arrived)
-        self._lost = None
+        lost, self._lost = self._lost, None
         return ServerSceneResult.of_rows(
-            layout, seq, measured, compute, rows, clouds, arrived, False, lost
+            layout, seq, measured, compute, rows, clouds, arrived, lost is None, lost or ""
         )
 
     def _missing(self, reason: str) -> ServerSceneResult:
