@@ -13,7 +13,6 @@ Run it as ``reachwise serve`` or ``python -m reachwise.cli.serve``.
 
 from __future__ import annotations
 
-import gc
 import logging
 import signal
 import sys
@@ -143,20 +142,18 @@ def serve(
             f"{f'SCHED_FIFO {priority}' if priority is not None else 'normal priority'})"
         )
         sys.stdout.flush()
-        # what is loaded by now lives as long as the process: out of the collector's
-        # sight, a full collection takes microseconds instead of a 100 ms pause mid-tick
-        gc.collect()
-        gc.freeze()
-        # the request thread under SCHED_FIFO (the indexing worker it starts later
-        # drops that), glibc's freed memory kept and transparent huge pages off, as
-        # for a 1 kHz loop (reachwise.control.realtime)
-        with realtime_settings(priority=priority, freeze=False):
+        # as for a 1 kHz loop (reachwise.control.realtime): what is loaded by now lives
+        # as long as the process, so it is frozen out of the collector's sight (a full
+        # collection takes microseconds instead of a 100 ms pause mid-tick) and handed
+        # back on exit (called in-process: a test, an embedding); the request thread
+        # under SCHED_FIFO (the indexing worker it starts later drops that), glibc's
+        # freed memory kept and transparent huge pages off
+        with realtime_settings(priority=priority):
             server.serve_forever(max_runtime)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
         server.close()
-        gc.unfreeze()  # called in-process (a test, an embedding): hand them back
     typer.echo("reachwise serve: stopped")
 
 

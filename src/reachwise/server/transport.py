@@ -276,7 +276,7 @@ class CollisionServer:
         else:
             route, rest = split_frames(frames)
             data = [f.buffer for f in rest]
-        if len(data) == 1 and data[0][:4] == P.TICK_MAGIC:
+        if len(data) == 1 and P.is_tick(data[0]):
             payload, compute = self.service.tick(data[0], self.limits)
             for f in route:  # the parts one by one: no send_multipart checks per tick
                 router.send(f, zmq.SNDMORE)
