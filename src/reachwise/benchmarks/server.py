@@ -50,6 +50,8 @@ import os
 import tempfile
 import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -124,12 +126,11 @@ def _round_trip(
     part: NDArray[np.float64],
     env: NDArray[np.float64],
     n: int,
-    priority: int | None = None,
 ) -> None:
     local = Scene()
     build_scene(local, robot, part, env)
     clock = time.perf_counter_ns
-    echo = EchoProcess(workdir, 600.0, priority)  # scheduled as the server is
+    echo = EchoProcess(workdir, 600.0)
     with (
         SceneClient(endpoint, deadline=1.0) as remote,
         SceneClient(endpoint, deadline=1.0, batch_inputs=True) as batched,
@@ -330,12 +331,7 @@ def streaming_figures(
     with tempfile.TemporaryDirectory(prefix="reachwise-bench-stream-") as tmp:
         part, env = part_points(1000, seed=1), environment_points(5500, seed=2)
         _round_trip_at_normal_priority(rep, Path(tmp), robot, part, env, n_rt)
-        with ServerProcess(
-            _sub(tmp, "stream"), opts["seconds"] + 900.0, priority=bench_priority()
-        ) as server:
-            with SceneClient(server.endpoint) as c:
-                c.wait_ready(60.0)
-                build_scene(c, robot, part, env)
+        with _scene_server(tmp, "stream", opts["seconds"] + 900.0, robot, part, env) as server:
             stream(rep, server, robot, **opts)
     d = rep.to_dict()
     return {k: d[k] for k in ("metrics", "ratios", "targets", "notes")}
@@ -365,7 +361,26 @@ def _round_trip_at_normal_priority(
     with ServerProcess(_sub(str(tmp), "round-trip"), 900.0) as server:
         with SceneClient(server.endpoint) as c:
             c.wait_ready(60.0)
-        _round_trip(rep, server.workdir, server.endpoint, robot, part, env, n, None)
+        _round_trip(rep, server.workdir, server.endpoint, robot, part, env, n)
+
+
+@contextmanager
+def _scene_server(
+    tmp: str,
+    name: str,
+    max_runtime: float,
+    robot: Robot,
+    part: NDArray[np.float64],
+    env: NDArray[np.float64],
+) -> Iterator[ServerProcess]:
+    """A server process of its own in ``tmp/name`` under SCHED_FIFO where permitted
+    (:func:`bench_priority`; the soak's and the streaming's), ready, with the benchmark
+    scene (:func:`build_scene`)."""
+    with ServerProcess(_sub(tmp, name), max_runtime, priority=bench_priority()) as server:
+        with SceneClient(server.endpoint) as c:
+            c.wait_ready(60.0)
+            build_scene(c, robot, part, env)
+        yield server
 
 
 def _load_note(rep: BenchReport) -> None:
@@ -395,12 +410,8 @@ def run(quick: bool = False) -> BenchReport:
     with tempfile.TemporaryDirectory(prefix="reachwise-bench-server-") as tmp:
         soak_s = (WARMUP_TICKS + ticks) / RATE_HZ
         _round_trip_at_normal_priority(rep, Path(tmp), robot, part, env, n_rt)
-        with ServerProcess(
-            _sub(tmp, "soak"), soak_s + opts["seconds"] + 900.0, priority=bench_priority()
-        ) as server:
-            with SceneClient(server.endpoint) as c:
-                c.wait_ready(60.0)
-                build_scene(c, robot, part, env)
+        runtime = soak_s + opts["seconds"] + 900.0
+        with _scene_server(tmp, "soak", runtime, robot, part, env) as server:
             _soak(rep, server, robot, ticks, scans)
             stream(rep, server, robot, **opts)
     stage_costs(rep, robot, 500 if quick else 3000)

@@ -174,12 +174,8 @@ class ServerProcess:
 
 #: A bare pyzmq ROUTER echo: the transport's own round trip on this machine, as a floor.
 _ECHO = """
-import os, sys, time, zmq
-priority = int(sys.argv[4])
-ctx = zmq.Context(2)
-if priority:  # the server's scheduling (bench_priority), so that the floor is its twin
-    os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-    ctx.set(zmq.THREAD_SCHED_POLICY, os.SCHED_FIFO); ctx.set(zmq.THREAD_PRIORITY, priority)
+import sys, time, zmq
+ctx = zmq.Context(2)  # the server's two I/O threads
 s = ctx.socket(zmq.ROUTER); s.linger = 0
 s.bind("tcp://127.0.0.1:*")
 open(sys.argv[1], "w").write(s.getsockopt_string(zmq.LAST_ENDPOINT))
@@ -196,15 +192,14 @@ ECHO_REPLY_BYTES = 600
 
 
 class EchoProcess:
-    """The bare echo server of :data:`_ECHO` in a child process, and a REQ socket to it;
-    ``priority``: its thread and ZeroMQ's I/O threads under SCHED_FIFO at that priority
-    (give it the server's, :func:`bench_priority`), or None."""
+    """The bare echo server of :data:`_ECHO` in a child process (at normal priority,
+    as the round trip's server runs), and a REQ socket to it."""
 
-    def __init__(self, workdir: Path, max_runtime: float, priority: int | None = None) -> None:
+    def __init__(self, workdir: Path, max_runtime: float) -> None:
         import zmq
 
         path = workdir / "echo-endpoint"
-        args = [str(path), str(ECHO_REPLY_BYTES), str(max_runtime), str(priority or 0)]
+        args = [str(path), str(ECHO_REPLY_BYTES), str(max_runtime)]
         self.proc = subprocess.Popen([sys.executable, "-c", _ECHO, *args])
         end = time.monotonic() + 30.0
         while not path.exists() or not path.read_text():

@@ -60,7 +60,7 @@ from reachwise._version import __version__
 from reachwise.distance._common import NO_RISK, check_pose
 from reachwise.distance.engine import STRATEGIES, StrategyName
 from reachwise.distance.index import cloud_index
-from reachwise.distance.scene import Fixed, OnLink, Scene
+from reachwise.distance.scene import Fixed, OnLink, Scene, SceneResult
 from reachwise.errors import InputError, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_file import robot_from_dict
@@ -393,13 +393,16 @@ class SceneService:
         the layout's pair order), the cloud table and its bytes."""
         if joints or poses:
             self._apply_inputs(joints, self._checked_inputs(joints, poses), stamp)
-        clock = time.perf_counter
-        t0 = clock()
-        res = self.scene.query_all()
-        compute = clock() - t0
+        res, compute = self._query_all()
         measured = self._measured_at(None, stamp, self._all_sources)
         clouds, cloud_bytes = self._cloud_table(res.versions, res.cloud_stamps, layout)
         return self.sequence.take(), measured, compute, res.rows, clouds, cloud_bytes
+
+    def _query_all(self) -> tuple[SceneResult, float]:
+        """Every watched pair's answer and its computation time (s)."""
+        t0 = time.perf_counter()
+        res = self.scene.query_all()
+        return res, time.perf_counter() - t0
 
     def _query_pairs(self, req: P.Query, stamp: float) -> P.Reply:
         """A query of chosen watched pairs (call under the lock): their rows alone,
@@ -415,9 +418,7 @@ class SceneService:
                 )
         wanted = {frozenset(p) for p in req.pairs or ()}
         self._apply_inputs(req.joints, poses, stamp)
-        t0 = time.perf_counter()
-        res = self.scene.query_all()
-        compute = time.perf_counter() - t0
+        res, compute = self._query_all()
         layout = self._current_layout()
         pairs = tuple(p for p in res.pairs if frozenset((p.a, p.b)) in wanted)
         measured = self._measured_at(pairs, stamp)
