@@ -97,16 +97,15 @@ def _thp_enabled() -> int | None:
     return None
 
 
-needs_thp_status = pytest.mark.skipif(
-    _thp_enabled() is None, reason="no THP_enabled in /proc/self/status"
+needs_thp_on = pytest.mark.skipif(
+    _thp_enabled() != 1,
+    reason="no THP_enabled in /proc/self/status, or transparent huge pages off here",
 )
 
 
-@needs_thp_status
+@needs_thp_on
 def test_huge_pages_are_off_for_the_process_inside_the_block_and_back_after() -> None:
     before = _thp_enabled()
-    if before == 0:
-        pytest.skip("transparent huge pages are off for this process (or kernel)")
     with realtime_settings(freeze=False) as applied:
         inside = _thp_enabled()
     assert applied.huge_pages_off
@@ -117,10 +116,8 @@ def test_huge_pages_are_off_for_the_process_inside_the_block_and_back_after() ->
     assert not kept.huge_pages_off
 
 
-@needs_thp_status
+@needs_thp_on
 def test_huge_pages_turned_off_before_the_block_stay_off_after_it() -> None:
-    if _thp_enabled() == 0:
-        pytest.skip("transparent huge pages are off for this process (or kernel)")
     prctl = ctypes.CDLL(None).prctl
     assert prctl(41, 1, 0, 0, 0) == 0  # PR_SET_THP_DISABLE, as a caller might have
     try:
@@ -133,10 +130,8 @@ def test_huge_pages_turned_off_before_the_block_stay_off_after_it() -> None:
     assert _thp_enabled() == 1
 
 
-@needs_thp_status
+@needs_thp_on
 def test_overlapping_blocks_keep_huge_pages_off_until_the_last_one_ends() -> None:
-    if _thp_enabled() == 0:
-        pytest.skip("transparent huge pages are off for this process (or kernel)")
     # a loop's block and a server's in one process, on two threads: the first to
     # start ends first
     first, second = realtime_settings(freeze=False), realtime_settings(freeze=False)
@@ -150,12 +145,12 @@ def test_overlapping_blocks_keep_huge_pages_off_until_the_last_one_ends() -> Non
     assert _thp_enabled() == 1
 
 
-@needs_thp_status
+@needs_thp_on
 def test_huge_pages_off_except_where_advised_come_back_as_they_were() -> None:
     prctl = ctypes.CDLL(None).prctl
     # PR_SET_THP_DISABLE with PR_THP_DISABLE_EXCEPT_ADVISED (Linux 6.18 and on): numpy's
     # madvised arrays would still be collapsed, so the block turns them off completely
-    if _thp_enabled() == 0 or prctl(41, 1, 2, 0, 0) != 0:
+    if prctl(41, 1, 2, 0, 0) != 0:
         pytest.skip("no PR_THP_DISABLE_EXCEPT_ADVISED in this kernel")
     try:
         before = prctl(42, 0, 0, 0, 0)
