@@ -20,7 +20,7 @@ import reachwise
 SRC = Path(reachwise.__file__).parent.parent
 ROOT = "reachwise"
 MATH = ("kinematics", "geometry", "tasks", "distance", "control", "synthesis")
-UPPER = ("io", "sim", "server", "report", "viz", "cli", "benchmarks")
+UPPER = ("io", "runtime", "sim", "server", "report", "viz", "cli", "benchmarks")
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-import reachwise.control.realtime as RT
+import reachwise.runtime.realtime as RT
 import reachwise.server.transport as T
 from reachwise.cli.serve import app
 from reachwise.errors import InputError

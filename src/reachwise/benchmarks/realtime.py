@@ -40,7 +40,7 @@ One run measures:
    ``machine.stall`` below). Across those classes, ``loop.slow.faulted`` counts the
    slow ticks in which the loop's thread took a page fault (a fault waits while
    something holds the process's memory map write-locked, as the kernel's huge-page
-   collapsing did before :func:`~reachwise.control.realtime.realtime_settings` turned
+   collapsing did before :func:`~reachwise.runtime.realtime.realtime_settings` turned
    it off); ``loop.page_faults`` and ``loop.ticks_faulted`` count them over the loop.
    Without example-robot-data (the ``robots`` extra) the loop runs the built-in
    ``panda`` (the same kinematics, published DH) with capsule-shaped link clouds and
@@ -54,9 +54,9 @@ One run measures:
    queries at 1 kHz, and the protocol's work beyond a bare ZeroMQ echo.
 
 The whole run keeps freed memory for reuse (glibc's trim and mmap thresholds raised:
-:func:`reachwise.control.realtime.keep_freed_memory`; builds otherwise spend a third of
+:func:`reachwise.runtime.realtime.keep_freed_memory`; builds otherwise spend a third of
 their time on page faults), and the loop runs inside
-:func:`reachwise.control.realtime.realtime_settings` (the garbage collector's existing
+:func:`reachwise.runtime.realtime.realtime_settings` (the garbage collector's existing
 objects frozen after setup, the GIL switch interval left at 5 ms, the loop
 thread under ``SCHED_FIFO`` at :data:`LOOP_PRIORITY` where the OS permits it, as
 libfranka and ros2_control run theirs, transparent huge pages off for the process so
@@ -84,11 +84,11 @@ from reachwise.benchmarks._baseline_build import ingest_baseline
 from reachwise.benchmarks._harness import BenchReport, Target
 from reachwise.control.avoidance import SceneConverter
 from reachwise.control.controller import Controller, ControllerConfig, Goal
-from reachwise.control.realtime import keep_freed_memory, realtime_settings
 from reachwise.control.safety import SafetyConfig
 from reachwise.distance.ingest import ready_cloud
 from reachwise.distance.scene import OnLink, Scene
 from reachwise.errors import MissingDependency
+from reachwise.runtime.realtime import keep_freed_memory, realtime_settings
 
 ROOM_POINTS = 1_000_000
 CAMERA_SIZE = (640, 480)

@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise.control.realtime import fifo_refusal
 from reachwise.kinematics.robot import Robot
+from reachwise.runtime.realtime import fifo_refusal
 from reachwise.server.client import SceneLike
 
 __all__ = [

@@ -31,9 +31,9 @@ from numpy.typing import NDArray
 
 from reachwise.benchmarks._harness import BenchReport, Target
 from reachwise.benchmarks.server_setup import MARGIN, ServerProcess, crane_q
-from reachwise.control.realtime import realtime_settings
 from reachwise.io.atomic import atomic_write
 from reachwise.kinematics.robot import Robot
+from reachwise.runtime.realtime import realtime_settings
 from reachwise.server.client import SceneClient
 
 __all__ = ["CAMERA", "LOST_DEADLINE", "camera_frame", "stream"]

@@ -88,10 +88,10 @@ def serve(
     """Run the collision server until SIGINT/SIGTERM (or --max-runtime)."""
     if ctx.invoked_subcommand is not None:
         return
-    from reachwise.control.realtime import fifo_refusal, realtime_settings
     from reachwise.distance.engine import STRATEGIES
     from reachwise.errors import check_choice
     from reachwise.io.atomic import atomic_write
+    from reachwise.runtime.realtime import fifo_refusal, realtime_settings
     from reachwise.server.protocol import Limits
     from reachwise.server.transport import CollisionServer
 
@@ -142,7 +142,7 @@ def serve(
             f"{f'SCHED_FIFO {priority}' if priority is not None else 'normal priority'})"
         )
         sys.stdout.flush()
-        # as for a 1 kHz loop (reachwise.control.realtime): what is loaded by now lives
+        # as for a 1 kHz loop (reachwise.runtime.realtime): what is loaded by now lives
         # as long as the process, so it is frozen out of the collector's sight (a full
         # collection takes microseconds instead of a 100 ms pause mid-tick) and handed
         # back on exit (called in-process: a test, an embedding); the request thread

@@ -42,9 +42,9 @@ import zmq
 import zmq.auth.thread
 
 import reachwise.server.protocol as P
-from reachwise.control.realtime import fifo_refusal
 from reachwise.distance.engine import StrategyName
 from reachwise.errors import InputError
+from reachwise.runtime.realtime import fifo_refusal
 from reachwise.server.security import DEFAULT_BIND, BindPlan, plan_bind, secure_server_socket
 from reachwise.server.service import LIVE_INTERVAL, CloudWait, SceneService, answer
 from reachwise.server.state import StateStore

@@ -1,4 +1,4 @@
-"""Process settings for a control loop that runs at 1 kHz in Python (issue 17).
+"""Process settings for a control loop that runs at 1 kHz in Python.
 
 A tick of :class:`~reachwise.distance.scene.Scene.query_all`, the converter and
 :meth:`~reachwise.control.controller.Controller.step` allocates a few small objects and

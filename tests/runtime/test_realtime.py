@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-from reachwise.control.realtime import keep_freed_memory, realtime_settings
+from reachwise.runtime.realtime import keep_freed_memory, realtime_settings
 
 
 def test_settings_apply_inside_the_block_and_are_restored() -> None:
