@@ -15,6 +15,9 @@ A URDF names its meshes by URI; :func:`resolve_uri` turns one into a file:
      pip installs packaged ROS descriptions such as ``example-robot-data``),
   5. the robot file's own ancestor folders: one named ``PKG``, or one whose
      ``package.xml`` names ``PKG``;
+  6. a folder named ``PKG`` beside the robot file or among the children of any of its
+     ancestor folders (pybullet's layout: ``xarm_description/`` next to
+     ``xarm6_robot.urdf``), nearest first;
 - ``file:///abs/path`` (or ``file://rel/path``, relative to the robot file's folder);
 - any other name without a scheme: a path, relative to the robot file's folder.
 
@@ -97,6 +100,11 @@ def package_candidates(
         for a in Path(os.path.abspath(robot_file)).parents:
             if _is_package(a, pkg):
                 out.append(("robot file's folders", a))
+        out += [
+            ("beside the robot file", a / pkg)
+            for a in Path(os.path.abspath(robot_file)).parents
+            if (a / pkg).is_dir()
+        ]
     return out
 
 
