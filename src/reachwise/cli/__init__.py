@@ -7,6 +7,7 @@ import typer
 from reachwise._version import __version__
 from reachwise.cli import bench, cloud, demo, robot, serve, synth, task, topology, view
 from reachwise.cli import simulate as sim_cli
+from reachwise.cli._help import plain_help
 
 app = typer.Typer(
     name="reachwise",
@@ -28,6 +29,7 @@ app.command("bench")(bench.bench)
 app.command("demo")(demo.demo)
 app.command("scan")(cloud.scan)
 app.command("view")(view.view)
+plain_help(app)
 
 
 def _version(value: bool) -> None:

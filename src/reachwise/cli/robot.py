@@ -12,6 +12,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from reachwise.cli._help import builtins
 from reachwise.cli._robot_options import LENIENT, PACKAGE_DIRS, TIP, load_with_options
 
 app = typer.Typer(help="Inspect, validate and export robot models.", no_args_is_help=True)
@@ -44,7 +45,9 @@ def summary(robot: Any) -> dict[str, Any]:
 
 @app.command("show")
 def show(
-    robot: str = typer.Argument(..., help="Built-in name (panda, sb60, …) or YAML/URDF file."),
+    robot: str = typer.Argument(
+        ..., help=f"Built-in robot ({builtins('robots')}) or YAML/URDF file."
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print JSON."),
     tip: str | None = TIP,
     package_dir: list[Path] = PACKAGE_DIRS,
@@ -118,7 +121,7 @@ def check(
 
 @app.command("export")
 def export(
-    robot: str = typer.Argument(..., help="Built-in name or robot file."),
+    robot: str = typer.Argument(..., help=f"Built-in robot ({builtins('robots')}) or robot file."),
     urdf: Path = typer.Option(..., "--urdf", help="Write a URDF file here."),
     tip: str | None = TIP,
     package_dir: list[Path] = PACKAGE_DIRS,
@@ -133,7 +136,9 @@ def export(
 
 @app.command("pairs")
 def pairs(
-    robot: str = typer.Argument(..., help="Built-in name or robot file (YAML or URDF)."),
+    robot: str = typer.Argument(
+        ..., help=f"Built-in robot ({builtins('robots')}) or robot file (YAML or URDF)."
+    ),
     out: Path = typer.Option(..., "--out", help="Write the pair file (YAML) here."),
     samples: int = typer.Option(
         10_000, "--samples", min=1, help="Random joint vectors inside the limits."

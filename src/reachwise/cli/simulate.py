@@ -10,14 +10,14 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeElapsedColumn
 
+from reachwise.cli._help import builtins
 from reachwise.io.atomic import atomic_write
 
 
 def simulate(
     scenario: str = typer.Argument(
         ...,
-        help="Built-in scenario (p3-self-collision, p4-dual-drilling, p5-crane-obstacle) "
-        "or a scenario YAML file.",
+        help=f"Built-in scenario ({builtins('scenarios')}) or a scenario YAML file.",
     ),
     baseline: bool = typer.Option(
         False, "--baseline", help="Also run the same controller without avoidance."

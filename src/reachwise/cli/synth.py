@@ -11,11 +11,14 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
+from reachwise.cli._help import builtins
 from reachwise.cli._robot_options import LENIENT, PACKAGE_DIRS, TIP, load_with_options
 
 
 def synth(
-    task: str = typer.Option(..., "--task", help="Task file or built-in task (tunnel-87)."),
+    task: str = typer.Option(
+        ..., "--task", help=f"Task file or built-in task ({builtins('tasks')})."
+    ),
     robot: str = typer.Option(..., "--robot", help="Template robot with a design section."),
     out: Path = typer.Option(..., "--out", help="Output folder."),
     runs: int = typer.Option(10, "--runs", min=1, help="Multi-start runs (own seeds)."),

@@ -13,6 +13,8 @@ from typing import Any
 
 import typer
 
+from reachwise.cli._help import builtins
+
 app = typer.Typer(help="Generate drilling tasks and inspect task files.", no_args_is_help=True)
 generate_app = typer.Typer(help="Generate a task file.", no_args_is_help=True)
 app.add_typer(generate_app, name="generate")
@@ -218,7 +220,9 @@ def generate_tunnel_87(
 
 @app.command("show")
 def show(
-    task: str = typer.Argument(..., help="Task file (.yaml/.json/.csv) or built-in name."),
+    task: str = typer.Argument(
+        ..., help=f"Task file (.yaml/.json/.csv) or built-in task ({builtins('tasks')})."
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print JSON."),
 ) -> None:
     """Summarize a task: points per zone and dimension, extent, spread of tool axes."""

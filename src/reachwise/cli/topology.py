@@ -12,6 +12,8 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
+from reachwise.cli._help import builtins
+
 
 def _bounds(text: str, option: str) -> tuple[float, float]:
     try:
@@ -26,7 +28,9 @@ def _bounds(text: str, option: str) -> tuple[float, float]:
 
 
 def topology(
-    task: str = typer.Option(..., "--task", help="Task file or built-in task (tunnel-87)."),
+    task: str = typer.Option(
+        ..., "--task", help=f"Task file or built-in task ({builtins('tasks')})."
+    ),
     set_name: str | None = typer.Option(
         None, "--set", help="Built-in topology set: p2 (the six P-II configurations)."
     ),
