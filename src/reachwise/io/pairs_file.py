@@ -10,34 +10,47 @@
     samples: 10000               # random joint vectors inside the limits
     seed: 0
     home: [0.0, …]               # the home (start) configuration
-    key: 3f1c…                   # fingerprint of robot, clouds and settings (cache)
+    key: 3f1c…                   # fingerprint of robot, clouds, settings and the pairs
     rules:                       # what each rule means
       adjacent: …
       never: …
     watched:                     # pairs to watch, with their distance at home
-      - {a: link_0, b: link_5, home_distance: 0.636}
+      - {a: link_0, b: link_5, home_distance: 0.636, detail: within the margin in …}
     review:                      # watched pairs already within the margin at home
       - {a: link_5, b: link_7, home_distance: 0.002}
     excluded:                    # every pair not watched, with its rule
       - {a: link_0, b: link_1, rule: adjacent, detail: joined by one joint}
       - {a: link_0, b: link_2, rule: never, detail: never within 0.05 m in 10000 …}
+
+Every field is checked when the file is read (:func:`load_pairs`): a string robot
+name, a finite margin > 0, integer ``samples`` ≥ 1 and ``seed`` ≥ 0 (a boolean is not a
+number), finite ``home`` values, distances ≥ 0, known rules, no unknown keys, no link
+paired with itself, no pair listed twice (watched and excluded, say), every ``review``
+pair also watched; text that is not UTF-8 or nested too deep is refused. Each problem is
+an :class:`~reachwise.errors.InputError` naming the file and the field. ``key`` seals
+the content (:func:`seal`): a file whose pairs were edited no longer matches its key,
+so a cache holding it is recomputed, never trusted.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from reachwise.distance.self_pairs import PairRule, SelfPairs
 from reachwise.errors import InputError
 from reachwise.io.atomic import atomic_write
+from reachwise.io.validation import input_error
 
-__all__ = ["RULES", "load_pairs", "pairs_to_dict", "save_pairs"]
+__all__ = ["RULES", "load_pairs", "pairs_to_dict", "save_pairs", "seal"]
 
 #: The rules, in words, written into every pair file.
 RULES = {
@@ -50,13 +63,85 @@ RULES = {
     "watched": "came within the margin in some random configuration: watched",
 }
 
+#: Largest pair file read (bytes): far beyond any robot's pairs (a 100-link robot's
+#: 4950 pairs take about 1 MB).
+MAX_BYTES = 64 * 1024 * 1024
+
+_STRICT = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
+_Name = Field(min_length=1)
+
+
+class _Watched(BaseModel):
+    model_config = _STRICT
+    a: str = _Name
+    b: str = _Name
+    home_distance: float | None = Field(default=None, ge=0.0)
+    detail: str = ""
+
+
+class _Excluded(BaseModel):
+    model_config = _STRICT
+    a: str = _Name
+    b: str = _Name
+    rule: Literal["adjacent", "never"]
+    detail: str = ""
+
+
+class _PairsFile(BaseModel):
+    """The schema of a pair file (module docstring)."""
+
+    model_config = _STRICT
+    robot: str = _Name
+    source: str = ""
+    margin: float = Field(gt=0.0)
+    samples: int = Field(ge=1)
+    seed: int = Field(ge=0)
+    home: list[float]
+    key: str = ""
+    rules: dict[str, str] = Field(default_factory=dict)
+    watched: list[_Watched] = Field(default_factory=list)
+    review: list[_Watched] = Field(default_factory=list)
+    excluded: list[_Excluded] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _pairs(self) -> _PairsFile:
+        seen: dict[frozenset[str], str] = {}
+        listed = [(f"watched[{i}]", e.a, e.b) for i, e in enumerate(self.watched)]
+        listed += [(f"excluded[{i}]", e.a, e.b) for i, e in enumerate(self.excluded)]
+        for where, a, b in listed:
+            if a == b:
+                raise ValueError(f"{where}: link {a!r} is paired with itself")
+            pair = frozenset((a, b))
+            if pair in seen:
+                raise ValueError(f"{where}: pair ({a}, {b}) is also listed in {seen[pair]}")
+            seen[pair] = where
+        watched = {frozenset((e.a, e.b)) for e in self.watched}
+        for i, e in enumerate(self.review):
+            if frozenset((e.a, e.b)) not in watched:
+                raise ValueError(f"review[{i}]: pair ({e.a}, {e.b}) is not watched")
+        return self
+
 
 def _dist(v: float) -> float | None:
     return None if not math.isfinite(v) else round(float(v), 6)
 
 
+def _content(data: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in data.items() if k not in ("key", "source", "rules")}
+
+
+def seal(pairs: SelfPairs, key: str = "") -> str:
+    """A fingerprint (hex SHA-256) of ``key`` (what the pairs were computed from) and of
+    every field of ``pairs`` as written to a file: robot, margin, samples, seed, home
+    and each pair with its rule, detail and distance."""
+    content = _content(pairs_to_dict(pairs))
+    h = hashlib.sha256(key.encode())
+    h.update(json.dumps(content, sort_keys=True, allow_nan=True).encode())
+    return h.hexdigest()
+
+
 def pairs_to_dict(pairs: SelfPairs, *, source: str = "", key: str = "") -> dict[str, Any]:
-    """The YAML mapping of ``pairs`` (see the module docstring)."""
+    """The YAML mapping of ``pairs`` (see the module docstring); ``key`` as given."""
     return {
         "robot": pairs.robot,
         "source": source,
@@ -67,7 +152,7 @@ def pairs_to_dict(pairs: SelfPairs, *, source: str = "", key: str = "") -> dict[
         "key": key,
         "rules": dict(RULES),
         "watched": [
-            {"a": p.a, "b": p.b, "home_distance": _dist(p.home_distance)}
+            {"a": p.a, "b": p.b, "home_distance": _dist(p.home_distance), "detail": p.detail}
             for p in pairs.pairs
             if p.rule == "watched"
         ],
@@ -83,50 +168,62 @@ def pairs_to_dict(pairs: SelfPairs, *, source: str = "", key: str = "") -> dict[
 def save_pairs(
     pairs: SelfPairs, path: str | os.PathLike[str], *, source: str = "", key: str = ""
 ) -> Path:
-    """Write ``pairs`` as YAML to ``path`` (written whole, then renamed into place)."""
-    data = pairs_to_dict(pairs, source=source, key=key)
+    """Write ``pairs`` as YAML to ``path`` (written whole, then renamed into place); the
+    file's ``key`` is :func:`seal` of ``key`` and the pairs."""
+    data = pairs_to_dict(pairs, source=source, key=seal(pairs, key))
     head = "# reachwise self-collision pairs (MoveIt Setup Assistant method, exact distances)\n"
     return atomic_write(path, head + yaml.safe_dump(data, sort_keys=False, width=100))
 
 
-def load_pairs(path: str | os.PathLike[str]) -> tuple[SelfPairs, str]:
-    """The pairs in file ``path`` and the key they were computed with."""
-    source = str(path)
+def _read_yaml(path: str | os.PathLike[str], source: str) -> Any:
+    """The YAML document in ``path``: unreadable, oversized, non-UTF-8, malformed or
+    too deeply nested text is an :class:`InputError` naming the file."""
     try:
-        data = yaml.safe_load(Path(path).read_text())
+        with open(path, "rb") as fh:
+            raw = fh.read(MAX_BYTES + 1)
     except OSError as exc:
         raise InputError(source, "", f"cannot read: {exc.strerror or exc}") from None
+    if len(raw) > MAX_BYTES:
+        raise InputError(source, "", f"larger than {MAX_BYTES} bytes: not a pair file")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise InputError(source, f"line {line}", "not UTF-8 text") from None
+    try:
+        return yaml.safe_load(text)
     except yaml.YAMLError as exc:
         raise InputError(source, "", f"not valid YAML: {exc}") from None
+    except RecursionError:
+        raise InputError(source, "", "nested too deeply") from None
+
+
+def load_pairs(path: str | os.PathLike[str]) -> tuple[SelfPairs, str]:
+    """The pairs in file ``path`` and its ``key``, every field checked (module
+    docstring); a bad file is an :class:`InputError` naming it and the field."""
+    source = str(path)
+    data = _read_yaml(path, source)
     if not isinstance(data, dict):
         raise InputError(source, "", "a pair file holds a mapping")
     try:
-        review = {(e["a"], e["b"]) for e in data.get("review") or []}
-        rules = [
-            PairRule(
-                str(e["a"]),
-                str(e["b"]),
-                "watched",
-                "",
-                math.inf if e.get("home_distance") is None else float(e["home_distance"]),
-                (e["a"], e["b"]) in review,
-            )
-            for e in data.get("watched") or []
-        ]
-        for e in data.get("excluded") or []:
-            if e["rule"] not in ("adjacent", "never"):
-                raise InputError(source, "excluded", f"unknown rule {e['rule']!r}")
-            rules.append(PairRule(str(e["a"]), str(e["b"]), e["rule"], str(e.get("detail", ""))))
-        pairs = SelfPairs(
-            str(data["robot"]),
-            float(data["margin"]),
-            int(data["samples"]),
-            int(data["seed"]),
-            np.asarray(data["home"], dtype=float),
-            tuple(rules),
+        f = _PairsFile.model_validate(data)
+    except ValidationError as exc:
+        raise input_error(exc, source) from None
+    except RecursionError:
+        raise InputError(source, "", "nested too deeply") from None
+    review = {frozenset((e.a, e.b)) for e in f.review}
+    rules = [
+        PairRule(
+            e.a,
+            e.b,
+            "watched",
+            e.detail,
+            math.inf if e.home_distance is None else e.home_distance,
+            frozenset((e.a, e.b)) in review,
         )
-    except InputError:
-        raise
-    except (KeyError, TypeError, ValueError) as exc:
-        raise InputError(source, "", f"not a pair file: {exc}") from None
-    return pairs, str(data.get("key", ""))
+        for e in f.watched
+    ]
+    rules += [PairRule(e.a, e.b, e.rule, e.detail) for e in f.excluded]
+    home = np.asarray(f.home, dtype=float)
+    pairs = SelfPairs(f.robot, f.margin, f.samples, f.seed, home, tuple(rules))
+    return pairs, f.key

@@ -10,12 +10,16 @@ home), so a baseline run, an avoidance run, a report and a viewer of the same sc
 compute it once; and, when the scenario has a results folder (``Scenario.cache_dir``,
 set by ``reachwise simulate --out DIR``), it is written there as
 ``self-pairs-<robot>.yaml`` (:mod:`reachwise.io.pairs_file`) and read back by later runs
-with the same fingerprint.
+with the same fingerprint. The file's ``key`` seals the fingerprint together with every
+field of the pairs (:func:`reachwise.io.pairs_file.seal`): a cached file that fails its
+checks, or whose content no longer matches its key (a pair deleted, a margin edited), is
+recomputed and rewritten, and the log says so.
 """
 
 from __future__ import annotations
 
 import hashlib
+import logging
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -24,12 +28,13 @@ import numpy as np
 from reachwise.distance.self_pairs import SelfPairs, self_collision_pairs
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
-from reachwise.io.pairs_file import load_pairs, save_pairs
+from reachwise.io.pairs_file import load_pairs, save_pairs, seal
 from reachwise.kinematics.robot import Robot
 
 __all__ = ["auto_self_pairs", "pairs_key"]
 
 _MEMORY: dict[str, SelfPairs] = {}
+log = logging.getLogger("reachwise.sim")
 
 
 def pairs_key(
@@ -72,24 +77,33 @@ def auto_self_pairs(
     key = pairs_key(robot, clouds, margin, samples, seed, home)
     hit = _MEMORY.get(key)
     file = None if cache_dir is None else Path(cache_dir) / f"self-pairs-{label or robot.name}.yaml"
-    if hit is None and file is not None and file.is_file():
-        try:
-            pairs, stored = load_pairs(file)
-        except InputError:
-            pairs, stored = None, ""
-        if pairs is not None and stored == key:
-            hit = pairs
+    stored = _cached(file, key) if file is not None else None
+    if hit is None:
+        hit = stored
     if hit is None:
         hit = self_collision_pairs(robot, clouds, margin, samples=samples, seed=seed, home=home)
     _MEMORY[key] = hit
-    if file is not None:
-        stored_key = ""
-        if file.is_file():
-            try:
-                stored_key = load_pairs(file)[1]
-            except InputError:
-                stored_key = ""
-        if stored_key != key:
-            file.parent.mkdir(parents=True, exist_ok=True)
-            save_pairs(hit, file, source=robot.source or "", key=key)
+    if file is not None and stored is None:
+        file.parent.mkdir(parents=True, exist_ok=True)
+        save_pairs(hit, file, source=robot.source or "", key=key)
     return hit
+
+
+def _cached(file: Path, key: str) -> SelfPairs | None:
+    """The pairs in cache ``file`` when it holds pairs sealed with ``key``, else ``None``
+    (logged when a file is there but refused)."""
+    if not file.is_file():
+        return None
+    try:
+        pairs, stored = load_pairs(file)
+    except InputError as exc:
+        log.warning("%s: not used, the pairs are computed again (%s)", file, exc)
+        return None
+    if stored != seal(pairs, key):
+        log.warning(
+            "%s: does not match its key (the robot, its clouds, the settings or the pairs "
+            "changed): the pairs are computed again",
+            file,
+        )
+        return None
+    return pairs
