@@ -57,11 +57,52 @@ def test_the_error_names_file_field_and_reason() -> None:
     assert str(err) == "arm.yaml: joints[2].limits: lower limit above upper limit"
 
 
-def test_an_unknown_key_is_reported_first_and_the_rest_counted() -> None:
+def test_an_unknown_key_is_reported_first_then_every_other_problem() -> None:
     err = _error({"joints": [{"type": "screw", "limts": [0, 1]}]}, error=RobotFileError)
     assert isinstance(err, RobotFileError)
     assert err.field == "joints[0].limts"
-    assert err.reason.startswith("Extra inputs are not permitted (and 2 more)")
+    assert err.reason.startswith("Extra inputs are not permitted; 2 more problems: ")
+    assert "more)" not in err.reason
+    # both other problems are named with their fields, none hidden behind a count
+    assert "joints[0].type: Input should be 'revolute' or 'prismatic'" in err.reason
+    assert "name: Field required" in err.reason
+
+
+def test_an_unknown_key_names_the_closest_valid_key() -> None:
+    err = _error({"name": "a", "joints": [{"type": "revolute", "limts": [0, 1]}]}, model=_Robot)
+    assert err.field == "joints[0].limts"
+    assert err.reason == "Extra inputs are not permitted (did you mean 'limits'?)"
+    err = _error({"nam": "a", "joints": []}, model=_Robot)
+    assert err.field == "nam"
+    assert err.reason == (
+        "Extra inputs are not permitted (did you mean 'name'?); 1 more problem: name: Field required"
+    )
+    # nothing close: no guess
+    err = _error({"name": "a", "joints": [], "zzzzzz": 1}, model=_Robot)
+    assert err.reason == "Extra inputs are not permitted"
+
+
+def test_valid_keys_follow_lists_unions_and_mappings() -> None:
+    from reachwise.io.validation import closest_key, valid_keys
+
+    class _Box(BaseModel):
+        size: float
+
+    class _Mesh(BaseModel):
+        mesh: str
+        scale: float = 1.0
+
+    class _Scene(BaseModel):
+        objects: dict[str, _Box | _Mesh]
+        robots: list[_Robot] | None = None
+
+    assert valid_keys(_Scene, ()) == ["objects", "robots"]
+    assert valid_keys(_Scene, ("objects", "table")) == ["size", "mesh", "scale"]
+    assert valid_keys(_Scene, ("objects", "table", "_Mesh")) == ["mesh", "scale"]
+    assert valid_keys(_Scene, ("robots", 0, "joints", 3)) == ["type", "limits"]
+    assert valid_keys(_Scene, ("robots", 0, "name")) == []
+    assert closest_key("scael", ["mesh", "scale"]) == "scale"
+    assert closest_key("colour", ["mesh", "scale"]) is None
 
 
 def test_a_short_tuple_names_the_tuple_and_its_length() -> None:

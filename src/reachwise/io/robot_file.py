@@ -150,7 +150,7 @@ def robot_from_dict(data: Any, source: str = "robot") -> Robot:
     try:
         m = RobotModel.model_validate(data)
     except ValidationError as exc:
-        raise input_error(exc, source, RobotFileError) from None
+        raise input_error(exc, source, RobotFileError, model=RobotModel) from None
     joints = []
     for i, jm in enumerate(m.joints):
         try:

@@ -209,7 +209,7 @@ def task_from_dict(data: Any, source: str = "task", default_name: str = "task") 
     try:
         m = TaskModel.model_validate(data)
     except ValidationError as exc:
-        raise input_error(exc, source, TaskError, _LENGTHS) from None
+        raise input_error(exc, source, TaskError, _LENGTHS, model=TaskModel) from None
     points = tuple(_point(i, p, m.tolerance, source) for i, p in enumerate(m.points))
     envelope = None if m.envelope is None else _envelope(m.envelope, source)
     return Task(m.name if m.name is not None else default_name, points, envelope)

@@ -270,7 +270,7 @@ def _read_model(path: Path, model: type[_M]) -> _M:
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        raise input_error(exc, str(path), StateError) from None
+        raise input_error(exc, str(path), StateError, model=model) from None
 
 
 __all__ = [

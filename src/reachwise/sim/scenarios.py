@@ -722,7 +722,7 @@ def scenario_from_dict(data: Any, source: str = "scenario", folder: Path | None 
     try:
         spec = ScenarioSpec.model_validate(data)
     except ValidationError as exc:
-        raise input_error(exc, source) from None
+        raise input_error(exc, source, model=ScenarioSpec) from None
     return Scenario(spec, source, folder or Path.cwd())
 
 
