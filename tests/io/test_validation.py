@@ -75,7 +75,8 @@ def test_an_unknown_key_names_the_closest_valid_key() -> None:
     err = _error({"nam": "a", "joints": []}, model=_Robot)
     assert err.field == "nam"
     assert err.reason == (
-        "Extra inputs are not permitted (did you mean 'name'?); 1 more problem: name: Field required"
+        "Extra inputs are not permitted (did you mean 'name'?); "
+        "1 more problem: name: Field required"
     )
     # nothing close: no guess
     err = _error({"name": "a", "joints": [], "zzzzzz": 1}, model=_Robot)
