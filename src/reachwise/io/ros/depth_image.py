@@ -1,0 +1,110 @@
+"""Depth images (``sensor_msgs/Image``) and ``sensor_msgs/CameraInfo`` to points.
+
+Two encodings carry depth (REP 118): ``16UC1`` (also written ``mono16``), unsigned
+millimetres with 0 for "no return", and ``32FC1``, float metres with NaN for "no
+return" (0, negatives and infinities count as no return too). Rows are ``step`` bytes
+apart (a row may be padded), in big-endian order when ``is_bigendian``.
+
+The camera is the pinhole of :class:`~reachwise.geometry.depth_camera.Intrinsics` with
+``CameraInfo.k = [f_x, 0, c_x, 0, f_y, c_y, 0, 0, 1]`` (ROS 1: ``K``); pixel ``(u, v)``
+of depth ``z`` is the point ``z · ((u − c_x)/f_x, (v − c_y)/f_y, 1)`` in the camera's
+optical frame (``z`` forward, ``x`` right, ``y`` down), the back-projection of
+:meth:`~reachwise.geometry.depth_camera.DepthCamera.points`. The image must be
+rectified (``image_rect``); its size must be the CameraInfo's.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from reachwise.errors import InputError
+from reachwise.geometry.depth_camera import DepthCamera, Intrinsics
+from reachwise.io.ros.recording_error import RecordingError
+from reachwise.io.ros.stamps import header_stamp
+
+__all__ = ["DEPTH_ENCODINGS", "camera_from_info", "depth_image_metres", "depth_points"]
+
+DepthEncoding = Literal["16UC1", "mono16", "32FC1"]
+#: The depth encodings understood, and their pixel types.
+DEPTH_ENCODINGS: dict[str, str] = {"16UC1": "u2", "mono16": "u2", "32FC1": "f4"}
+
+
+def _stamp(msg: Any) -> float | None:
+    try:
+        return header_stamp(msg)
+    except AttributeError:
+        return None
+
+
+def depth_image_metres(msg: Any, *, topic: str = "Image") -> NDArray[np.float64]:
+    """The depth image of ``msg`` in metres, ``(height, width)``, NaN where the camera
+    returned nothing."""
+    t = _stamp(msg)
+    enc = str(msg.encoding)
+    code = DEPTH_ENCODINGS.get(enc)
+    if code is None:
+        raise RecordingError(
+            topic, t, "encoding", f"unknown depth encoding {enc!r}; valid: 16UC1, 32FC1, mono16"
+        )
+    h, w, step = int(msg.height), int(msg.width), int(msg.step)
+    px = np.dtype(("<" if not msg.is_bigendian else ">") + code)
+    if h > 0 and step < w * px.itemsize:
+        raise RecordingError(
+            topic, t, "step", f"{step} bytes hold fewer than {w} pixels of {px.itemsize} bytes"
+        )
+    data = np.frombuffer(memoryview(msg.data).cast("B"), dtype=np.uint8)
+    need = 0 if h * w == 0 else (h - 1) * step + w * px.itemsize
+    if data.size < need:
+        raise RecordingError(topic, t, "data", f"has {data.size} bytes, {h}×{w} pixels need {need}")
+    raw = np.ndarray((h, w), dtype=px, buffer=data, strides=(step, px.itemsize))
+    if code == "u2":
+        z = raw.astype(np.float64) * 1e-3
+        z[raw == 0] = np.nan
+        return z
+    z = raw.astype(np.float64)
+    with np.errstate(invalid="ignore"):
+        z[~(np.isfinite(z) & (z > 0.0))] = np.nan
+    return z
+
+
+def _k(info: Any) -> NDArray[np.float64]:
+    k = getattr(info, "k", None)
+    if k is None:
+        k = info.K
+    return np.asarray(k, dtype=np.float64).reshape(-1)
+
+
+def camera_from_info(info: Any, *, topic: str = "CameraInfo") -> DepthCamera:
+    """The pinhole camera of a ``CameraInfo`` (its ``width``, ``height`` and ``k``). A
+    skewed or non-pinhole ``k`` is an error."""
+    t = _stamp(info)
+    k = _k(info)
+    if k.shape != (9,) or not np.isfinite(k).all():
+        raise RecordingError(topic, t, "k", f"must be 9 finite numbers, got {k.tolist()}")
+    if k[1] != 0.0 or k[3] != 0.0 or k[6] != 0.0 or k[7] != 0.0 or k[8] != 1.0:
+        raise RecordingError(
+            topic, t, "k", f"must be [fx, 0, cx, 0, fy, cy, 0, 0, 1], got {k.tolist()}"
+        )
+    try:
+        intr = Intrinsics(int(info.width), int(info.height), k[0], k[4], k[2], k[5])
+    except InputError as exc:
+        raise RecordingError(topic, t, exc.field, exc.reason) from None
+    return DepthCamera(intr, near=0.0, far=float(np.finfo(np.float64).max))
+
+
+def depth_points(image: Any, camera: DepthCamera, *, topic: str = "Image") -> NDArray[np.float64]:
+    """The returned pixels of depth ``image`` as points ``(k, 3)`` in the camera's optical
+    frame, row-major pixel order (``camera`` from :func:`camera_from_info`)."""
+    z = depth_image_metres(image, topic=topic)
+    if z.shape != camera.shape:
+        raise RecordingError(
+            topic,
+            _stamp(image),
+            "width",
+            f"image is {z.shape[1]}×{z.shape[0]} pixels, its CameraInfo "
+            f"{camera.shape[1]}×{camera.shape[0]}",
+        )
+    return camera.points(z)
