@@ -57,11 +57,11 @@ def key_figures(key: str, r: Mapping[str, Any]) -> list[str]:
     if key == "synthesis":
         return [
             f"{r['runs_reaching_all']}/{r['runs']} runs reach all {r['task_points']} points",
-            f"best: GCI {r['gci_initial']:.3f} → {r['gci']:.3f}, KCI {r['kci_initial']:.3f} → "
-            f"{r['kci']:.3f}",
+            f"best run, random start design → final design: GCI {r['gci_initial']:.4f} → "
+            f"{r['gci']:.4f}, KCI {r['kci_initial']:.4f} → {r['kci']:.4f}",
             *(
-                [f"conditioning objective: GCI {r['gci_reach_only']:.4f} (reach only) → "
-                 f"{r['gci']:.4f}"]
+                [f"conditioning objective, reaching design → improved final design: GCI "
+                 f"{r['gci_reach_only']:.4f} → {r['gci']:.4f}"]
                 if r.get("gci_reach_only") is not None
                 else []
             ),
