@@ -1,6 +1,7 @@
 """A headless browser for the viewer and report tests (a plugin of tests/conftest.py):
 Debian's chromium, driven by Playwright (never a browser Playwright downloads itself).
-``.ci/run`` installs it."""
+``scripts/install-test-deps.sh`` (run by the README's test command and ``.ci/run``)
+installs it."""
 
 from __future__ import annotations
 
@@ -27,7 +28,8 @@ def chromium_path() -> str:
     path = CHROMIUM if CHROMIUM.exists() else shutil.which("chromium")
     if path is None:
         pytest.fail(
-            "Debian's chromium is missing: `apt-get install -y chromium` (.ci/run does this)"
+            "Debian's chromium is missing: run `bash scripts/install-test-deps.sh` (the README's"
+            " test command and .ci/run do)"
         )
     return str(path)
 
