@@ -116,7 +116,7 @@ class ControllerConfig:
     ``kv`` (1/s) and ``kw`` (1/s): position and orientation gains (Eq. 3.8, 3.10);
     ``v_max`` (m/s), ``w_max`` (rad/s): task velocity bounds (Eq. 3.12–3.13);
     ``lambda_max``, ``epsilon``: damping schedule (P-I Eq. 14, ``reachwise.kinematics.dls``);
-    ``mu`` (m⁴/s): Khatib coefficient (Eq. 3.17), ``v_rep_max`` (m/s) caps a repulsive
+    ``mu`` (m⁴/s): Khatib coefficient (Eq. 3.16–3.17), ``v_rep_max`` (m/s) caps a repulsive
     speed; ``k_limit`` (1/s): position-limit velocity damper, ``limit_zone`` (rad or
     m): where the limit weighting starts; ``guard``, ``stop_distance`` ``ρ_s`` (m) and
     ``approach_speed`` ``ξ`` (m/s): the approach guard; ``avoidance``: False gives the

@@ -13,14 +13,37 @@ falls to zero at the limit, so with a kinematic plant and ``k ≤ 1/Δt`` it nev
 crosses it; with a first-order hydraulic lag of time constant ``τ`` choose
 ``k ≤ 1/(4τ)`` (critically damped approach, no overshoot). A joint found outside its
 range (started there, or pushed by an external force) may only move back inward.
+
+The interval is written once, in the compiled :func:`joint_velocity_interval` that the
+controller's tick calls; :func:`velocity_bounds` applies it to arrays.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["limit_scale", "velocity_bounds"]
+__all__ = ["joint_velocity_interval", "limit_scale", "velocity_bounds"]
+
+
+@njit(cache=True)
+def joint_velocity_interval(q, lower, upper, vmax, k):  # type: ignore[no-untyped-def]
+    """Allowed velocity interval ``(lo, hi)`` of one joint at position ``q``: inside
+    ``[lower, upper]`` ``max(−v_max, k (q_lo − q)) ≤ q̇ ≤ min(v_max, k (q_hi − q))``
+    (the position velocity damper, gain ``k`` in 1/s); below ``lower`` ``[0, v_max]``,
+    above ``upper`` ``[−v_max, 0]`` (only back inward)."""
+    if q < lower:
+        return 0.0, vmax
+    if q > upper:
+        return -vmax, 0.0
+    return max(-vmax, min(k * (lower - q), 0.0)), min(vmax, max(k * (upper - q), 0.0))
+
+
+@njit(cache=True)
+def _velocity_bounds(q, lower, upper, vmax, k, lo, hi):  # type: ignore[no-untyped-def]
+    for i in range(q.shape[0]):
+        lo[i], hi[i] = joint_velocity_interval(q[i], lower[i], upper[i], vmax[i], k)
 
 
 def velocity_bounds(
@@ -30,17 +53,11 @@ def velocity_bounds(
 
     A joint below ``lower`` gets ``[0, v_max]``, above ``upper`` ``[−v_max, 0]``.
     """
-    qq = np.asarray(q, dtype=float)
-    lo_q = np.asarray(lower, dtype=float)
-    hi_q = np.asarray(upper, dtype=float)
-    v = np.asarray(vmax, dtype=float)
-    with np.errstate(invalid="ignore"):
-        hi = np.minimum(v, np.maximum(k * (hi_q - qq), 0.0))
-        lo = np.maximum(-v, np.minimum(k * (lo_q - qq), 0.0))
-    below = qq < lo_q
-    above = qq > hi_q
-    lo = np.where(below, 0.0, np.where(above, -v, lo))
-    hi = np.where(below, v, np.where(above, 0.0, hi))
+    arrays = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (q, lower, upper, vmax)))
+    qq, lo_q, hi_q, v = (np.ascontiguousarray(a).ravel() for a in arrays)
+    lo = np.empty(arrays[0].shape)
+    hi = np.empty(arrays[0].shape)
+    _velocity_bounds(qq, lo_q, hi_q, v, float(k), lo.reshape(-1), hi.reshape(-1))
     return lo, hi
 
 

@@ -3,26 +3,18 @@ thesis): every active pair's distance rate must stay above the velocity damper
 ``−ξ (ρ − ρ_s)/(ρ_O − ρ_s)`` (plus a moving obstacle's approach speed). Tool parts
 deflect the goal velocity; then the goal part of the task is scaled by the largest
 ``s ∈ [0, 1]`` that keeps every pair within its bound, and if even ``s = 0`` does not,
-the whole motion is slowed down."""
+the whole motion is slowed down. The bounds are
+:func:`~reachwise.control.potential.damper_bound` and
+:func:`~reachwise.control.potential.moving_damper_bound`."""
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
+from reachwise.control.potential import damper_bound, moving_damper_bound
 from reachwise.control.tick.joints import limit_scale
 from reachwise.control.tick.task import task_velocity
-
-
-@njit(cache=True)
-def moving_bound(rho, rho0, rho_stop, xi, u):  # type: ignore[no-untyped-def]
-    """Lowest rate ``n_iᵀ J_Oi q̇`` allowed against an obstacle approaching at ``u``:
-    the velocity damper on the true distance rate, ``u − ξ (ρ − ρ_s)/(ρ_O − ρ_s)``,
-    continued below ``ρ_s`` (down to ``u + ξ`` at ``2ρ_s − ρ_O``) so that a point the
-    obstacle pushed inside ``ρ_s`` must open the gap again, not only hold it."""
-    span = max(rho0 - rho_stop, 1e-9)
-    frac = min(max((rho - rho_stop) / span, -1.0), 1.0)
-    return u - xi * frac
 
 
 @njit(cache=True)
@@ -43,14 +35,12 @@ def deflect_for_tool_parts(pG, pR, rows, pts, settings):  # type: ignore[no-unty
         for i in range(m):
             if not (active[i] and task_space[i]):
                 continue
-            span = max(rho0[i] - rho_stop, 1e-9)
-            frac = min(max((deff[i] - rho_stop) / span, 0.0), 1.0)
             rate = 0.0
             for j in range(3):
                 rate += normal[i, j] * (pG[j] + pR[j])
-            lo = -xi * frac
+            lo = damper_bound(deff[i], rho0[i], rho_stop, xi)
             if approach[i] > 0.0:
-                lo = moving_bound(deff[i], rho0[i], rho_stop, xi, approach[i])
+                lo = moving_damper_bound(deff[i], rho0[i], rho_stop, xi, approach[i])
             if rate < lo:
                 for j in range(3):
                     pG[j] += (lo - rate) * normal[i, j]
@@ -88,12 +78,10 @@ def guard_scales(sol, w, rec, xrec, pG, pR, wG, six, q, limits, rows, pts, gains
             for j in range(3):
                 acc += normal[i, j] * JO[i, j, k]
             g[i, k] = acc
-        span = max(rho0[i] - rho_stop, 1e-9)
-        frac = min(max((deff[i] - rho_stop) / span, 0.0), 1.0)
-        lo_static[i] = -xi * frac
+        lo_static[i] = damper_bound(deff[i], rho0[i], rho_stop, xi)
         lo_rate[i] = lo_static[i]
         if approach[i] > 0.0:
-            lo_rate[i] = moving_bound(deff[i], rho0[i], rho_stop, xi, approach[i])
+            lo_rate[i] = moving_damper_bound(deff[i], rho0[i], rho_stop, xi, approach[i])
     qs = np.empty(n)
     moving = False
     for i in range(m):
@@ -113,7 +101,7 @@ def guard_scales(sol, w, rec, xrec, pG, pR, wG, six, q, limits, rows, pts, gains
         ok = True
         # a moving obstacle's pair is checked on the command actually sent, after
         # the joint-speed scaling (scaling slows a retreat down as well)
-        a_s = limit_scale(qs, 1.0, rec, q, limits, gains.k_limit) if moving else 1.0
+        a_s = limit_scale(qs, 1.0, q, limits, gains.k_limit) if moving else 1.0
         for i in range(m):
             if not active[i]:
                 continue

@@ -7,6 +7,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from reachwise.control.limits import joint_velocity_interval
+
 
 @njit(cache=True)
 def joint_weights(q, limits, k_limit):  # type: ignore[no-untyped-def]
@@ -32,21 +34,18 @@ def joint_weights(q, limits, k_limit):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def limit_scale(qd, guard, rec, q, limits, k_limit):  # type: ignore[no-untyped-def]
+def limit_scale(qd, guard, q, limits, k_limit):  # type: ignore[no-untyped-def]
     """The factor ``α ≤ guard`` that brings ``guard · qd`` within every joint's speed
-    bound and position-limit damper (a recovering joint may only move inward)."""
+    bound and position-limit damper
+    (:func:`~reachwise.control.limits.joint_velocity_interval`; a joint outside its
+    range may only move inward)."""
     lower = limits.lower
     upper = limits.upper
     vmax = limits.vmax
     alpha = guard
     for k in range(qd.shape[0]):
         v = qd[k] * guard
-        if rec[k] != 0.0:
-            hi = vmax[k] if rec[k] > 0.0 else 0.0
-            lo = -vmax[k] if rec[k] < 0.0 else 0.0
-        else:
-            hi = min(vmax[k], max(k_limit * (upper[k] - q[k]), 0.0))
-            lo = max(-vmax[k], min(k_limit * (lower[k] - q[k]), 0.0))
+        lo, hi = joint_velocity_interval(q[k], lower[k], upper[k], vmax[k], k_limit)
         if v > hi:
             alpha = min(alpha, guard * hi / v if v > 0.0 else 0.0)
         elif v < lo:

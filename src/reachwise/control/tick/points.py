@@ -10,14 +10,16 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from reachwise.control.potential import khatib_speed
 from reachwise.kinematics._kernels import point_jacobian_rows
 
 
 class ActivePoints(NamedTuple):
     """Per row (``m``): ``active`` within the margin (after a moving obstacle's travel
-    during the reaction time, ``deff``), the repulsive speed ``vrep`` (Eq. 3.17, 0 for a
-    recalled row), the obstacle's ``approach`` speed along the line, its feed-forward
-    velocity ``ff`` (m, 3) and the point Jacobian ``JO`` (m, 3, n) — relative for a
+    during the reaction time, ``deff``), the repulsive speed ``vrep`` (Eq. 3.17,
+    :func:`~reachwise.control.potential.khatib_speed`; 0 for a recalled row), the
+    obstacle's ``approach`` speed along the line, its feed-forward velocity ``ff``
+    (m, 3) and the point Jacobian ``JO`` (m, 3, n) — relative for a
     self-collision pair. ``pR``: the tool parts' repulsion summed in task space
     (P-V Eq. 6). Counts: ``n_active`` rows that repel, ``n_guard`` rows the guard
     watches; ``dmin`` the smallest distance of this tick's own rows."""
@@ -90,9 +92,7 @@ def active_points(chain, passive, F, Jg, rows, recalled, m_now, gains, settings)
         n_guard += 1
         if not recalled[i]:
             n_active += 1
-            rho = max(deff[i], 1e-6)
-            v = gains.mu * (1.0 / rho - 1.0 / rho0[i]) / (rho * rho)
-            vrep[i] = min(v, gains.v_rep_max)
+            vrep[i] = khatib_speed(deff[i], rho0[i], gains.mu, gains.v_rep_max)
         if rows.task_space[i]:
             # a tool part moves with the tool: rigidly (its own point Jacobian), or, if
             # it hangs on passive joints, with the tool point plus the tool's rotation

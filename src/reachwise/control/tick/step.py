@@ -116,7 +116,7 @@ def tick(chain, limits, gains, settings, target, rows, memory, q):  # type: igno
         )
 
     # ---- limits: scale the whole vector (never clip one joint into another direction)
-    alpha = limit_scale(qd1, guard, rec, q, limits, gains.k_limit)
+    alpha = limit_scale(qd1, guard, q, limits, gains.k_limit)
     qdot = np.empty(n)
     for k in range(n):
         qdot[k] = alpha * qd1[k]

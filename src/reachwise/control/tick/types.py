@@ -56,7 +56,7 @@ class JointLimits(NamedTuple):
 class Gains(NamedTuple):
     """Gains and bounds of the law: ``kv``, ``kw`` (Eq. 3.8, 3.10), ``v_max``,
     ``w_max`` (Eq. 3.12–3.13), ``lambda_max``, ``epsilon`` (P-I Eq. 14), ``mu``
-    (Eq. 3.17), ``v_rep_max``, ``k_limit`` (the joint-limit velocity damper)."""
+    (Eq. 3.16–3.17), ``v_rep_max``, ``k_limit`` (the joint-limit velocity damper)."""
 
     kv: float
     kw: float
