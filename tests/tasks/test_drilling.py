@@ -12,6 +12,10 @@ from reachwise.errors import TaskError
 from reachwise.tasks import (
     TUNNEL_87_LARGEST,
     ZONES,
+    ContourLayout,
+    CutLayout,
+    DrillLayout,
+    LifterLayout,
     Task,
     TunnelProfile,
     combine_plans,
@@ -251,3 +255,48 @@ def test_combine_plans_pools_or_selects(plans: tuple[Task, ...]) -> None:
         combine_plans([])
     other = tunnel_87(seed=1)
     assert len(other) == 87 and not np.allclose(other.positions, tunnel_87().positions)
+
+
+def test_a_layout_and_the_same_keywords_give_the_same_plan() -> None:
+    layout = DrillLayout(
+        face_x=6.5,
+        cut=CutLayout(type="parallel", center=(-0.5, 2.0)),
+        contour=ContourLayout(spacing=0.8, lookout_angle=math.radians(2.0)),
+        lifters=LifterLayout(angle=0.1),
+        jitter=0.02,
+    )
+    a = drilling_pattern(PROFILE, layout, seed=3, dims=6)
+    b = drilling_pattern(
+        PROFILE,
+        face_x=6.5,
+        cut_type="parallel",
+        cut_center=(-0.5, 2.0),
+        contour_spacing=0.8,
+        lookout_angle=math.radians(2.0),
+        lifter_angle=0.1,
+        jitter=0.02,
+        seed=3,
+        dims=6,
+    )
+    assert np.array_equal(a.poses, b.poses) and a.names == b.names
+    # a keyword replaces one field of a given layout, the rest stays
+    c = drilling_pattern(PROFILE, layout, seed=3, dims=6, face_x=8.0)
+    np.testing.assert_allclose(c.positions[:, 0], 8.0)
+    np.testing.assert_array_equal(c.positions[:, 1:], a.positions[:, 1:])
+    assert drilling_pattern(PROFILE, DrillLayout()).poses.tobytes() == (
+        drilling_pattern(PROFILE).poses.tobytes()
+    )
+
+
+def test_layout_groups_check_their_fields() -> None:
+    with pytest.raises(TaskError) as info:
+        ContourLayout(spacing=0.0)
+    assert info.value.field == "contour_spacing"
+    with pytest.raises(TaskError) as info:
+        CutLayout(angle=math.radians(70))
+    assert info.value.field == "cut_angle"
+    with pytest.raises(TaskError) as info:
+        DrillLayout(contour=ContourLayout(offset=0.1), jitter=0.03)  # > offset / 4
+    assert info.value.field == "jitter"
+    with pytest.raises(TypeError, match="cut_kind"):
+        drilling_pattern(PROFILE, cut_kind="v")  # type: ignore[call-arg]

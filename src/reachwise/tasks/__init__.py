@@ -1,14 +1,22 @@
 """reachwise.tasks: what a manipulator must reach, and where it may move (pure math).
 
 ``TaskPoint`` / ``Task`` hold 3-, 5- or 6-D poses with tolerances (thesis §2.3, P-II §5);
-``drilling_pattern`` builds a tunnel-face drill plan and ``tunnel_87`` the public
-stand-in for the thesis's 87-point task from 10 customer plans (P-I §4);
+``drilling_pattern`` builds a tunnel-face drill plan from a ``DrillLayout`` and
+``tunnel_87`` the public stand-in for the thesis's 87-point task from 10 customer plans
+(P-I §4);
 ``TunnelProfile`` / ``TunnelEnvelope`` give the tunnel as a workspace constraint with
 an exact signed distance (P-I §4.2). File I/O lives in ``reachwise.io.task_file``.
 """
 
 from __future__ import annotations
 
+from reachwise.tasks.drill_layout import (
+    ContourLayout,
+    CutLayout,
+    DrillLayout,
+    LifterLayout,
+    StopingLayout,
+)
 from reachwise.tasks.drilling import (
     TUNNEL_87_LARGEST,
     TUNNEL_87_SEED,
@@ -28,6 +36,11 @@ __all__ = [
     "TUNNEL_87_LARGEST",
     "TUNNEL_87_SEED",
     "ZONES",
+    "ContourLayout",
+    "CutLayout",
+    "DrillLayout",
+    "LifterLayout",
+    "StopingLayout",
     "Task",
     "TaskPoint",
     "TunnelEnvelope",

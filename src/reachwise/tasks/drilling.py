@@ -33,13 +33,31 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Literal
+from typing import Unpack
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from reachwise.errors import TaskError
+from reachwise.tasks.drill_layout import (
+    ContourLayout,
+    CutLayout,
+    CutType,
+    DrillLayout,
+    LayoutKeywords,
+    LifterLayout,
+    StopingLayout,
+    layout_with,
+)
+from reachwise.tasks.drill_zones import (
+    Holes,
+    contour_holes,
+    lifter_holes,
+    parallel_cut,
+    row_half_width,
+    stoping_holes,
+    v_cut,
+)
 from reachwise.tasks.task import (
     DEFAULT_TOL_ORIENTATION,
     DEFAULT_TOL_POSITION,
@@ -49,7 +67,6 @@ from reachwise.tasks.task import (
 from reachwise.tasks.workspace import TunnelEnvelope, TunnelProfile
 
 FloatArray = NDArray[np.float64]
-CutType = Literal["v", "parallel"]
 ZONES: tuple[str, ...] = ("cut", "stoping", "contour", "lifter")
 TUNNEL_87_SEED = 2017
 TUNNEL_87_POINTS = 87
@@ -60,212 +77,6 @@ TUNNEL_87_PLANS = 10
 # of this size, so the combined plans stay within it (faces of 20–56 m²).
 TUNNEL_87_LARGEST = TunnelProfile(width=8.5, height=7.2, arch_height=2.2)
 _SRC = "drilling pattern"
-
-
-@dataclass(frozen=True)
-class _Holes:
-    """Collars ``(k, 2)`` in profile coordinates (u, v) and unit directions ``(k, 3)``."""
-
-    uv: FloatArray
-    axis: FloatArray
-
-    @staticmethod
-    def empty() -> _Holes:
-        return _Holes(np.zeros((0, 2)), np.zeros((0, 3)))
-
-
-def _direction(tan_y: ArrayLike, tan_z: ArrayLike) -> FloatArray:
-    """Unit vectors ``normalize(x̂ + tan_y ŷ + tan_z ẑ)``."""
-    ty, tz = np.broadcast_arrays(np.asarray(tan_y, float), np.asarray(tan_z, float))
-    d = np.column_stack([np.ones(ty.size), ty.ravel(), tz.ravel()])
-    return np.asarray(d / np.linalg.norm(d, axis=1, keepdims=True))
-
-
-def _lookout(normal_uv: FloatArray, angle: float) -> FloatArray:
-    """Directions ``cos(L) x̂ + sin(L) n`` for outward unit normals ``n`` in (u, v)."""
-    n = normal_uv / np.linalg.norm(normal_uv, axis=1, keepdims=True)
-    return np.column_stack(
-        [np.full(n.shape[0], math.cos(angle)), math.sin(angle) * n[:, 0], math.sin(angle) * n[:, 1]]
-    )
-
-
-def _inner_offset(profile: TunnelProfile, delta: float) -> tuple[float, float, float]:
-    """The profile offset inward by ``delta``: (half width, junction height of wall and
-    roof, roof radius) — the roof keeps its centre (``inf`` radius for a flat roof)."""
-    hw = profile.half_width - delta
-    if not profile.is_arched:
-        return hw, profile.height - delta, math.inf
-    r = profile.arch_radius - delta
-    vj = profile.arch_center_v + math.sqrt(max(r * r - hw * hw, 0.0))
-    return hw, vj, r
-
-
-def _row_half_width(profile: TunnelProfile, delta: float, v: float) -> float:
-    """Half width at height ``v`` of the region at least ``delta`` inside the profile."""
-    hw, vj, r = _inner_offset(profile, delta)
-    if v < delta or hw <= 0:
-        return -1.0
-    if v <= vj:
-        return hw
-    if math.isinf(r):
-        return -1.0
-    s = r * r - (v - profile.arch_center_v) ** 2
-    return math.sqrt(s) if s >= 0 else -1.0
-
-
-def _even(lo: float, hi: float, spacing: float) -> FloatArray:
-    """Points from ``lo`` to ``hi`` inclusive, evenly, about ``spacing`` apart."""
-    n = max(1, round(abs(hi - lo) / spacing))
-    return np.asarray(lo + (hi - lo) * np.arange(n + 1) / n)
-
-
-def _contour(
-    profile: TunnelProfile, offset: float, v_start: float, spacing: float, lookout: float
-) -> _Holes:
-    """Contour holes on the profile offset inward by ``offset``: up one wall, over the
-    roof, down the other wall; a hole at each wall-roof corner, even spacing between."""
-    hw, vj, r = _inner_offset(profile, offset)
-    uv: list[FloatArray] = []
-    nrm: list[FloatArray] = []
-    wall_len = vj - v_start
-    wall = _even(v_start, vj, spacing)[:-1] if wall_len > 0.25 * spacing else np.zeros(0)
-    # +u wall, bottom to corner (corner excluded)
-    uv.append(np.column_stack([np.full(wall.size, hw), wall]))
-    nrm.append(np.tile([1.0, 0.0], (wall.size, 1)))
-    if math.isinf(r):
-        us = _even(hw, -hw, spacing)
-        roof_uv = np.column_stack([us, np.full(us.size, vj)])
-        roof_n = np.tile([0.0, 1.0], (us.size, 1))
-        corner_n = np.array([[1.0, 1.0], [-1.0, 1.0]])
-    else:
-        psi = math.asin(min(hw / r, 1.0))
-        n_arc = max(1, round(2 * psi * r / spacing))
-        th = np.pi / 2 - psi + 2 * psi * np.arange(n_arc + 1) / n_arc
-        roof_uv = np.column_stack([r * np.cos(th), profile.arch_center_v + r * np.sin(th)])
-        roof_n = np.column_stack([np.cos(th), np.sin(th)])
-        corner_n = np.array(
-            [[1.0 + math.cos(th[0]), math.sin(th[0])], [-1.0 + math.cos(th[-1]), math.sin(th[-1])]]
-        )
-    roof_n = roof_n.copy()
-    roof_n[0], roof_n[-1] = corner_n[0], corner_n[1]  # corner holes bisect wall and roof
-    uv.append(roof_uv)
-    nrm.append(roof_n)
-    wall_down = wall[::-1]
-    uv.append(np.column_stack([np.full(wall_down.size, -hw), wall_down]))
-    nrm.append(np.tile([-1.0, 0.0], (wall_down.size, 1)))
-    U = np.concatenate(uv)
-    N = np.concatenate(nrm)
-    return _Holes(U, _lookout(N, lookout))
-
-
-def _lifters(
-    profile: TunnelProfile,
-    offset: float,
-    height: float,
-    spacing: float,
-    angle: float,
-    lookout: float,
-) -> _Holes:
-    """Lifters along the floor, angled down by ``angle``; the corner ones also outward."""
-    hw = profile.half_width - offset
-    us = _even(-hw, hw, spacing)
-    side = np.zeros(us.size)
-    side[0], side[-1] = -1.0, 1.0
-    uv = np.column_stack([us, np.full(us.size, height)])
-    return _Holes(uv, _direction(side * math.tan(lookout), -math.tan(angle)))
-
-
-def _v_cut(
-    center: tuple[float, float],
-    rows: int,
-    pairs: int,
-    row_pitch: float,
-    angle: float,
-    vertical_angle: float,
-    depth: float,
-    half_room: float,
-) -> _Holes:
-    """A horizontal V-cut: ``rows`` rows of ``pairs`` symmetric pairs converging on the
-    vertical plane ``u = center u``. Pair k (1 = inner "baby" V) is angled ``α_k`` from
-    the tunnel axis, ``α₁ = angle`` decreasing to ``0.65·angle`` outermost; its tip is
-    ``0.1 + 0.25 (k-1)`` m off the plane at a V depth growing from ``0.45·depth`` to
-    ``depth``, which fixes the collar offset. If the outer collars do not fit in
-    ``half_room`` the V depths shrink (a V-cut's advance is limited by the tunnel
-    width, a well-known property of angled cuts). Outer rows also converge vertically
-    on the cut centre by up to ``vertical_angle``."""
-    uc, vc = center
-    k = np.arange(1, pairs + 1, dtype=float)
-    frac = (k - 1) / max(pairs - 1, 1)
-    alpha = angle * (1 - 0.35 * frac)
-    tip = 0.1 + 0.25 * (k - 1)
-    vdepth = depth * (0.45 + 0.55 * frac)
-    off = tip + vdepth * np.tan(alpha)
-    if off[-1] > half_room:
-        scale = max((half_room - tip[-1]) / (vdepth[-1] * math.tan(alpha[-1])), 0.0)
-        off = tip + scale * vdepth * np.tan(alpha)
-    row_off = (np.arange(rows) - (rows - 1) / 2) * row_pitch
-    max_row = max(float(np.abs(row_off).max()), 1e-12)
-    uv, ty, tz = [], [], []
-    for ro in row_off:
-        beta = vertical_angle * abs(ro) / max_row
-        for side in (1.0, -1.0):
-            for j in range(pairs):
-                uv.append((uc + side * off[j], vc + ro))
-                ty.append(-side * math.tan(alpha[j]))
-                tz.append(-math.copysign(math.tan(beta), ro) if ro != 0 else 0.0)
-    return _Holes(np.array(uv, dtype=float), _direction(ty, tz))
-
-
-def _parallel_cut(center: tuple[float, float]) -> _Holes:
-    """A four-section parallel (burn) cut: two empty relief holes 0.2 m apart at the
-    centre and four sections of four charged holes at 0.2, 0.4, 0.75 and 1.2 m,
-    alternately on the diagonals and the axes; every hole along the tunnel axis."""
-    uc, vc = center
-    uv = [(uc, vc - 0.1), (uc, vc + 0.1)]
-    for radius, start in ((0.2, 45.0), (0.4, 0.0), (0.75, 45.0), (1.2, 0.0)):
-        for q in range(4):
-            a = math.radians(start + 90.0 * q)
-            uv.append((uc + radius * math.cos(a), vc + radius * math.sin(a)))
-    n = len(uv)
-    return _Holes(np.array(uv, dtype=float), _direction(np.zeros(n), np.zeros(n)))
-
-
-def _stoping(
-    profile: TunnelProfile,
-    delta: float,
-    v_lo: float,
-    burden: float,
-    spacing: float,
-    keep_out: tuple[float, float, float, float],
-) -> _Holes:
-    """Stoping holes on rows ``burden`` apart from ``v_lo`` up to ``delta`` under the
-    crown, ``spacing`` apart inside the region ``delta`` inside the profile, outside
-    the cut's keep-out box ``(u0, u1, v0, v1)``; all along the tunnel axis."""
-    v_hi = profile.height - delta
-    if v_hi < v_lo:
-        return _Holes.empty()
-    rows = _even(v_lo, v_hi, burden) if v_hi - v_lo > 0.25 * burden else np.array([v_lo])
-    uv: list[tuple[float, float]] = []
-    u0, u1, v0, v1 = keep_out
-    for v in rows:
-        half = _row_half_width(profile, delta, float(v))
-        if half < 0:
-            continue
-        us = np.array([0.0]) if half < spacing / 2 else _even(-half, half, spacing)
-        for u in us:
-            if not (u0 <= u <= u1 and v0 <= v <= v1):
-                uv.append((float(u), float(v)))
-    if not uv:
-        return _Holes.empty()
-    U = np.array(uv, dtype=float)
-    return _Holes(U, _direction(np.zeros(len(U)), np.zeros(len(U))))
-
-
-def _check_positive(field: str, value: float) -> float:
-    v = float(value)
-    if not (math.isfinite(v) and v > 0):
-        raise TaskError(_SRC, field, f"must be finite and > 0, got {value}")
-    return v
 
 
 def roll_rotations(profile: TunnelProfile, collars_yz: ArrayLike, axes: ArrayLike) -> FloatArray:
@@ -284,160 +95,62 @@ def roll_rotations(profile: TunnelProfile, collars_yz: ArrayLike, axes: ArrayLik
 
 def drilling_pattern(
     profile: TunnelProfile,
+    layout: DrillLayout | None = None,
     *,
-    face_x: float = 7.0,
-    hole_depth: float = 4.5,
-    lookout_angle: float = math.radians(3.0),
-    contour_spacing: float = 0.7,
-    contour_offset: float = 0.15,
-    contour_burden: float = 0.8,
-    lifter_spacing: float = 1.0,
-    lifter_height: float = 0.25,
-    lifter_angle: float | None = None,
-    stoping_burden: float = 0.9,
-    stoping_spacing: float = 1.0,
-    cut_type: CutType = "v",
-    cut_center: tuple[float, float] | None = None,
-    cut_angle: float = math.radians(30.0),
-    cut_rows: int = 4,
-    cut_pairs: int = 2,
-    cut_row_pitch: float = 0.55,
-    cut_vertical_angle: float = math.radians(6.0),
-    jitter: float = 0.0,
     seed: int | np.random.Generator | None = 0,
     dims: int = 5,
     plan: str = "P01",
     name: str | None = None,
     tol_position: float = DEFAULT_TOL_POSITION,
     tol_orientation: float = DEFAULT_TOL_ORIENTATION,
+    **keywords: Unpack[LayoutKeywords],
 ) -> Task:
     """One tunnel-face drill plan as a task (public stand-in for P-I §4's customer plans).
 
+    ``layout`` (:class:`~reachwise.tasks.drill_layout.DrillLayout`, default: its
+    defaults) holds the rules; flat ``keywords`` (``face_x=7.5``,
+    ``contour_spacing=0.7``, ``cut_type="parallel"``, …; see
+    :class:`~reachwise.tasks.drill_layout.LayoutKeywords`) replace single fields of it.
     Every hole is collared on the face plane ``x = face_x`` (m ahead of the machine
     origin) inside ``profile``; its direction is the tool z axis. Zones (each point's
     ``group``; ``name`` is ``"{plan}/{zone}{k:02d}"``):
 
-    * ``cut`` around ``cut_center`` = (u, v) in profile coordinates (default: the
-      centreline, ``clip(0.4·height, 1.6, 3.0)`` m above the floor).
-      ``cut_type="v"``: a horizontal V-cut, ``cut_rows`` × ``cut_pairs`` symmetric
-      pairs angled up to ``cut_angle`` (rad) from the tunnel axis toward the cut's
-      vertical plane, the outer rows also tilted up to ``cut_vertical_angle`` toward the
-      centre row — the widest range of directions on the face. ``"parallel"``: a
-      four-section burn cut of 18 holes along the tunnel axis (2 empty relief holes).
-    * ``stoping``: rows ``stoping_burden`` apart, holes ``stoping_spacing`` apart, along
-      the tunnel axis, at least ``contour_offset + contour_burden`` inside the profile
-      and clear of the cut; those beside the cut break horizontally into it, those above
-      it downward (firing order, not geometry).
-    * ``contour``: along walls and roof, ``contour_offset`` inside the profile, about
-      ``contour_spacing`` m apart (0.5–1 m is usual; corners get a hole bisecting wall
-      and roof), each tilted outward by ``lookout_angle`` (rad) from the tunnel axis so
-      the hole bottom reaches ``≈ hole_depth·tan(lookout)`` past the collar line.
-    * ``lifter``: along the floor ``lifter_height`` m up, ``lifter_spacing`` apart,
-      angled down by ``lifter_angle`` (default: the look-out), corner lifters also
-      outward by the look-out.
+    * ``cut`` around the cut centre (profile coordinates; default: the centreline,
+      ``clip(0.4·height, 1.6, 3.0)`` m above the floor). A V-cut has the widest range
+      of directions on the face; a parallel cut is 18 holes along the tunnel axis
+      (2 empty relief holes).
+    * ``stoping``: rows along the tunnel axis at least ``contour offset + contour
+      burden`` inside the profile and clear of the cut; those beside the cut break
+      horizontally into it, those above it downward (firing order, not geometry).
+    * ``contour``: along walls and roof (0.5–1 m apart is usual; corners get a hole
+      bisecting wall and roof), each tilted outward by the look-out angle so the hole
+      bottom reaches ``≈ hole_depth·tan(lookout)`` past the collar line.
+    * ``lifter``: along the floor, angled down (default: by the look-out), corner
+      lifters also outward by the look-out.
 
-    ``hole_depth`` (m) sets the V-cut depths (which shrink if the tunnel is too narrow
-    for them). ``jitter`` (m) perturbs collars in the face plane (N(0, jitter) clipped
+    The hole depth sets the V-cut depths (which shrink if the tunnel is too narrow
+    for them). The jitter (m) perturbs collars in the face plane (N(0, jitter) clipped
     to ±2σ, seeded by ``seed``) like a real plan's irregular holes. ``dims=6`` adds the
-    feed roll (``roll_rotations``: tool x toward the tunnel interior).
+    feed roll (:func:`roll_rotations`: tool x toward the tunnel interior).
     """
     if not isinstance(profile, TunnelProfile):
         raise TaskError(_SRC, "profile", "must be a TunnelProfile")
-    fx = float(face_x)
-    if not math.isfinite(fx):
-        raise TaskError(_SRC, "face_x", f"must be finite, got {face_x}")
-    hole_depth = _check_positive("hole_depth", hole_depth)
-    contour_spacing = _check_positive("contour_spacing", contour_spacing)
-    contour_offset = _check_positive("contour_offset", contour_offset)
-    contour_burden = _check_positive("contour_burden", contour_burden)
-    lifter_spacing = _check_positive("lifter_spacing", lifter_spacing)
-    lifter_height = _check_positive("lifter_height", lifter_height)
-    stoping_burden = _check_positive("stoping_burden", stoping_burden)
-    stoping_spacing = _check_positive("stoping_spacing", stoping_spacing)
-    cut_row_pitch = _check_positive("cut_row_pitch", cut_row_pitch)
-    lookout = float(lookout_angle)
-    if not 0 <= lookout <= math.radians(15):
-        raise TaskError(_SRC, "lookout_angle", f"must be in [0, 15°] (rad), got {lookout_angle}")
-    lift = lookout if lifter_angle is None else float(lifter_angle)
-    if not 0 <= lift <= math.radians(15):
-        raise TaskError(_SRC, "lifter_angle", f"must be in [0, 15°] (rad), got {lifter_angle}")
-    if not 0 < cut_angle < math.radians(60):
-        raise TaskError(_SRC, "cut_angle", f"must be in (0, 60°) (rad), got {cut_angle}")
-    if not 0 <= cut_vertical_angle < math.radians(30):
-        raise TaskError(
-            _SRC, "cut_vertical_angle", f"must be in [0, 30°), got {cut_vertical_angle}"
-        )
-    if cut_type not in ("v", "parallel"):
-        raise TaskError(_SRC, "cut_type", f"must be 'v' or 'parallel', got {cut_type!r}")
-    if int(cut_rows) < 1 or int(cut_pairs) < 1:
-        raise TaskError(_SRC, "cut_rows", "cut_rows and cut_pairs must be ≥ 1")
+    lay = layout_with(layout if layout is not None else DrillLayout(), **keywords)
     if dims not in (5, 6):
         raise TaskError(_SRC, "dims", f"must be 5 or 6, got {dims}")
-    if not (math.isfinite(jitter) and 0 <= jitter <= contour_offset / 4):
-        raise TaskError(_SRC, "jitter", f"must be in [0, contour_offset/4], got {jitter}")
-    if lifter_height >= profile.wall_height:
-        raise TaskError(_SRC, "lifter_height", "lifters must be below the wall tops")
-    if 2 * (contour_offset + contour_burden) >= profile.width:
-        raise TaskError(_SRC, "profile", f"tunnel {profile.width} m wide is too narrow")
-
-    if cut_center is None:
-        cc = (0.0, min(max(0.4 * profile.height, 1.6), 3.0))
-    else:
-        cc = (float(cut_center[0]), float(cut_center[1]))
-    room = _row_half_width(profile, contour_offset + contour_burden, cc[1])
-    if room <= abs(cc[0]):
-        raise TaskError(_SRC, "cut_center", f"{cc} is not inside the stoping region")
-    if cut_type == "v":
-        half_room = room - abs(cc[0])
-        cut = _v_cut(
-            cc,
-            int(cut_rows),
-            int(cut_pairs),
-            cut_row_pitch,
-            float(cut_angle),
-            float(cut_vertical_angle),
-            hole_depth,
-            half_room,
-        )
-    else:
-        cut = _parallel_cut(cc)
-    s_cut = profile.signed_distance_2d(cut.uv + np.array([profile.y_center, profile.floor_z]))
-    if (s_cut < contour_offset).any():
-        raise TaskError(_SRC, "cut_center", f"the cut at {cc} does not fit inside the profile")
-    clear = 0.5
-    box = (
-        float(cut.uv[:, 0].min()) - clear,
-        float(cut.uv[:, 0].max()) + clear,
-        float(cut.uv[:, 1].min()) - clear,
-        float(cut.uv[:, 1].max()) + clear,
-    )
-    stoping = _stoping(
-        profile,
-        contour_offset + contour_burden,
-        lifter_height + stoping_burden,
-        stoping_burden,
-        stoping_spacing,
-        box,
-    )
-    contour = _contour(
-        profile, contour_offset, lifter_height + contour_spacing, contour_spacing, lookout
-    )
-    lifters = _lifters(profile, contour_offset, lifter_height, lifter_spacing, lift, lookout)
-
-    zones = {"cut": cut, "stoping": stoping, "contour": contour, "lifter": lifters}
+    zones = _zones(profile, lay)
     uv = np.concatenate([z.uv for z in zones.values()])
     axes = np.concatenate([z.axis for z in zones.values()])
     groups = [g for g, z in zones.items() for _ in range(len(z.uv))]
     names = [f"{plan}/{g}{k + 1:02d}" for g, z in zones.items() for k in range(len(z.uv))]
-    if jitter > 0:
+    if lay.jitter > 0:
         rng = np.random.default_rng(seed)
-        uv = uv + np.clip(rng.normal(0.0, jitter, uv.shape), -2 * jitter, 2 * jitter)
+        j = lay.jitter
+        uv = uv + np.clip(rng.normal(0.0, j, uv.shape), -2 * j, 2 * j)
     yz = uv + np.array([profile.y_center, profile.floor_z])
-    pos = np.column_stack([np.full(len(yz), fx), yz])
+    pos = np.column_stack([np.full(len(yz), lay.face_x), yz])
     rot = roll_rotations(profile, yz, axes) if dims == 6 else None
-    task_name = (
-        name if name is not None else (f"tunnel-{profile.width:g}x{profile.height:g}-{plan}")
-    )
+    task_name = name if name is not None else f"tunnel-{profile.width:g}x{profile.height:g}-{plan}"
     return Task.from_arrays(
         task_name,
         pos,
@@ -451,6 +164,78 @@ def drilling_pattern(
         envelope=TunnelEnvelope(profile),
         source=_SRC,
     )
+
+
+def _cut(profile: TunnelProfile, lay: DrillLayout) -> Holes:
+    """The cut's holes, checked to lie inside the stoping region and the profile."""
+    cut, contour = lay.cut, lay.contour
+    if cut.center is None:
+        cc = (0.0, min(max(0.4 * profile.height, 1.6), 3.0))
+    else:
+        cc = cut.center
+    room = row_half_width(profile, contour.offset + contour.burden, cc[1])
+    if room <= abs(cc[0]):
+        raise TaskError(_SRC, "cut_center", f"{cc} is not inside the stoping region")
+    if cut.type == "v":
+        holes = v_cut(
+            cc,
+            cut.rows,
+            cut.pairs,
+            cut.row_pitch,
+            cut.angle,
+            cut.vertical_angle,
+            lay.hole_depth,
+            room - abs(cc[0]),
+        )
+    else:
+        holes = parallel_cut(cc)
+    s_cut = profile.signed_distance_2d(holes.uv + np.array([profile.y_center, profile.floor_z]))
+    if (s_cut < contour.offset).any():
+        raise TaskError(_SRC, "cut_center", f"the cut at {cc} does not fit inside the profile")
+    return holes
+
+
+def _zones(profile: TunnelProfile, lay: DrillLayout) -> dict[str, Holes]:
+    """The holes of every zone (:data:`ZONES` order) for ``lay`` on ``profile``."""
+    contour, lifters, stoping = lay.contour, lay.lifters, lay.stoping
+    if lifters.height >= profile.wall_height:
+        raise TaskError(_SRC, "lifter_height", "lifters must be below the wall tops")
+    if 2 * (contour.offset + contour.burden) >= profile.width:
+        raise TaskError(_SRC, "profile", f"tunnel {profile.width} m wide is too narrow")
+    cut = _cut(profile, lay)
+    clear = 0.5
+    box = (
+        float(cut.uv[:, 0].min()) - clear,
+        float(cut.uv[:, 0].max()) + clear,
+        float(cut.uv[:, 1].min()) - clear,
+        float(cut.uv[:, 1].max()) + clear,
+    )
+    return {
+        "cut": cut,
+        "stoping": stoping_holes(
+            profile,
+            contour.offset + contour.burden,
+            lifters.height + stoping.burden,
+            stoping.burden,
+            stoping.spacing,
+            box,
+        ),
+        "contour": contour_holes(
+            profile,
+            contour.offset,
+            lifters.height + contour.spacing,
+            contour.spacing,
+            contour.lookout_angle,
+        ),
+        "lifter": lifter_holes(
+            profile,
+            contour.offset,
+            lifters.height,
+            lifters.spacing,
+            lay.lifter_angle,
+            contour.lookout_angle,
+        ),
+    }
 
 
 def _feature_space(task: Task, direction_scale: float) -> FloatArray:
@@ -607,13 +392,13 @@ def tunnel_plans(
         plans.append(
             drilling_pattern(
                 p,
-                face_x=face_x,
-                hole_depth=depth,
-                lookout_angle=lookout,
-                contour_spacing=spacing,
-                cut_type="v" if cut_v else "parallel",
-                cut_center=cut_center,
-                jitter=0.01,
+                DrillLayout(
+                    face_x=face_x,
+                    hole_depth=depth,
+                    cut=CutLayout(type="v" if cut_v else "parallel", center=cut_center),
+                    contour=ContourLayout(spacing=spacing, lookout_angle=lookout),
+                    jitter=0.01,
+                ),
                 seed=plan_seed,
                 dims=dims,
                 plan=f"P{k + 1:02d}",
@@ -649,7 +434,13 @@ __all__ = [
     "TUNNEL_87_POINTS",
     "TUNNEL_87_SEED",
     "ZONES",
+    "ContourLayout",
+    "CutLayout",
     "CutType",
+    "DrillLayout",
+    "LayoutKeywords",
+    "LifterLayout",
+    "StopingLayout",
     "TunnelProfile",
     "combine_plans",
     "drilling_pattern",
