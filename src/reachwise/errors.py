@@ -15,7 +15,7 @@ server went silent must learn that it did, not that its input was bad.
   installed; the message says, in one format, what it is for and how to install it.
 - :class:`ServerUnavailable` (also a ``TimeoutError``) — a service did not answer.
 
-Each class carries the exit code the command line gives it (:attr:`exit_code`): bad
+Each class carries the exit code the command line gives it (:attr:`~ReachwiseError.exit_code`): bad
 input 2, missing dependency 3, unavailable service 4, anything else 1.
 """
 

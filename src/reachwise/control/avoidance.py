@@ -27,7 +27,7 @@ and its name: the controller bounds the age of the clouds with it
 
 An in-process scene's answer holds every pair's numbers in one array
 (:attr:`~reachwise.distance.scene.SceneResult.rows`); without twists the converter
-reads them there in one compiled call (:mod:`reachwise.control._rows`) instead of
+reads them there in one compiled call (``reachwise.control._rows``) instead of
 looping over :class:`~reachwise.distance.scene.PairResult` objects — same rules, same
 points.
 
@@ -119,7 +119,7 @@ class AvoidancePoints:
     ) -> AvoidancePoints:
         """Valid points from arrays that are already what the constructor makes of its
         inputs — C-ordered int64, float64 and bool arrays of shapes (m,) and (m, 3), as
-        :mod:`reachwise.control._rows` returns them — without a second look (the
+        ``reachwise.control._rows`` returns them — without a second look (the
         converter's per-tick path)."""
         self = object.__new__(cls)
         put = object.__setattr__
@@ -195,7 +195,7 @@ def default_tool_links(robot: Robot) -> tuple[int, ...]:
 
 
 class SceneConverter:
-    """Turns a :class:`SceneResult` into :class:`AvoidancePoints` for one robot.
+    """Turns a :class:`~reachwise.distance.SceneResult` into :class:`AvoidancePoints` for one robot.
 
     Built once per robot from the scene's objects (which cloud is fixed to which link),
     then called every tick. ``tool_links`` (frame indices or link names) override

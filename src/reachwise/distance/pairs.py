@@ -23,7 +23,7 @@ PAIR_KINDS: tuple[PairKind, ...] = get_args(PairKind)
 
 @dataclass(frozen=True)
 class WatchedPair:
-    """A pair of objects to watch: ``kind`` (:data:`PairKind`), ``margin`` in metres."""
+    """A pair of objects to watch: ``kind`` (``PairKind``), ``margin`` in metres."""
 
     a: str
     b: str

@@ -133,7 +133,7 @@ class SceneResult:
     bounds the age of the joint states with ``measured_at``.
 
     The in-process scene's ``pairs`` is a
-    :class:`~reachwise.distance.answers.PairAnswers`: the numbers of every pair in one
+    ``reachwise.distance.answers.PairAnswers``: the numbers of every pair in one
     array (:attr:`rows`), each :class:`PairResult` made when it is first read.
     """
 
@@ -149,7 +149,7 @@ class SceneResult:
     @property
     def rows(self) -> NDArray[np.float64]:
         """Every pair's numbers as a read-only (P, 13) array, in the order of ``pairs``
-        (layout: :mod:`reachwise.distance.answers`)."""
+        (layout: ``reachwise.distance.answers``)."""
         pairs = self.pairs
         if isinstance(pairs, PairAnswers):
             return pairs.rows
@@ -249,17 +249,17 @@ class Scene:
     """Objects, robots and watched pairs; :meth:`query_all` answers every pair.
 
     ``clock`` (optional, s): stamps inputs given without ``stamp=``, the query and its
-    end (:attr:`SceneResult.measured_at`, :attr:`SceneResult.computed_at`); a
+    end (``SceneResult.measured_at``, ``SceneResult.computed_at``); a
     simulation passes its simulated time. ``voxel`` (m, optional): thin every cloud
     handed over with :meth:`replace_cloud` to one point per voxel of that edge before
-    it is indexed (:func:`reachwise.distance.voxel.voxel_thin`); the thinned cloud is
+    it is indexed (``reachwise.distance.voxel.voxel_thin``); the thinned cloud is
     the one swapped in, and the answers are exact on it.
 
     With the default strategy the scene keeps its state as arrays
-    (:class:`~reachwise.distance.scene_arrays.SceneArrays`) and answers every pair in
+    (``reachwise.distance.scene_arrays.SceneArrays``) and answers every pair in
     one compiled call, forward kinematics once per robot before it; the answer's
     pairs are made on demand from one array of numbers
-    (:class:`~reachwise.distance.answers.PairAnswers`). The other strategies answer
+    (``reachwise.distance.answers.PairAnswers``). The other strategies answer
     pair by pair with :class:`~reachwise.distance.engine.PairQuery`.
     """
 
@@ -451,12 +451,12 @@ class Scene:
         version (1, 2, … per object; the cloud it was added with is version 0).
 
         ``block=False`` (the default) returns at once: the cloud is checked and indexed
-        on the scene's worker thread (:class:`~reachwise.distance.ingest.CloudIngest`)
+        on the scene's worker thread (``reachwise.distance.ingest.CloudIngest``)
         and swapped in at the start of the first :meth:`query_all` after it is ready, so
         a query never waits for a build. Until then the answers use the previous
-        cloud, and say so (:attr:`SceneResult.versions`). A newer hand-over for the
+        cloud, and say so (``SceneResult.versions``). A newer hand-over for the
         same object supersedes one still waiting; a cloud with bad points is never
-        swapped in (its error is in :meth:`CloudIngest.errors`). An array (float64 or
+        swapped in (its error is in ``CloudIngest.errors``). An array (float64 or
         float32, any strides) is read on the worker thread: do not write into it
         afterwards.
 
@@ -480,7 +480,7 @@ class Scene:
     # ------------------------------------------------------------------ rules
     def watch(self, a: str, b: str, margin: float, *, kind: PairKind = "custom") -> WatchedPair:
         """Watch objects ``a`` and ``b`` with ``margin`` metres (replaces an earlier rule
-        for the same pair); ``kind`` (:data:`PairKind`) says why."""
+        for the same pair); ``kind`` (``PairKind``) says why."""
         kind = check_choice(kind, PAIR_KINDS, source=f"pair ({a!r}, {b!r})", kind="pair kind")
         self._object(a)
         self._object(b)

@@ -57,7 +57,7 @@ class PointCloud:
 
     The cloud holds its (read-only) points, frame and name, nothing else: the spatial
     index the distance queries need is kept by the distance layer, keyed by the cloud
-    (:mod:`reachwise.distance.index`), so repeated queries do not rebuild it.
+    (``reachwise.distance.index``), so repeated queries do not rebuild it.
     """
 
     points: NDArray[np.float64]

@@ -180,7 +180,7 @@ def link_clouds(
     density: float | None = None,
 ) -> dict[str, PointCloud]:
     """A cloud for every link that has collision shapes, base to tool, keyed by link
-    name (``link_0`` … ``tool``), each in its link's frame (see :func:`link_cloud`)."""
+    name (``link_0`` … ``tool``), each in its link's frame (see ``link_cloud``)."""
     order = [name for name in robot.link_names if name in robot.geometry]
     return {
         name: link_cloud(robot, name, points, seed, base_dir, density=density) for name in order

@@ -283,7 +283,7 @@ def load_robot(
     ``tip`` takes the chain of a branched URDF from its root link to that link (the
     tool frame). ``package_dirs`` are searched first for ``package://`` mesh URIs (then
     ``ROS_PACKAGE_PATH``, ``AMENT_PREFIX_PATH``, the Python environment and the file's
-    own folders: :mod:`reachwise.io.mesh_uri`). ``lenient=True`` leaves out (and logs)
+    own folders: ``reachwise.io.mesh_uri``). ``lenient=True`` leaves out (and logs)
     shapes that are invalid or whose mesh cannot be found instead of raising."""
 
     def builtin(b: Builtin) -> Robot:

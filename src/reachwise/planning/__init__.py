@@ -3,7 +3,7 @@
 The reactive controller reports ``stalled`` in a local minimum (thesis Fig. 3.3);
 :func:`plan_path` plans a collision-free joint path with OMPL's RRT-Connect (the
 optional ``plan`` extra) against the distance scene (:class:`ClearanceChecker`),
-:func:`time_path` times it within the speed limits, and :class:`PathFollower` feeds it
+:func:`time_path` times it within the speed limits, and ``PathFollower`` feeds it
 to the same controller as intermediate goals. Pure computation: no files, no clocks
 (OMPL's planning budget is wall time, given as a parameter).
 """

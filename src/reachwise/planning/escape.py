@@ -207,7 +207,7 @@ def goal_configurations(
     IK solves (the first from ``q_start``, the others from random configurations; for
     a 3-D goal every other solve also asks for the tool's orientation at ``q_start``).
     Passive joints and the joints in ``hold`` keep their ``q_start`` values (IK of
-    :func:`held_robot`). ``tolerance`` (m, and rad for 6-D) on the solution's error,
+    ``held_robot``). ``tolerance`` (m, and rad for 6-D) on the solution's error,
     default the goal's own tolerances or 1 mm / 1 mrad."""
     robot = checker.robot
     q0 = np.asarray(q_start, dtype=float).reshape(-1)
@@ -278,10 +278,11 @@ def plan_path(
     *,
     hold: Sequence[int] = (),
 ) -> PlanResult:
-    """A collision-free joint path from ``q_start`` to ``goal`` (a :class:`Goal` pose,
-    solved by :func:`goal_configurations`, or goal configurations ``(g, n)``) with
-    RRT-Connect, shortcut; see the module docstring. The entries of ``q`` in ``hold``
-    and passive joints keep their start values. Never raises on a problem without a
+    """A collision-free joint path from ``q_start`` to ``goal`` (a
+    :class:`~reachwise.control.Goal` pose, solved by :func:`goal_configurations`, or
+    goal configurations ``(g, n)``) with RRT-Connect, shortcut; see the module
+    docstring. The entries of ``q`` in ``hold`` and passive joints keep their start
+    values. Never raises on a problem without a
     solution: the result says why (invalid start, no goal configuration, OMPL's status
     such as a timeout)."""
     cfg = config or PlannerConfig()

@@ -3,10 +3,10 @@ run, and the overview of ``reachwise demo``.
 
 Each report is a single ``report.html`` written next to the run's outputs: tables of
 the run's figures, the thesis's reported figures next to ours ("thesis says / we
-measured", :mod:`reachwise.report.thesis`), and the run's matplotlib figures
+measured", ``reachwise.report.thesis``), and the run's matplotlib figures
 embedded as base64 PNG. CSS is inline; there is no external URL and no JavaScript,
 so the file opens anywhere, offline, and can be mailed as is. Every string that can
-come from user input is HTML-escaped (:func:`reachwise.report.html.esc`).
+come from user input is HTML-escaped (``reachwise.report.html.esc``).
 
 * :func:`write_synthesis_report` — P-I: summary, Tables 3–4 next to the thesis's, DH
   parameters template → found, per-run convergence, task points, Figs. 5–6;
@@ -16,9 +16,9 @@ come from user input is HTML-escaped (:func:`reachwise.report.html.esc`).
   goals, distances, P-III Fig. 3 / P-V Figs. 4–5 style figures, the thesis's numbers;
 * :func:`write_demo_report` — the demo's overview linking the per-run reports.
 
-Their figures are drawn by :mod:`~reachwise.report.plots` (synthesis, P-I Figs. 4–6)
-and :mod:`~reachwise.report.sim_plots` (simulation) and saved by
-:func:`reachwise.report.png.save_png`; :mod:`~reachwise.report.ranking` writes a
+Their figures are drawn by ``reachwise.report.plots`` (synthesis, P-I Figs. 4–6)
+and ``reachwise.report.sim_plots`` (simulation) and saved by
+``reachwise.report.png.save_png``; ``reachwise.report.ranking`` writes a
 topology sweep's ranking tables and best designs. This layer sits above ``sim`` and
 below ``viz``: it reads results, it never computes them.
 """

@@ -60,9 +60,9 @@ class SimulationLog:
     per moving object (``motion``), its world pose at each tick (T, 4, 4), for replay.
     ``true_pairs`` (``"robot/link|object"``) and ``true_distance`` (T, Q): the signed
     distance of each robot link's true surface to each object outside the scene
-    (``scene: false``: seen only by sensors), exact (:mod:`reachwise.sim.contact`),
+    (``scene: false``: seen only by sensors), exact (``reachwise.sim.contact``),
     ``inf`` beyond margin + monitor range. ``frames``: per sensor, the index of the
-    frame in the scene at each tick (T,), for replay (:mod:`reachwise.sim.sensors`).
+    frame in the scene at each tick (T,), for replay (``reachwise.sim.sensors``).
     """
 
     scenario: str

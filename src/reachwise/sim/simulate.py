@@ -71,30 +71,30 @@ def simulate(
     server: str | ServerOptions | None = None,
     escape: bool | EscapeSpec | None = None,
 ) -> SimulationLog:
-    """Run ``scenario`` (a built-in name, a file or a :class:`Scenario`) in simulated
+    """Run ``scenario`` (a built-in name, a file or a ``Scenario``) in simulated
     time; ``avoidance=False`` runs the conventional controller (the baseline).
     ``duration`` overrides the scenario's; ``progress(t, duration)`` is called each
     tick; ``on_tick(t, {robot: q}, distances)`` too, after the distance query (a live
     viewer attaches here). ``plant="mujoco"`` runs every robot on its MuJoCo model
-    (:mod:`reachwise.sim.mujoco_plant`, the ``sim`` extra) instead of the scenario's
+    (``reachwise.sim.mujoco_plant``, the ``sim`` extra) instead of the scenario's
     plants and records each robot's tracking error in ``extras["tracking"]``.
     ``static_world=True`` is the static-world baseline for moving obstacles: the
     controllers see every object where it was at the start, while the logged
     distances and the contact check follow the objects' true motion.
-    ``server`` (an address or :class:`~reachwise.server.client.ServerOptions`) runs
+    ``server`` (an address or ``reachwise.server.client.ServerOptions``) runs
     the distance queries on that collision server instead of in process: the
     simulation clears the server's scene and registers its own; a reply that misses
     its deadline (a server lost or restarting) reaches the controllers as missing
     data (protective stop), and the run goes on when the server answers again.
     ``escape`` (default: the scenario's ``escape:`` block; True: on, with its options
-    or the defaults; False: off; or an :class:`EscapeSpec`): a robot whose controller
-    stalls plans a path out with OMPL and follows it (:mod:`reachwise.sim.escape`);
+    or the defaults; False: off; or an ``EscapeSpec``): a robot whose controller
+    stalls plans a path out with OMPL and follows it (``reachwise.sim.escape``);
     the plans are in ``extras["escape"]``.
 
-    Each tick is three named steps: :func:`_sense` (joint states and moving objects
-    into the scene, the distance query, the controllers' view), :func:`_check_contact`
-    (distances and the first overlap into the :class:`_Recorder`) and :func:`_act`
-    (each robot's goal bookkeeping in :class:`_Goals`, controller and plant)."""
+    Each tick is three named steps: ``_sense`` (joint states and moving objects
+    into the scene, the distance query, the controllers' view), ``_check_contact``
+    (distances and the first overlap into the ``_Recorder``) and ``_act``
+    (each robot's goal bookkeeping in ``_Goals``, controller and plant)."""
     clock = SimClock()
     world = build_world(scenario, avoidance, plant=plant, server=server, clock=clock)
     spec = world.scenario.spec
@@ -415,7 +415,7 @@ def _act(
 
 
 def _escape(world: World, escape: bool | EscapeSpec | None, events: list[Event]) -> Escape | None:
-    """The run's local-minimum escape (:mod:`reachwise.sim.escape`), or None when off."""
+    """The run's local-minimum escape (``reachwise.sim.escape``), or None when off."""
     spec = world.scenario.spec.escape
     if isinstance(escape, EscapeSpec):
         spec = escape
