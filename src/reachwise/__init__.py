@@ -7,7 +7,7 @@ Public API (stable names, see DESIGN.md): ``load_robot``, ``link_clouds``, ``Rob
 from __future__ import annotations
 
 from reachwise._version import __version__
-from reachwise.api import synthesize
+from reachwise.api import replay, synthesize
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_clouds import link_clouds
 from reachwise.io.robot_file import load_robot, save_robot
@@ -32,6 +32,7 @@ __all__ = [
     "link_clouds",
     "load_robot",
     "load_task",
+    "replay",
     "save_robot",
     "simulate",
     "synthesize",

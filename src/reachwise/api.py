@@ -8,18 +8,22 @@ layer, so nothing below ``io`` ever reads a file.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from reachwise.geometry.cloud import PointCloud
+from reachwise.io.robot_clouds import link_clouds as link_clouds_of
 from reachwise.io.robot_file import load_robot
+from reachwise.io.ros.replay import ReplayResult, ReplaySpec, replay_recording
 from reachwise.io.task_file import load_task
 from reachwise.kinematics.robot import Robot
+from reachwise.report.replay import write_replay_outputs
 from reachwise.synthesis.synthesize import SynthesisResult
 from reachwise.synthesis.synthesize import synthesize as synthesize_objects
 from reachwise.tasks.task import Task
 
-__all__ = ["synthesize"]
+__all__ = ["replay", "synthesize"]
 
 
 def synthesize(
@@ -46,3 +50,41 @@ def synthesize(
     t = task if isinstance(task, Task) else load_task(task)
     robot = template if isinstance(template, Robot) else load_robot(template)
     return synthesize_objects(t, robot, runs=runs, seed=seed, objective=objective, **options)
+
+
+def replay(
+    bag: str | Path,
+    robot: Robot | str | Path,
+    *,
+    clouds: str | Sequence[str],
+    joints: str = "/joint_states",
+    margin: float = 0.05,
+    out: str | Path | None = None,
+    tip: str | None = None,
+    link_clouds: Mapping[str, PointCloud] | None = None,
+    results_bag: str | None = "results.mcap",
+    **spec: Any,
+) -> ReplayResult:
+    """Replay a recorded cell (a ROS 1 ``.bag``, a ROS 2 bag folder or ``.db3``/``.mcap``
+    file; the ``ros`` extra) through the distance scene: per frame the smallest distance
+    of every pair of a robot link and a cloud topic.
+
+    ``robot``: a ``Robot``, a built-in name or a robot file (``tip`` for a branched
+    URDF); its joints are matched by name on the ``joints`` topic. ``clouds``: the
+    PointCloud2 or depth-image topics. ``link_clouds`` (link → cloud in the link frame;
+    default ``reachwise.link_clouds(robot)``). Frames closer than ``margin`` (m) are
+    near. With ``out``, the files of ``reachwise replay`` are written there
+    (``distances.csv``, ``near.csv``, ``summary.json``, ``report.html`` and the
+    ``results_bag``). Further ``spec`` options (``frame``, ``camera_info``, ``links``,
+    ``every``, ``block``, ``rate``, ``voxel``, ``tf_tolerance``) go to
+    :class:`reachwise.io.ros.replay.ReplaySpec`.
+    """
+    model = robot if isinstance(robot, Robot) else load_robot(robot, tip=tip)
+    topics = (clouds,) if isinstance(clouds, str) else tuple(clouds)
+    options = ReplaySpec(joints=joints, clouds=topics, margin=margin, **spec)
+    carried = link_clouds_of(model) if link_clouds is None else link_clouds
+    result = replay_recording(bag, model, options, link_clouds=carried)
+    if out is not None:
+        inputs = {"joints": joints, "clouds": list(topics), "robot": model.name}
+        write_replay_outputs(result, out, inputs, results_bag=results_bag)
+    return result

@@ -5,7 +5,7 @@ from __future__ import annotations
 import typer
 
 from reachwise._version import __version__
-from reachwise.cli import bench, cloud, demo, robot, serve, synth, task, topology, view
+from reachwise.cli import bench, cloud, demo, replay, robot, serve, synth, task, topology, view
 from reachwise.cli import simulate as sim_cli
 from reachwise.cli._help import plain_help
 
@@ -29,6 +29,7 @@ app.command("bench")(bench.bench)
 app.command("demo")(demo.demo)
 app.command("scan")(cloud.scan)
 app.command("view")(view.view)
+app.command("replay")(replay.replay)
 plain_help(app)
 
 

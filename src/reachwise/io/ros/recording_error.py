@@ -27,5 +27,13 @@ class RecordingError(InputError):
     ) -> None:
         self.topic = topic
         self.t = t
+        self.bag = bag
+        self._parts = (field, reason)
         where = f"{bag}: topic {topic}" if bag else f"topic {topic}"
         super().__init__(where, field, f"{reason} ({stamp_text(t)})")
+
+    def in_bag(self, bag: str) -> RecordingError:
+        """The same error naming the recording ``bag`` (itself when it names one)."""
+        if self.bag:
+            return self
+        return RecordingError(self.topic, self.t, *self._parts, bag=bag)

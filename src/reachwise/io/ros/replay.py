@@ -1,0 +1,373 @@
+"""Replaying a recording through the distance scene.
+
+:func:`replay_recording` drives a :class:`~reachwise.distance.scene.Scene` from a
+recording in the recording's own order and time: the robot's joint states as they come
+(each one a :meth:`~reachwise.distance.scene.Scene.set_joints` and, at most every
+``every`` seconds of recording time, one :meth:`~reachwise.distance.scene.Scene.query_all`,
+a *frame*), and each cloud topic's messages decoded to points in the fixed frame and
+handed over with :meth:`~reachwise.distance.scene.Scene.replace_cloud`. By default
+the hand-over blocks, so every frame uses the newest cloud received by its time, the
+same on any machine. ``block=False`` hands clouds over as a live robot does: a frame
+uses the newest cloud whose index is ready, and says which (its stamp); with ``rate``
+the replay is paced at ``rate`` times the recording's speed (1: as recorded; the
+worker that indexes clouds then has the time it had live), without it the replay runs
+as fast as it can and frames use older clouds the faster it runs. The robot's links
+carry the clouds of ``link_clouds``; every watched link is paired with every cloud
+topic.
+
+A cloud topic is a ``sensor_msgs/PointCloud2`` or a depth ``sensor_msgs/Image`` with
+its ``sensor_msgs/CameraInfo`` (by default the sibling topic ``camera_info``). Clouds
+are moved into the fixed frame ``frame`` (the frame the robot's base pose is given in)
+along ``/tf`` and ``/tf_static`` at their header stamp (all TF messages are read
+first, so a cloud may use a transform recorded after it). The distances are exact on
+the clouds (watched with an infinite margin); ``margin`` only marks the frames that
+came closer.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from reachwise.distance.scene import Scene
+from reachwise.errors import InputError, UnknownName
+from reachwise.geometry.cloud import PointCloud
+from reachwise.geometry.depth_camera import DepthCamera
+from reachwise.io.ros.bag import Recording
+from reachwise.io.ros.depth_image import camera_from_info, depth_points
+from reachwise.io.ros.joint_state import JointMatcher, robot_joint_names
+from reachwise.io.ros.pointcloud2 import pointcloud2_points
+from reachwise.io.ros.recording_error import RecordingError
+from reachwise.io.ros.stamps import header_frame, header_stamp
+from reachwise.io.ros.transform_tree import TransformTree
+from reachwise.kinematics.robot import Robot
+
+__all__ = ["ReplayResult", "ReplaySpec", "replay_recording"]
+
+F64 = NDArray[np.float64]
+POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
+IMAGE = "sensor_msgs/msg/Image"
+CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
+JOINT_STATE = "sensor_msgs/msg/JointState"
+TF_TOPICS = ("/tf", "/tf_static")
+#: Where a cloud topic's object sits until its first message: far from everything; its
+#: pairs' answers are not reported until then.
+_NOWHERE = np.full((1, 3), 1.0e6)
+
+
+@dataclass(frozen=True)
+class ReplaySpec:
+    """What to replay: the ``joints`` topic, the ``clouds`` topics, the ``margin`` (m)
+    that marks near frames, the fixed ``frame``, each depth topic's CameraInfo topic
+    (``camera_info``; default its sibling ``camera_info``), the watched ``links``
+    (default: every link with a cloud), the least recording time between two frames
+    ``every`` (s; 0: a frame per joint state), ``block`` (hand clouds over blocking:
+    each frame then uses the newest cloud received), the pace ``rate`` (a multiple of
+    the recording's speed; None: as fast as possible), the scene's ``voxel`` thinning
+    (m, or None) and the TF ``tf_tolerance`` (s)."""
+
+    joints: str
+    clouds: tuple[str, ...]
+    margin: float = 0.05
+    frame: str = "world"
+    camera_info: Mapping[str, str] = field(default_factory=dict)
+    links: tuple[str, ...] | None = None
+    every: float = 0.0
+    block: bool = True
+    rate: float | None = None
+    voxel: float | None = None
+    tf_tolerance: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not self.clouds:
+            raise InputError("replay", "clouds", "give at least one cloud topic")
+        for name in ("margin", "every", "tf_tolerance"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
+                raise InputError("replay", name, f"must be a finite number >= 0, got {v!r}")
+        if self.rate is not None and not (math.isfinite(self.rate) and self.rate > 0):
+            raise InputError("replay", "rate", f"must be a finite number > 0, got {self.rate!r}")
+
+    def info_topic(self, topic: str) -> str:
+        """The CameraInfo topic of depth topic ``topic``."""
+        if topic in self.camera_info:
+            return self.camera_info[topic]
+        return topic.rsplit("/", 1)[0] + "/camera_info"
+
+
+@dataclass(frozen=True, eq=False)
+class ReplayResult:
+    """The answers of a replay, one row per frame (query): ``t`` (F,) recording time
+    (s) of the joint state queried; per watched pair (``pairs``, ``"link|topic"``):
+    ``distance`` (F, P, m; NaN before the pair's cloud arrived), ``cloud_stamp``
+    (F, P, s; the stamp of the cloud the answer used, NaN before), ``point_a``,
+    ``point_b`` (F, P, 3; the closest points in the fixed frame); ``margin``;
+    ``clouds`` (per topic, the number of clouds handed over) and ``swapped`` (how many
+    of them some frame used)."""
+
+    bag: str
+    robot: str
+    frame: str
+    pairs: tuple[str, ...]
+    t: F64
+    distance: F64
+    cloud_stamp: F64
+    point_a: F64
+    point_b: F64
+    margin: float
+    clouds: dict[str, int]
+    swapped: dict[str, int]
+
+    @property
+    def min_distance(self) -> F64:
+        """The smallest distance over the pairs of each frame (NaN without any)."""
+        d = np.where(np.isnan(self.distance), np.inf, self.distance)
+        m = d.min(axis=1, initial=np.inf)
+        return np.where(np.isfinite(m), m, np.nan)
+
+    @property
+    def near(self) -> NDArray[np.bool_]:
+        """(F, P): the pair came closer than the margin in that frame."""
+        with np.errstate(invalid="ignore"):
+            return np.asarray(self.distance < self.margin)
+
+
+class _CloudTopic:
+    """One cloud topic: decodes its messages to points in the fixed frame."""
+
+    def __init__(self, topic: str, msgtype: str, info_topic: str | None) -> None:
+        self.topic = topic
+        self.msgtype = msgtype
+        self.info_topic = info_topic
+        self.camera: DepthCamera | None = None
+        self._info_key: tuple[Any, ...] | None = None
+        self.count = 0
+
+    def set_info(self, msg: Any) -> None:
+        k = getattr(msg, "k", None)
+        key = (int(msg.width), int(msg.height), tuple(np.asarray(k if k is not None else msg.K)))
+        if key != self._info_key:
+            self.camera = camera_from_info(msg, topic=self.info_topic or "")
+            self._info_key = key
+
+    def points(self, msg: Any, t: float, tree: TransformTree, frame: str) -> tuple[F64, float]:
+        """The message's points in ``frame`` and their stamp (s; the bag time when the
+        header has none)."""
+        stamp = header_stamp(msg) or t
+        if self.msgtype == POINTCLOUD2:
+            pts = pointcloud2_points(msg, topic=self.topic)
+        else:
+            if self.camera is None:
+                raise RecordingError(
+                    self.topic, stamp, "camera_info", f"no CameraInfo on {self.info_topic} yet"
+                )
+            pts = depth_points(msg, self.camera, topic=self.topic)
+        source = header_frame(msg)
+        if source and source != frame:
+            try:
+                T = tree.lookup(frame, source, stamp)
+            except InputError as exc:
+                raise RecordingError(self.topic, stamp, "header.frame_id", str(exc)) from None
+            pts = pts @ T[:3, :3].T + T[:3, 3]
+        elif not source:
+            raise RecordingError(self.topic, stamp, "header.frame_id", "is empty")
+        if len(pts) == 0:  # nothing returned: the frame says "nothing near"
+            pts = _NOWHERE
+        return np.ascontiguousarray(pts, dtype=np.float64), stamp
+
+
+def _read_tf_and_info(
+    rec: Recording, spec: ReplaySpec, sources: dict[str, _CloudTopic]
+) -> TransformTree:
+    """Every TF message into one tree, and the first CameraInfo of each depth topic."""
+    tree = TransformTree(tolerance=spec.tf_tolerance)
+    infos = {s.info_topic: s for s in sources.values() if s.info_topic is not None}
+    topics = [t for t in TF_TOPICS if t in rec.topics] + list(infos)
+    for m in rec.messages(topics):
+        if m.topic in infos:
+            src = infos[m.topic]
+            if src.camera is None:
+                src.set_info(m.msg)
+            continue
+        try:
+            tree.add_message(m.msg, static=m.topic == "/tf_static")
+        except InputError as exc:
+            raise RecordingError(m.topic, m.t, "transforms", str(exc), bag=rec.source) from None
+    return tree
+
+
+def _sources(rec: Recording, spec: ReplaySpec) -> dict[str, _CloudTopic]:
+    out = {}
+    for topic in spec.clouds:
+        msgtype = rec.check_topic(topic, (POINTCLOUD2, IMAGE))
+        info = spec.info_topic(topic) if msgtype == IMAGE else None
+        if info is not None:
+            rec.check_topic(info, (CAMERA_INFO,))
+        out[topic] = _CloudTopic(topic, msgtype, info)
+    return out
+
+
+def _scene(
+    robot: Robot, link_clouds: Mapping[str, PointCloud], spec: ReplaySpec
+) -> tuple[Scene, list[tuple[str, str]]]:
+    links = list(link_clouds) if spec.links is None else list(spec.links)
+    for link in links:
+        if link not in link_clouds:
+            raise UnknownName("replay", "link with a cloud", link, link_clouds)
+    if not links:
+        raise InputError("replay", "links", f"robot {robot.name!r} has no link with a cloud")
+    scene = Scene(voxel=spec.voxel)
+    scene.add_robot(robot)
+    for link in links:
+        scene.add_object(link, link_clouds[link], robot=robot.name, link=link)
+    pairs = []
+    for topic in spec.clouds:
+        scene.add_object(topic, _NOWHERE)
+        for link in links:
+            scene.watch(link, topic, math.inf, kind="robot-environment")
+            pairs.append((link, topic))
+    return scene, pairs
+
+
+def replay_recording(
+    bag: str | Path,
+    robot: Robot,
+    spec: ReplaySpec,
+    *,
+    link_clouds: Mapping[str, PointCloud],
+) -> ReplayResult:
+    """Replay recording ``bag`` (see the module docstring) with ``robot``, whose links
+    carry ``link_clouds`` (link name → cloud in the link frame)."""
+    matcher = JointMatcher(robot_joint_names(robot))
+    with Recording(bag) as rec:
+        rec.check_topic(spec.joints, (JOINT_STATE,))
+        sources = _sources(rec, spec)
+        try:
+            tree = _read_tf_and_info(rec, spec, sources)
+            scene, pairs = _scene(robot, link_clouds, spec)
+            try:
+                rows = _drive(rec, spec, sources, tree, scene, pairs, matcher, robot.name)
+            finally:
+                scene.close()
+        except RecordingError as exc:
+            raise exc.in_bag(rec.source) from None
+    t, dist, stamp, pa, pb, used = rows
+    return ReplayResult(
+        bag=str(bag),
+        robot=robot.name,
+        frame=spec.frame,
+        pairs=tuple(f"{a}|{b}" for a, b in pairs),
+        t=t,
+        distance=dist,
+        cloud_stamp=stamp,
+        point_a=pa,
+        point_b=pb,
+        margin=float(spec.margin),
+        clouds={s.topic: s.count for s in sources.values()},
+        swapped=used,
+    )
+
+
+def _drive(
+    rec: Recording,
+    spec: ReplaySpec,
+    sources: dict[str, _CloudTopic],
+    tree: TransformTree,
+    scene: Scene,
+    pairs: list[tuple[str, str]],
+    matcher: JointMatcher,
+    robot: str,
+) -> tuple[F64, F64, F64, F64, F64, dict[str, int]]:
+    """The replay loop: joint states and clouds in recording order, a frame per joint
+    state (at most every ``spec.every`` s)."""
+    infos = {s.info_topic: s for s in sources.values() if s.info_topic is not None}
+    topics: list[str] = [spec.joints, *sources, *infos]
+    cloud_of = [b for _, b in pairs]
+    ts: list[float] = []
+    dist: list[F64] = []
+    stamps: list[F64] = []
+    pa: list[F64] = []
+    pb: list[F64] = []
+    seen: dict[str, set[int]] = {topic: set() for topic in sources}
+    last = -math.inf
+    pace = _Pace(spec.rate)
+    for m in rec.messages(topics):
+        pace.wait(m.t)
+        if m.topic in infos:
+            infos[m.topic].set_info(m.msg)
+        elif m.topic in sources:
+            src = sources[m.topic]
+            pts, stamp = src.points(m.msg, m.t, tree, spec.frame)
+            src.count += 1
+            scene.replace_cloud(m.topic, pts, block=spec.block, stamp=stamp)
+        else:
+            q = matcher.positions(m.msg, topic=m.topic)
+            t = _joint_time(m.msg, m.t)
+            scene.set_joints(robot, q, stamp=t)
+            if t - last < spec.every:
+                continue
+            last = t
+            res = scene.query_all()
+            r = res.rows
+            versions = res.versions
+            fresh = np.array([versions.get(c, 0) > 0 for c in cloud_of])
+            ts.append(t)
+            dist.append(np.where(fresh, r[:, 0], np.nan))
+            stamps.append(
+                np.array([res.cloud_stamps.get(c, math.nan) if f else math.nan
+                          for c, f in zip(cloud_of, fresh, strict=True)])
+            )  # fmt: skip
+            pa.append(np.where(fresh[:, None], r[:, 1:4], np.nan))
+            pb.append(np.where(fresh[:, None], r[:, 4:7], np.nan))
+            for c in sources:
+                v = versions.get(c, 0)
+                if v > 0:
+                    seen[c].add(v)
+    P = len(pairs)
+
+    def stack(rows: list[F64], *shape: int) -> F64:
+        return np.array(rows, dtype=np.float64).reshape(len(ts), *shape)
+
+    return (
+        np.array(ts, dtype=np.float64),
+        stack(dist, P),
+        stack(stamps, P),
+        stack(pa, P, 3),
+        stack(pb, P, 3),
+        {c: len(v) for c, v in seen.items()},
+    )
+
+
+class _Pace:
+    """Waits until the wall clock reaches a recording time at ``rate`` times the
+    recording's speed (no waiting without a rate)."""
+
+    def __init__(self, rate: float | None) -> None:
+        self.rate = rate
+        self.start: tuple[float, float] | None = None
+
+    def wait(self, t: float) -> None:
+        if self.rate is None:
+            return
+        now = time.perf_counter()
+        if self.start is None:
+            self.start = (t, now)
+            return
+        ahead = self.start[1] + (t - self.start[0]) / self.rate - now
+        if ahead > 0.0:
+            time.sleep(ahead)
+
+
+def _joint_time(msg: Any, t: float) -> float:
+    """A joint state's time: its header stamp, or the bag time when it has none."""
+    try:
+        return header_stamp(msg) or t
+    except AttributeError:
+        return t

@@ -1,0 +1,184 @@
+"""Replaying a recording: each frame's distances against brute force on the same
+inputs (the link clouds placed by forward kinematics, the clouds moved along TF), the
+files it writes, and a typed error naming topic and time for each kind of bad
+recording."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from scipy.spatial.distance import cdist
+
+from reachwise.errors import InputError
+from reachwise.io.ros.bag import Recording
+from reachwise.io.ros.recording_error import RecordingError
+from reachwise.io.ros.replay import ReplaySpec, replay_recording
+from reachwise.report.replay import write_replay_outputs
+from tests.io.ros import _cell
+
+
+def _brute(robot: Any, clouds: dict, q: np.ndarray, link: str, world_pts: np.ndarray) -> float:
+    frames = robot.fk_all(q)
+    T = frames[robot.link_names.index(link)]
+    pts = clouds[link].points @ T[:3, :3].T + T[:3, 3]
+    return float(cdist(pts, world_pts).min())
+
+
+@pytest.fixture(scope="module")
+def cell(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return _cell.write_cell(tmp_path_factory.mktemp("cell") / "cell.mcap")
+
+
+def test_each_frame_equals_brute_force(cell: Path) -> None:
+    robot = _cell.panda()
+    clouds = _cell.link_clouds(robot)
+    spec = ReplaySpec(joints="/joint_states", clouds=("/points", "/depth/image"))
+    res = replay_recording(cell, robot, spec, link_clouds=clouds)
+    assert res.pairs == tuple(f"{l}|{c}" for c in ("/points", "/depth/image") for l in clouds)
+    assert res.t.size == 101
+    assert res.swapped == res.clouds  # blocking: every cloud was used
+    assert res.clouds == {"/points": 10, "/depth/image": 10}
+    checked = 0
+    for f, t in enumerate(res.t):
+        q = _cell.joint_path(t)
+        for p, name in enumerate(res.pairs):
+            link, topic = name.split("|")
+            stamp = res.cloud_stamp[f, p]
+            if np.isnan(stamp):  # no cloud yet: before the first one at 0.05 s
+                assert t < 0.05 and np.isnan(res.distance[f, p])
+                continue
+            if topic == "/points":
+                k = round((stamp + 0.005 - 0.05) / 0.1)
+                pts = _cell.obstacle(k) @ _cell.T_WORLD_CAM[:3, :3].T + _cell.T_WORLD_CAM[:3, 3]
+            else:
+                k = round((stamp - 0.05) / 0.1)
+                pts = _cell.depth_world_points(k, stamp)
+            assert res.distance[f, p] == pytest.approx(
+                _brute(robot, clouds, q, link, pts), abs=1e-9
+            )
+            checked += 1
+    assert checked > 500
+
+
+def test_non_blocking_frames_say_which_cloud_they_used(cell: Path) -> None:
+    """Paced at the recording's speed, non-blocking hand-overs are swapped in; every
+    frame's distance is the brute-force one on the cloud whose stamp it reports."""
+    robot = _cell.panda()
+    clouds = _cell.link_clouds(robot)
+    spec = ReplaySpec(joints="/joint_states", clouds=("/points",), block=False, rate=1.0)
+    res = replay_recording(cell, robot, spec, link_clouds=clouds)
+    assert res.swapped["/points"] >= 1
+    for f in np.flatnonzero(~np.isnan(res.cloud_stamp[:, 0])):
+        k = round((res.cloud_stamp[f, 0] + 0.005 - 0.05) / 0.1)
+        pts = _cell.obstacle(k) @ _cell.T_WORLD_CAM[:3, :3].T + _cell.T_WORLD_CAM[:3, 3]
+        q = _cell.joint_path(res.t[f])
+        assert res.distance[f, 0] == pytest.approx(
+            _brute(robot, clouds, q, "link_3", pts), abs=1e-9
+        )
+
+
+def test_outputs(cell: Path, tmp_path: Path) -> None:
+    robot = _cell.panda()
+    spec = ReplaySpec(joints="/joint_states", clouds=("/points",), margin=0.5, every=0.05)
+    assert spec.block  # the default: each frame uses the newest cloud received
+    res = replay_recording(cell, robot, spec, link_clouds=_cell.link_clouds(robot))
+    assert np.all(np.diff(res.t) >= 0.05 - 1e-12)
+    summary = write_replay_outputs(res, tmp_path, {"joints": "/joint_states"})
+    rows = list(csv.DictReader((tmp_path / "distances.csv").open()))
+    assert len(rows) == int((~np.isnan(res.distance)).sum())
+    near = list(csv.DictReader((tmp_path / "near.csv").open()))
+    assert len(near) == int(res.near.sum()) and all(float(r["distance"]) < 0.5 for r in near)
+    assert json.loads((tmp_path / "summary.json").read_text()) == summary
+    assert summary["min_distance"] == pytest.approx(np.nanmin(res.distance))
+    assert "<img" in (tmp_path / "report.html").read_text()
+    with Recording(tmp_path / "results.mcap") as rec:
+        got = [m for m in rec.messages(["/reachwise/distances"])]
+        assert len(got) == res.t.size
+        np.testing.assert_array_equal(got[-1].msg.data, res.distance[-1])
+        assert set(rec.topics) >= {"/reachwise/min_distance", "/reachwise/closest_points"}
+
+
+def _bad(tmp_path: Path, hook: Any) -> Path:
+    return _cell.write_cell(tmp_path / "bad.mcap", hook, seconds=0.3)
+
+
+def _replay(bag: Path, clouds: tuple[str, ...] = ("/points", "/depth/image")) -> Any:
+    robot = _cell.panda()
+    spec = ReplaySpec(joints="/joint_states", clouds=clouds, block=True)
+    return replay_recording(bag, robot, spec, link_clouds=_cell.link_clouds(robot))
+
+
+def test_wrong_point_step_names_topic_and_time(tmp_path: Path) -> None:
+    def hook(topic: str, msg: Any, t: float) -> Any:
+        if topic == "/points" and t > 0.1:
+            msg.point_step = 16
+        return msg
+
+    with pytest.raises(RecordingError, match=r"bad\.mcap: topic /points: point_step.*t = 0\.145"):
+        _replay(_bad(tmp_path, hook))
+
+
+def test_fields_without_xyz(tmp_path: Path) -> None:
+    def hook(topic: str, msg: Any, t: float) -> Any:
+        if topic == "/points":
+            msg.fields[2].name = "w"
+        return msg
+
+    with pytest.raises(RecordingError, match=r"topic /points: fields: no z.*t = 0\.045"):
+        _replay(_bad(tmp_path, hook))
+
+
+def test_unknown_encoding(tmp_path: Path) -> None:
+    def hook(topic: str, msg: Any, t: float) -> Any:
+        if topic == "/depth/image":
+            msg.encoding = "bgr8"
+        return msg
+
+    with pytest.raises(RecordingError, match=r"/depth/image: encoding.*bgr8.*t = 0\.05"):
+        _replay(_bad(tmp_path, hook))
+
+
+def test_joint_state_without_the_robots_joints(tmp_path: Path) -> None:
+    def hook(topic: str, msg: Any, t: float) -> Any:
+        if topic == "/joint_states" and t > 0.2:
+            msg.name = [n.replace("panda_joint4", "elbow") for n in msg.name]
+        return msg
+
+    with pytest.raises(
+        RecordingError, match=r"/joint_states: name: lacks.*panda_joint4.*t = 0\.21"
+    ):
+        _replay(_bad(tmp_path, hook))
+
+
+def test_frame_with_no_tf_path(tmp_path: Path) -> None:
+    def hook(topic: str, msg: Any, t: float) -> Any:
+        if topic == "/points":
+            msg.header.frame_id = "lidar"
+        return msg
+
+    with pytest.raises(
+        RecordingError, match=r"/points: header.frame_id.*'world' and 'lidar'.*t = 0\.045"
+    ):
+        _replay(_bad(tmp_path, hook))
+
+
+def test_truncated_and_not_a_bag(tmp_path: Path, cell: Path) -> None:
+    (storage,) = cell.glob("*.mcap")
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(storage.read_bytes()[:40_000])
+    with pytest.raises(InputError, match=r"cut\.mcap"):
+        _replay(cut)
+    junk = tmp_path / "junk.bag"
+    junk.write_bytes(b"#ROSBAG V2.0\n" + b"\0" * 100)
+    with pytest.raises(InputError, match=r"junk\.bag"):
+        _replay(junk)
+
+
+def test_a_missing_topic_lists_the_topics(cell: Path) -> None:
+    with pytest.raises(InputError, match="/points"):
+        _replay(cell, ("/camera/points",))
