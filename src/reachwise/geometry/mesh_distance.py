@@ -32,7 +32,12 @@ from reachwise.errors import InputError
 if TYPE_CHECKING:
     import trimesh
 
-__all__ = ["mesh_distance", "point_triangle_distance", "segment_distance"]
+__all__ = [
+    "mesh_distance",
+    "point_triangle_distance",
+    "segment_closest_parameters",
+    "segment_distance",
+]
 
 F64 = NDArray[np.float64]
 _SRC = "mesh distance"
@@ -89,6 +94,18 @@ def segment_distance(p1: ArrayLike, q1: ArrayLike, p2: ArrayLike, q2: ArrayLike)
     """Distance between the segments ``p1[i]q1[i]`` and ``p2[i]q2[i]`` (all ``(k, 3)``):
     Ericson's closest points of two segments (§5.1.9), degenerate segments included."""
     P1, Q1, P2, Q2 = (np.asarray(x, dtype=np.float64).reshape(-1, 3) for x in (p1, q1, p2, q2))
+    s, t = segment_closest_parameters(P1, Q1, P2, Q2)
+    gap = (P1 + s[:, None] * (Q1 - P1)) - (P2 + t[:, None] * (Q2 - P2))
+    return np.asarray(np.linalg.norm(gap, axis=1))
+
+
+def segment_closest_parameters(
+    p1: ArrayLike, q1: ArrayLike, p2: ArrayLike, q2: ArrayLike
+) -> tuple[F64, F64]:
+    """Parameters ``s, t`` in ``[0, 1]`` of the closest points ``p1 + s (q1 − p1)`` and
+    ``p2 + t (q2 − p2)`` of two segments, row by row (all ``(k, 3)``): Ericson,
+    *Real-Time Collision Detection*, §5.1.9, degenerate segments included."""
+    P1, Q1, P2, Q2 = (np.asarray(x, dtype=np.float64).reshape(-1, 3) for x in (p1, q1, p2, q2))
     d1, d2, r = Q1 - P1, Q2 - P2, P1 - P2
     a, e, f = _dot(d1, d1), _dot(d2, d2), _dot(d2, r)
     c, b = _dot(d1, r), _dot(d1, d2)
@@ -109,8 +126,7 @@ def segment_distance(p1: ArrayLike, q1: ArrayLike, p2: ArrayLike, q2: ArrayLike)
     first_point = a <= tiny
     s = np.where(first_point, 0.0, s)
     t = np.where(first_point, np.where(second_point, 0.0, t_only), t)
-    gap = (P1 + s[:, None] * d1) - (P2 + t[:, None] * d2)
-    return np.asarray(np.linalg.norm(gap, axis=1))
+    return np.asarray(s, dtype=np.float64), np.asarray(t, dtype=np.float64)
 
 
 def _segments_cross(p: F64, q: F64, a: F64, b: F64, c: F64) -> NDArray[np.bool_]:

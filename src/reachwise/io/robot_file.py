@@ -20,6 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from reachwise.errors import InputError, RobotFileError
 from reachwise.io._builtin import Builtin, builtin_names, load_named
 from reachwise.io.atomic import atomic_write
+from reachwise.io.design_bodies import BodyModel, bodies_from_models, bodies_to_dict
 from reachwise.io.robot_geometry import GeometryModel, geometry_to_dict, resolve_meshes
 from reachwise.io.validation import input_error
 from reachwise.kinematics.robot import (
@@ -118,6 +119,8 @@ class DesignModel(BaseModel):
     min_length: float = Field(default=0.0, ge=0.0)
     margin: float = Field(default=0.05, gt=0.0, lt=0.5)
     objective: dict[str, float] = {}
+    clearance: float = Field(default=0.0, ge=0.0)
+    bodies: dict[str, BodyModel] = {}
 
     @model_validator(mode="after")
     def _objective_names(self) -> DesignModel:
@@ -164,6 +167,8 @@ def robot_from_dict(data: Any, source: str = "robot") -> Robot:
             min_length=m.design.min_length,
             margin=m.design.margin,
             objective=dict(m.design.objective),
+            bodies=bodies_from_models(m.design.bodies, [j.name for j in joints]),
+            clearance=m.design.clearance,
         )
         return Robot(
             name=m.name,
@@ -230,6 +235,10 @@ def robot_to_dict(robot: Robot) -> dict[str, Any]:
             out["design"]["margin"] = robot.design.margin
         if robot.design.objective:
             out["design"]["objective"] = dict(robot.design.objective)
+        if robot.design.bodies:
+            out["design"]["bodies"] = bodies_to_dict(robot.design.bodies)
+        if robot.design.clearance:
+            out["design"]["clearance"] = robot.design.clearance
     return out
 
 

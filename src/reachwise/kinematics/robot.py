@@ -25,6 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from reachwise.errors import InputError, RobotFileError, UnknownName
 from reachwise.kinematics.chain import Chain
+from reachwise.kinematics.design_bodies import DesignBody
 from reachwise.kinematics.link_geometry import LinkGeometry, shapes_by_link
 from reachwise.kinematics.transforms import Pose, check_pose
 
@@ -93,6 +94,9 @@ class DesignSpace:
     every free ``a`` and ``d`` keeps in magnitude (a link that can be built),
     ``margin`` the fraction of each range the ``bounds`` objective keeps free, and
     ``objective`` the weights of the named objectives (``{"gci": 1.0, "size": 0.2}``).
+    ``bodies`` are the bodies whose clearance the synthesis keeps
+    (:class:`~reachwise.kinematics.design_bodies.DesignBody`) and ``clearance`` (m) the
+    smallest distance every watched pair keeps at every task pose (0: not checked).
     """
 
     joints: Mapping[int, Mapping[str, tuple[float, float]]] = field(default_factory=dict)
@@ -100,8 +104,16 @@ class DesignSpace:
     min_length: float = 0.0
     margin: float = 0.05
     objective: Mapping[str, float] = field(default_factory=dict)
+    bodies: tuple[DesignBody, ...] = ()
+    clearance: float = 0.0
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "bodies", tuple(self.bodies))
+        if not (np.isfinite(self.clearance) and self.clearance >= 0):
+            raise InputError("design", "clearance", f"must be >= 0, got {self.clearance}")
+        names = [b.name for b in self.bodies]
+        if len(set(names)) != len(names):
+            raise InputError("design", "bodies", "two bodies share a name")
         if not (np.isfinite(self.min_length) and self.min_length >= 0):
             raise InputError("design", "min_length", f"must be >= 0, got {self.min_length}")
         if not (np.isfinite(self.margin) and 0 < self.margin < 0.5):
@@ -186,6 +198,14 @@ class Robot:
             if not 0 <= j < len(self.joints):
                 raise RobotFileError(
                     self.source or self.name, f"design.joints.{j}", "no such joint"
+                )
+        for b in self.design.bodies:
+            where = f"design.bodies.{b.name}"
+            if b.link not in names:
+                raise RobotFileError(self.source or self.name, where, f"no link {b.link!r}")
+            if b.follows_design and b.link in ("link_0", "tool"):
+                raise RobotFileError(
+                    self.source or self.name, where, "the base and tool follow no DH row"
                 )
 
     # ---- sizes and per-joint arrays -------------------------------------------------

@@ -41,50 +41,63 @@ def origin_jacobians(problem: SynthesisProblem, z: Array) -> tuple[Array, Array,
     design, Q = problem.split(z)
     robot = problem.robot_at(design)
     F = np.asarray(fk_all(robot, Q))  # (K, N+2, 4, 4)
-    N = len(robot.joints)
     O = F[:, :, :3, 3]
-    frames = np.arange(N + 2)
+    frames = np.arange(F.shape[1])
+    Jd, Jq = attached_point_jacobians(problem, F, frames, O)
+    return O, Jd, Jq
+
+
+def attached_point_jacobians(
+    problem: SynthesisProblem, F: Array, frames: NDArray[np.int64], pts: Array
+) -> tuple[Array, Array]:
+    """Jacobians of world points ``pts (K, M, 3)`` rigidly attached to the frames
+    ``frames (M,)`` (rows of ``fk_all``; ``F (K, N+2, 4, 4)`` the frames' world poses at
+    the current design) w.r.t. the design variables ``(K, M, 3, p)`` and the free joints
+    ``(K, M, 3, n_f)``: the unit screw of every joint variable, DH parameter and base
+    coordinate (P-I Eq. 15–19) at each point, zero where it does not move the frame."""
+    robot = problem.template
+    K = F.shape[0]
     classic = robot.convention == "classic"
-    Jq = np.zeros((problem.K, N + 2, 3, robot.n))
+    Jq = np.zeros((K, pts.shape[1], 3, robot.n))
     for i, k in enumerate(robot.movable_joints):
         f = k if classic else k + 1
         mask = frames >= k + 1
         rev = robot.joints[k].type == "revolute"
-        Jq[:, :, :, i] = _screw_on_points(F[:, f, :3, 2], F[:, f, :3, 3], rev, O, mask)
-    Jd = np.zeros((problem.K, N + 2, 3, problem.p))
+        Jq[:, :, :, i] = _screw_on_points(F[:, f, :3, 2], F[:, f, :3, 3], rev, pts, mask)
+    Jd = np.zeros((K, pts.shape[1], 3, problem.p))
     for c, (kind, j, par) in enumerate(robot.design.free):
         if kind == "joint":
             P, C = F[:, j], F[:, j + 1]
             X, Z = (C, P) if classic else (P, C)
             mask = frames >= j + 1
             if par == "a":
-                col = _screw_on_points(X[:, :3, 0], X[:, :3, 3], False, O, mask)
+                col = _screw_on_points(X[:, :3, 0], X[:, :3, 3], False, pts, mask)
             elif par == "alpha":
-                col = _screw_on_points(X[:, :3, 0], X[:, :3, 3], True, O, mask)
+                col = _screw_on_points(X[:, :3, 0], X[:, :3, 3], True, pts, mask)
             elif par == "d":
-                col = _screw_on_points(Z[:, :3, 2], Z[:, :3, 3], False, O, mask)
+                col = _screw_on_points(Z[:, :3, 2], Z[:, :3, 3], False, pts, mask)
             else:
-                col = _screw_on_points(Z[:, :3, 2], Z[:, :3, 3], True, O, mask)
+                col = _screw_on_points(Z[:, :3, 2], Z[:, :3, 3], True, pts, mask)
         else:
             B = F[:, 0]
             mask = frames >= 0
-            ones = np.ones(problem.K)
-            zeros = np.zeros(problem.K)
+            ones = np.ones(K)
+            zeros = np.zeros(K)
             if par in ("x", "y", "z"):
-                ax = np.zeros((problem.K, 3))
+                ax = np.zeros((K, 3))
                 ax[:, "xyz".index(par)] = 1.0
-                col = _screw_on_points(ax, B[:, :3, 3], False, O, mask)
+                col = _screw_on_points(ax, B[:, :3, 3], False, pts, mask)
             elif par == "roll":
-                col = _screw_on_points(B[:, :3, 0], B[:, :3, 3], True, O, mask)
+                col = _screw_on_points(B[:, :3, 0], B[:, :3, 3], True, pts, mask)
             elif par == "pitch":
                 yaw = np.arctan2(B[:, 1, 0], B[:, 0, 0])
                 ax = np.stack([-np.sin(yaw), np.cos(yaw), zeros], axis=1)
-                col = _screw_on_points(ax, B[:, :3, 3], True, O, mask)
+                col = _screw_on_points(ax, B[:, :3, 3], True, pts, mask)
             else:
                 ax = np.stack([zeros, zeros, ones], axis=1)
-                col = _screw_on_points(ax, B[:, :3, 3], True, O, mask)
+                col = _screw_on_points(ax, B[:, :3, 3], True, pts, mask)
         Jd[:, :, :, c] = col
-    return O, Jd, Jq[:, :, :, problem.free_joints]
+    return Jd, Jq[:, :, :, problem.free_joints]
 
 
 def link_points(

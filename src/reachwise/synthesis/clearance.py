@@ -1,0 +1,437 @@
+"""Exact clearance of the design bodies at every task pose, with analytic gradients.
+
+A template's bodies (:class:`~reachwise.kinematics.design_bodies.DesignBody`) are cut
+into convex *parts*: segments (a capsule's axis, with its radius) and boxes. The
+*terms* of the clearance, per task pose, are:
+
+* **body vs environment** — the tunnel envelope's free space is convex
+  (:class:`~reachwise.tasks.workspace.TunnelEnvelope`), so its signed distance ``s`` is
+  concave and its minimum over a segment or a box is reached at an end point or a
+  corner: a capsule part gives the two terms ``s(A) − r`` and ``s(B) − r``, a box its
+  eight corners ``s(c)`` — exact, and each term smooth where ``s`` is. A capsule's
+  contact zone shortens its environment segment by the zone's length;
+* **body vs body** (watched pairs, ``watched_pairs``) — two segments: Ericson's closest
+  points ``p_a, p_b`` give ``|p_a − p_b| − r_a − r_b``; a segment and a box: the box's
+  signed distance ``φ`` (negative inside) is convex, so ``min_t φ(A + t (B − A))`` is
+  found by golden-section search on ``t ∈ [0, 1]`` (to 1e-13) and minus ``r`` is the
+  exact distance. When they overlap it is a penetration depth (the deepest point of the
+  axis in the box), whose gradient below is then a subgradient only.
+
+The gradient of each term w.r.t. the decision vector (design variables, base, every
+pose's free joints) follows the envelope theorem: with the closest points fixed, a term
+moves with the unit normal ``n`` at them, ``∇d = nᵀ (J(p_a) − J(p_b))``, where ``J(p)`` is
+the Jacobian of the material point ``p`` (P-I Eq. 15–19 screws,
+``workspace_points.attached_point_jacobians``), interpolated along a segment from its
+end points. An end point of a design-following capsule (the *elbow* between the ``a``
+and ``d`` segments) moves with its own DH parameter as well, which is added explicitly.
+
+Pure maths: numpy in and out.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import cached_property
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from reachwise.errors import InputError
+from reachwise.geometry.mesh_distance import segment_closest_parameters
+from reachwise.kinematics.design_bodies import DesignBody
+from reachwise.kinematics.fk import fk_all
+from reachwise.kinematics.robot import Robot
+from reachwise.synthesis.workspace_points import attached_point_jacobians
+
+if TYPE_CHECKING:
+    from reachwise.synthesis.problem import SynthesisProblem
+    from reachwise.tasks.workspace import TunnelEnvelope
+
+Array = NDArray[np.float64]
+ENVIRONMENT = "environment"
+_GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
+_GOLDEN_ITER = 64
+
+
+@dataclass(frozen=True)
+class Anchor:
+    """A point fixed in frame ``frame`` at ``local`` (link frame, m); ``elbow`` is the
+    DH row whose elbow it is (its local coordinate then follows that row), else -1."""
+
+    frame: int
+    local: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    elbow: int = -1
+
+
+@dataclass(frozen=True)
+class Part:
+    """A convex piece of body ``body``: a segment between anchors ``ends`` with radius
+    ``radius`` (``env_ends``: the anchors its environment terms use), or a box on
+    ``frame`` with ``half`` sizes placed by ``origin`` (corners: anchors ``ends``)."""
+
+    body: int
+    kind: Literal["segment", "box"]
+    ends: tuple[int, ...]
+    radius: float = 0.0
+    env_ends: tuple[int, ...] = ()
+    frame: int = -1
+    half: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    origin: tuple[tuple[float, ...], ...] = ()
+
+
+@dataclass(frozen=True)
+class ClearanceTerms:
+    """Clearance terms at every task pose: ``distance (K, m)`` (m), their gradients
+    w.r.t. the design variables ``(K, m, p)`` and the free joints ``(K, m, n_f)``, and
+    per term the pair it measures (``pairs[i] = (body, other body or "environment")``)."""
+
+    distance: Array
+    grad_design: Array
+    grad_joints: Array
+    pairs: tuple[tuple[str, str], ...]
+
+    def smallest(self) -> tuple[Array, list[tuple[str, str]]]:
+        """Per pose: the smallest clearance and the pair it belongs to."""
+        if self.distance.shape[1] == 0:
+            K = self.distance.shape[0]
+            return np.full(K, np.inf), [("", "")] * K
+        i = np.argmin(self.distance, axis=1)
+        return self.distance[np.arange(i.size), i], [self.pairs[k] for k in i]
+
+
+def _vec3(v: Array) -> tuple[float, float, float]:
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+def body_frame(robot: Robot, body: DesignBody) -> int:
+    """Row of ``fk_all`` of the link a body sits on."""
+    return robot.link_names.index(body.link)
+
+
+def _carries_extent(robot: Robot, body: DesignBody) -> bool:
+    return not body.follows_design or bool(_segments_of(robot, body))
+
+
+def watched_pairs(robot: Robot) -> list[tuple[int, int]]:
+    """Pairs of bodies (indices into ``robot.design.bodies``) whose clearance is kept.
+
+    Bodies on one link, on consecutive frames, on frames joined through frames that
+    carry no body (as MoveIt treats links without geometry), or with no moving joint
+    between them are adjacent; every other pair is watched.
+    """
+    bodies = robot.design.bodies
+    frames = [body_frame(robot, b) for b in bodies]
+    occupied = {f for f, b in zip(frames, bodies, strict=True) if _carries_extent(robot, b)}
+    movable = set(robot.movable_joints)
+    out = []
+    for i in range(len(bodies)):
+        for j in range(i + 1, len(bodies)):
+            fa, fb = sorted((frames[i], frames[j]))
+            if fa == fb or not any(f in occupied for f in range(fa + 1, fb)):
+                continue
+            if not any(r in movable for r in range(fa, fb)):
+                continue  # rigidly connected: no pose changes their distance
+            if bodies[i].shape == "box" and bodies[j].shape == "box":
+                raise InputError(
+                    robot.name,
+                    f"design.bodies.{bodies[i].name}",
+                    f"a watched pair needs a capsule on one side ({bodies[j].name} is a box too)",
+                )
+            out.append((i, j))
+    return out
+
+
+def _segments_of(robot: Robot, body: DesignBody) -> list[tuple[Anchor, Anchor]]:
+    """The segments of a design-following capsule, skipping those whose length is 0 in
+    every design (the parameter is not free, 0, and no prismatic joint drives it)."""
+    j = body_frame(robot, body) - 1
+    free = {(r, p) for kind, r, p in robot.design.free if kind == "joint"}
+    a, d = robot.dh[j, 0], robot.dh[j, 2]
+    has_a = a != 0.0 or (j, "a") in free
+    has_d = d != 0.0 or (j, "d") in free or robot.joints[j].type == "prismatic"
+    origin, elbow, nxt = Anchor(j), Anchor(j, elbow=j), Anchor(j + 1)
+    classic = robot.convention == "classic"
+    out = []
+    for seg in body.along:
+        if seg == "a" and has_a:
+            out.append((elbow, nxt) if classic else (origin, elbow))
+        elif seg == "d" and has_d:
+            out.append((origin, elbow) if classic else (elbow, nxt))
+    return out
+
+
+class ClearanceModel:
+    """The parts, anchors and terms of a template's bodies (module docstring).
+
+    ``envelope`` adds the body-vs-environment terms; ``clearance`` (m) is what every
+    term must keep.
+    """
+
+    def __init__(
+        self, robot: Robot, envelope: TunnelEnvelope | None = None, clearance: float = 0.0
+    ) -> None:
+        if not robot.design.bodies:
+            raise InputError(robot.name, "design.bodies", "no bodies to keep clear")
+        self.robot = robot
+        self.envelope = envelope
+        self.clearance = float(clearance)
+        self.anchors: list[Anchor] = []
+        self.parts: list[Part] = []
+        for i, b in enumerate(robot.design.bodies):
+            self._add_body(i, b)
+        self.pairs = watched_pairs(robot)
+
+    def _anchor(self, a: Anchor) -> int:
+        if a not in self.anchors:
+            self.anchors.append(a)
+        return self.anchors.index(a)
+
+    def _add_body(self, i: int, b: DesignBody) -> None:
+        f = body_frame(self.robot, b)
+        if b.follows_design:
+            for a0, a1 in _segments_of(self.robot, b):
+                ends = (self._anchor(a0), self._anchor(a1))
+                self.parts.append(Part(i, "segment", ends, b.radius, ends))
+        elif b.shape == "capsule":
+            s, e = np.array(b.start), np.array(b.end)
+            ends = (self._anchor(Anchor(f, b.start)), self._anchor(Anchor(f, b.end)))
+            env = ends
+            if b.contact > 0:
+                cut = e - b.contact * (e - s) / np.linalg.norm(e - s)
+                env = (ends[0], self._anchor(Anchor(f, _vec3(cut))))
+            self.parts.append(Part(i, "segment", ends, b.radius, env))
+        else:
+            T = np.array(b.origin)
+            h = np.array(b.size) / 2
+            signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+            corners = (T[:3, :3] @ (signs * h).T).T + T[:3, 3]
+            corner_ids = tuple(self._anchor(Anchor(f, _vec3(c))) for c in corners)
+            part = Part(i, "box", corner_ids, 0.0, corner_ids, f, _vec3(h), b.origin)
+            self.parts.append(part)
+
+    @cached_property
+    def labels(self) -> tuple[tuple[str, str], ...]:
+        """The pair of every term, in term order."""
+        names = [b.name for b in self.robot.design.bodies]
+        out: list[tuple[str, str]] = []
+        if self.envelope is not None:
+            for part in self.parts:
+                out += [(names[part.body], ENVIRONMENT)] * len(part.env_ends)
+        for pa, pb in self._part_pairs:
+            out.append((names[self.parts[pa].body], names[self.parts[pb].body]))
+        return tuple(out)
+
+    @cached_property
+    def _part_pairs(self) -> list[tuple[int, int]]:
+        watched = set(self.pairs)
+        out = []
+        for ia, a in enumerate(self.parts):
+            for ib, b in enumerate(self.parts):
+                if (a.body, b.body) in watched:
+                    # a box part goes second
+                    out.append((ib, ia) if a.kind == "box" else (ia, ib))
+        return out
+
+    # ---- evaluation -----------------------------------------------------------------
+    def anchor_points(self, problem: SynthesisProblem, z: Array) -> tuple[Array, Array, Array]:
+        """World anchor points ``(K, A, 3)``, frames ``(K, N+2, 4, 4)`` and the robot's
+        DH table at the design of ``z`` (with each pose's joint values)."""
+        design, Q = problem.split(z)
+        robot = problem.robot_at(design)
+        F = np.asarray(fk_all(robot, Q))
+        pts = np.empty((problem.K, len(self.anchors), 3))
+        for i, a in enumerate(self.anchors):
+            local = np.broadcast_to(np.array(a.local, dtype=float), (problem.K, 3)).copy()
+            if a.elbow >= 0:
+                local[:] = self._elbow_local(robot, Q, a.elbow)
+            pts[:, i] = np.einsum("kij,kj->ki", F[:, a.frame, :3, :3], local) + F[:, a.frame, :3, 3]
+        return pts, F, Q
+
+    def _elbow_local(self, robot: Robot, Q: Array, row: int) -> Array:
+        """The elbow of DH row ``row`` in frame ``row`` (module docstring): ``(a, 0, 0)``
+        for modified DH, ``(0, 0, d + q)`` for classic."""
+        K = Q.shape[0]
+        out = np.zeros((K, 3))
+        if robot.convention == "classic":
+            d = np.full(K, robot.dh[row, 2])
+            if robot.joints[row].type == "prismatic":
+                d = d + Q[:, robot.movable_joints.index(row)]
+            out[:, 2] = d
+        else:
+            out[:, 0] = robot.dh[row, 0]
+        return out
+
+    def _anchor_jacobians(
+        self, problem: SynthesisProblem, F: Array, pts: Array
+    ) -> tuple[Array, Array]:
+        frames = np.array([a.frame for a in self.anchors], dtype=np.int64)
+        Jd, Jq = attached_point_jacobians(problem, F, frames, pts)
+        classic = self.robot.convention == "classic"
+        cols = {
+            (r, p): c for c, (kind, r, p) in enumerate(self.robot.design.free) if kind == "joint"
+        }
+        qcols = {int(k): i for i, k in enumerate(problem.free_joints)}
+        for i, a in enumerate(self.anchors):
+            if a.elbow < 0:
+                continue
+            j = a.elbow
+            par = "d" if classic else "a"
+            axis = F[:, j, :3, 2] if classic else F[:, j, :3, 0]
+            if (j, par) in cols:
+                Jd[:, i, :, cols[(j, par)]] += axis
+            if classic and self.robot.joints[j].type == "prismatic":
+                qi = self.robot.movable_joints.index(j)
+                if qi in qcols:
+                    Jq[:, i, :, qcols[qi]] += axis
+        return Jd, Jq
+
+    def terms(self, problem: SynthesisProblem, z: Array) -> ClearanceTerms:
+        """Every term's clearance and gradient at ``z`` (module docstring)."""
+        pts, F, _ = self.anchor_points(problem, z)
+        Jd, Jq = self._anchor_jacobians(problem, F, pts)
+        dist, gd, gq = [], [], []
+        if self.envelope is not None:
+            idx = [e for part in self.parts for e in part.env_ends]
+            rad = np.array([part.radius for part in self.parts for _ in part.env_ends])
+            P = pts[:, idx].reshape(-1, 3)
+            s, g = self.envelope.signed_distance_and_gradient(P)
+            K, m = pts.shape[0], len(idx)
+            g = g.reshape(K, m, 3)
+            dist.append(s.reshape(K, m) - rad)
+            gd.append(np.einsum("kmi,kmia->kma", g, Jd[:, idx]))
+            gq.append(np.einsum("kmi,kmia->kma", g, Jq[:, idx]))
+        seg = [(a, b) for a, b in self._part_pairs if self.parts[b].kind == "segment"]
+        box = [(a, b) for a, b in self._part_pairs if self.parts[b].kind == "box"]
+        for pairs, fn in ((seg, self._segment_pairs), (box, self._box_pairs)):
+            if pairs:
+                d, a, b = fn(problem, pairs, pts, F, Jd, Jq)
+                dist.append(d)
+                gd.append(a)
+                gq.append(b)
+        K = pts.shape[0]
+        # terms in label order: environment, then the part pairs in _part_pairs order
+        order = self._pair_order(seg, box)
+        D = np.concatenate(dist, axis=1) if dist else np.zeros((K, 0))
+        GD = np.concatenate(gd, axis=1) if gd else np.zeros((K, 0, problem.p))
+        GQ = np.concatenate(gq, axis=1) if gq else np.zeros((K, 0, problem.n_free_joints))
+        return ClearanceTerms(D[:, order], GD[:, order], GQ[:, order], self.labels)
+
+    def _pair_order(
+        self, seg: list[tuple[int, int]], box: list[tuple[int, int]]
+    ) -> NDArray[np.int64]:
+        n_env = len(self.labels) - len(self._part_pairs)
+        computed = list(range(n_env)) + [n_env + self._part_pairs.index(p) for p in seg + box]
+        order = np.empty(len(computed), dtype=np.int64)
+        order[np.array(computed, dtype=np.int64)] = np.arange(len(computed))
+        return order
+
+    def _segment_pairs(
+        self,
+        problem: SynthesisProblem,
+        pairs: list[tuple[int, int]],
+        pts: Array,
+        F: Array,
+        Jd: Array,
+        Jq: Array,
+    ) -> tuple[Array, Array, Array]:
+        K = pts.shape[0]
+        a0 = [self.parts[a].ends[0] for a, _ in pairs]
+        a1 = [self.parts[a].ends[1] for a, _ in pairs]
+        b0 = [self.parts[b].ends[0] for _, b in pairs]
+        b1 = [self.parts[b].ends[1] for _, b in pairs]
+        rad = np.array([self.parts[a].radius + self.parts[b].radius for a, b in pairs])
+        A0, A1, B0, B1 = (pts[:, i].reshape(-1, 3) for i in (a0, a1, b0, b1))
+        s, t = segment_closest_parameters(A0, A1, B0, B1)
+        diff = (A0 + s[:, None] * (A1 - A0)) - (B0 + t[:, None] * (B1 - B0))
+        nrm = np.linalg.norm(diff, axis=1)
+        n = np.where(nrm[:, None] > 1e-15, diff / np.where(nrm > 1e-15, nrm, 1.0)[:, None], 0.0)
+        m = len(pairs)
+        s, t, n = s.reshape(K, m, 1), t.reshape(K, m, 1), n.reshape(K, m, 3)
+
+        def grad(J: Array) -> Array:
+            Ja = (1 - s)[..., None] * J[:, a0] + s[..., None] * J[:, a1]
+            Jb = (1 - t)[..., None] * J[:, b0] + t[..., None] * J[:, b1]
+            return np.einsum("kmi,kmia->kma", n, Ja - Jb)
+
+        return nrm.reshape(K, m) - rad, grad(Jd), grad(Jq)
+
+    def _box_pairs(
+        self,
+        problem: SynthesisProblem,
+        pairs: list[tuple[int, int]],
+        pts: Array,
+        F: Array,
+        Jd: Array,
+        Jq: Array,
+    ) -> tuple[Array, Array, Array]:
+        K, m = pts.shape[0], len(pairs)
+        a0 = [self.parts[a].ends[0] for a, _ in pairs]
+        a1 = [self.parts[a].ends[1] for a, _ in pairs]
+        rad = np.array([self.parts[a].radius for a, _ in pairs])
+        frames = np.array([self.parts[b].frame for _, b in pairs], dtype=np.int64)
+        O = np.stack([np.array(self.parts[b].origin) for _, b in pairs])  # (m, 4, 4)
+        W = np.einsum("kmij,mjl->kmil", F[:, frames], O)  # box poses in world
+        half = np.array([self.parts[b].half for _, b in pairs])
+        A, B = pts[:, a0], pts[:, a1]
+        R, c = W[:, :, :3, :3], W[:, :, :3, 3]
+        la = np.einsum("kmji,kmj->kmi", R, A - c)
+        lb = np.einsum("kmji,kmj->kmi", R, B - c)
+
+        def along(tt: Array) -> Array:
+            return box_signed_distance(la + tt[..., None] * (lb - la), half)[0]
+
+        t = _golden_min(along, (K, m))
+        X = A + t[..., None] * (B - A)
+        phi, g_local = box_signed_distance(la + t[..., None] * (lb - la), half)
+        g = np.einsum("kmij,kmj->kmi", R, g_local)
+        Jx_d, Jx_q = attached_point_jacobians(problem, F, frames, X)
+        tt = t[..., None, None]
+
+        def grad(J: Array, Jx: Array) -> Array:
+            Ja = (1 - tt) * J[:, a0] + tt * J[:, a1]
+            return np.einsum("kmi,kmia->kma", g, Ja - Jx)
+
+        return phi - rad, grad(Jd, Jx_d), grad(Jq, Jx_q)
+
+
+def box_signed_distance(x: Array, half: Array) -> tuple[Array, Array]:
+    """Signed distance (negative inside) of local points ``x (..., m, 3)`` to boxes of
+    half sizes ``half (m, 3)`` centred at the origin, and its gradient ``(..., m, 3)``."""
+    sgn = np.where(x < 0, -1.0, 1.0)
+    q = np.abs(x) - half
+    qp = np.maximum(q, 0.0)
+    out = np.linalg.norm(qp, axis=-1)
+    qmax = q.max(axis=-1)
+    phi = out + np.minimum(qmax, 0.0)
+    k = np.argmax(q, axis=-1)
+    g_in = np.zeros_like(x)
+    np.put_along_axis(g_in, k[..., None], np.take_along_axis(sgn, k[..., None], -1), -1)
+    safe = np.where(out > 0, out, 1.0)[..., None]
+    g = np.where((out > 0)[..., None], sgn * qp / safe, g_in)
+    return phi, g
+
+
+def _golden_min(f: Callable[[Array], Array], shape: tuple[int, ...]) -> Array:
+    """Minimizer in ``[0, 1]`` of a convex ``f`` (elementwise over ``shape`` problems:
+    ``f`` maps an array of ``t`` of that shape to values) by golden-section search,
+    bracket below 1e-13 after 64 steps."""
+    lo, hi = np.zeros(shape), np.ones(shape)
+    x1 = hi - _GOLDEN * (hi - lo)
+    x2 = lo + _GOLDEN * (hi - lo)
+    f1, f2 = f(x1), f(x2)
+    for _ in range(_GOLDEN_ITER):
+        left = f1 <= f2  # the minimum lies in [lo, x2]
+        hi = np.where(left, x2, hi)
+        lo = np.where(left, lo, x1)
+        nx1 = np.where(left, hi - _GOLDEN * (hi - lo), x2)
+        nx2 = np.where(left, x1, lo + _GOLDEN * (hi - lo))
+        x1, x2 = nx1, nx2
+        fn = f(np.where(left, x1, x2))
+        f1, f2 = np.where(left, fn, f2), np.where(left, f1, fn)
+    t = (lo + hi) / 2
+    # the ends, where a monotone f has its minimum exactly
+    ends = np.stack([np.zeros(shape), t, np.ones(shape)])
+    vals = np.stack([f(e) for e in ends])
+    return np.asarray(np.take_along_axis(ends, np.argmin(vals, axis=0)[None], 0)[0])
