@@ -23,8 +23,8 @@ from typer.testing import CliRunner
 from reachwise import load_robot
 from reachwise.cli.topology import topology
 from reachwise.errors import UnknownName
-from reachwise.io.sweep_store import SweepStore
 from reachwise.io.task_file import load_task, save_task
+from reachwise.results.sweep_store import SweepStore
 from reachwise.synthesis.sweep import SweepConfig, run_sweep
 from reachwise.synthesis.topology import topologies_from_specs
 from tests.conftest import sigint_default

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from reachwise.errors import InputError
-from reachwise.io.sweep_store import SweepStore
+from reachwise.results.sweep_store import SweepStore
 from reachwise.synthesis.rank import Measures
 from reachwise.synthesis.sweep import ItemResult, WorkItem, run_item
 from reachwise.synthesis.topology import to_template
@@ -182,7 +182,7 @@ def test_sigkill_during_writes_leaves_a_sound_database(tmp_path: Path) -> None:
 def test_a_schema_1_database_is_upgraded_in_place(tmp_path: Path) -> None:
     """A store written before the design objectives (schema 1: no size/limits/bounds
     columns) opens, keeps its rows (the new measures read NaN) and takes new ones."""
-    from reachwise.io import sweep_store
+    from reachwise.results import sweep_store
 
     path = tmp_path / "v1.db"
     v1 = sweep_store._SCHEMA

@@ -9,8 +9,8 @@ import pytest
 
 from reachwise import load_task, synthesize
 from reachwise.errors import InputError
-from reachwise.io.synthesis_out import load_synthesis, write_synthesis
 from reachwise.io.task_file import save_task
+from reachwise.results.synthesis_out import load_synthesis, write_synthesis
 
 
 @pytest.fixture(scope="module")

@@ -18,8 +18,8 @@ import pytest
 
 from reachwise import load_robot, load_task
 from reachwise.errors import InputError
-from reachwise.io.sweep_store import SweepStore
 from reachwise.kinematics.robot import DesignSpace
+from reachwise.results.sweep_store import SweepStore
 from reachwise.synthesis.problem import SynthesisProblem
 from reachwise.synthesis.sweep import (
     SweepConfig,

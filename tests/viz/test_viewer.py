@@ -215,7 +215,7 @@ def test_scenario_lines_follow_the_sliders(viewer: Viewer) -> None:
 
 def test_synthesis_browser_shows_each_configuration(viewer: Viewer, tmp_path: Path) -> None:
     from reachwise import synthesize
-    from reachwise.io.synthesis_out import write_synthesis
+    from reachwise.results.synthesis_out import write_synthesis
 
     task = reachwise.load_task("tunnel-87").subset(np.arange(0, 87, 20), name="tunnel-87")
     res = synthesize(task, "sb60", runs=1, seed=0)

@@ -334,9 +334,9 @@ def _task(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
 
 def _synthesis(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
     from reachwise.io.robot_file import load_robot
-    from reachwise.io.synthesis_out import summary, write_synthesis
     from reachwise.io.task_file import save_task
     from reachwise.report.synthesis import save_synthesis_figures, write_synthesis_report
+    from reachwise.results.synthesis_out import summary, write_synthesis
     from reachwise.synthesis.synthesize import synthesize
 
     task = ctx.task()
@@ -421,9 +421,9 @@ def _objective_lines(d: dict[str, Any]) -> list[str]:
 
 def _topology(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
     from reachwise.io.robot_file import load_robot
-    from reachwise.io.sweep_store import SweepStore
     from reachwise.report.ranking import write_report
     from reachwise.report.topology import write_topology_report
+    from reachwise.results.sweep_store import SweepStore
     from reachwise.synthesis.sweep import SweepConfig, run_sweep
     from reachwise.synthesis.topology import builtin_set
 

@@ -61,9 +61,9 @@ def synth(
     from dataclasses import replace
 
     from reachwise.errors import check_choice
-    from reachwise.io.synthesis_out import summary, write_synthesis
     from reachwise.io.task_file import load_task
     from reachwise.report.synthesis import save_synthesis_figures, write_synthesis_report
+    from reachwise.results.synthesis_out import summary, write_synthesis
     from reachwise.synthesis.objectives import check_objective, parse_objective
     from reachwise.synthesis.problem import SynthesisProblem, locked_from_spec
     from reachwise.synthesis.synthesize import SOLVERS, RunResult, result_of, run_once
@@ -147,9 +147,9 @@ def _pareto(
 ) -> tuple[dict[str, Any] | None, Any]:  # fmt: skip
     """The Pareto sweep from the best run (if it reaches every pose): files in
     ``folder/pareto/``, the report section, and the data for the summary."""
-    from reachwise.io.pareto_out import write_pareto
     from reachwise.report.design import pareto_figure, pareto_section
     from reachwise.report.png import save_png
+    from reachwise.results.pareto_out import write_pareto
     from reachwise.synthesis.pareto import pareto_sweep
 
     best = result.best
@@ -168,8 +168,8 @@ def _pareto(
 
 
 def _print(result: object, data: dict) -> None:  # type: ignore[type-arg]
-    from reachwise.io.synthesis_out import design_rows
     from reachwise.report.design import SIDE, bound_flag
+    from reachwise.results.synthesis_out import design_rows
 
     console = Console()
     b = data["best"]

@@ -86,10 +86,10 @@ def topology(
     exits (130); a killed sweep loses nothing it stored.
     """
     from reachwise.io.robot_file import load_robot
-    from reachwise.io.sweep_store import SweepStore
     from reachwise.io.task_file import load_task
     from reachwise.report.ranking import write_report
     from reachwise.report.topology import write_topology_report
+    from reachwise.results.sweep_store import SweepStore
     from reachwise.synthesis.rank import check_key
     from reachwise.synthesis.sweep import SweepConfig, SweepInterrupted, dask_executor, run_sweep
     from reachwise.synthesis.topology import (

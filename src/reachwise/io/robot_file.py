@@ -26,6 +26,7 @@ from reachwise.io.validation import input_error
 from reachwise.kinematics.robot import (
     BASE_PARAMS,
     DH_PARAMS,
+    OBJECTIVES,
     DesignSpace,
     Joint,
     LinkGeometry,
@@ -124,8 +125,6 @@ class DesignModel(BaseModel):
 
     @model_validator(mode="after")
     def _objective_names(self) -> DesignModel:
-        from reachwise.synthesis.objectives import OBJECTIVES
-
         for name, w in self.objective.items():
             if name not in OBJECTIVES:
                 raise ValueError(f"unknown objective {name!r}; valid: {', '.join(OBJECTIVES)}")

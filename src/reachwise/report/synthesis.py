@@ -271,8 +271,8 @@ def synthesis_html(
     """The report of ``result`` as an HTML string; ``figures`` (name → Figure, PNG
     bytes or PNG file) are embedded, ``None`` embeds none; ``extra`` sections (e.g. a
     Pareto front, ``report.design``) follow the design tables."""
-    from reachwise.io.synthesis_out import summary
     from reachwise.report.design import bounds_section, objective_section
+    from reachwise.results.synthesis_out import summary
 
     data = summary(result)
     prob = result.problem

@@ -37,12 +37,11 @@ from numpy.typing import NDArray
 
 from reachwise.errors import InputError, UnknownName
 from reachwise.kinematics.conditioning import lci_gradient
+from reachwise.kinematics.robot import OBJECTIVES
 from reachwise.synthesis.problem import SynthesisProblem
 
 Array = NDArray[np.float64]
 
-#: objective name -> +1 when higher is better, -1 when lower is better
-OBJECTIVES: dict[str, int] = {"gci": 1, "kci": 1, "size": -1, "limits": -1, "bounds": -1}
 LENGTH_PARAMS = ("a", "d")
 
 

@@ -25,8 +25,8 @@ from reachwise.viz.scene_data import (
 )
 
 if TYPE_CHECKING:
-    from reachwise.io.synthesis_out import SynthesisOutput
     from reachwise.kinematics.robot import Robot
+    from reachwise.results.synthesis_out import SynthesisOutput
     from reachwise.sim.scenarios import Scenario
     from reachwise.tasks.task import Task
     from reachwise.viz.viewer import Viewer

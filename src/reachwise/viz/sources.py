@@ -133,7 +133,7 @@ def _scenario(name: str) -> Show:
 
 def _synthesis(folder: Path) -> Show:
     def show(v: Viewer) -> None:
-        from reachwise.io.synthesis_out import load_synthesis
+        from reachwise.results.synthesis_out import load_synthesis
         from reachwise.viz.modes import show_synthesis
 
         show_synthesis(v, load_synthesis(folder))

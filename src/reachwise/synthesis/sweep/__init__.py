@@ -15,7 +15,7 @@ One concept per module:
   picklable and pure, ``run_item`` → ``ItemResult``;
 - ``fingerprint`` — the sweep id (task, subset, seed, solver settings) items are keyed by;
 - ``store`` — the ``ResultStore`` interface every finished item is written to at once,
-  and ``MemoryStore``; the persistent SQLite store is ``reachwise.io.sweep_store``;
+  and ``MemoryStore``; the persistent SQLite store is ``reachwise.results.sweep_store``;
 - ``executors`` — a local process pool (default) or a Dask cluster (``dask_executor``);
 - ``tables`` — ``RoundTable`` (P-II Table 2 of one round) and ``SweepResult``;
 - ``run`` — ``run_sweep``: items go to any ``concurrent.futures.Executor`` in batches of

@@ -52,7 +52,7 @@ def run_sweep(
     ``executor``: any ``concurrent.futures.Executor`` (not shut down here); without one a
     ``process_pool(workers)`` is made and closed, and ``workers=0`` runs every item in
     this process. ``store``: where finished items go and are skipped from: any
-    ``ResultStore`` (the CLI passes ``reachwise.io.sweep_store.SweepStore``, a resumable
+    ``ResultStore`` (the CLI passes ``reachwise.results.sweep_store.SweepStore``, a resumable
     SQLite file); default a ``MemoryStore`` that lives as long as this call. Ctrl-C:
     pending items are cancelled, running ones are awaited and stored, then
     ``SweepInterrupted`` is raised.

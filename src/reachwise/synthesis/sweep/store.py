@@ -4,7 +4,7 @@ Every finished item is handed to the store as soon as it arrives; items already 
 store are skipped, so running the same sweep again on a persistent store resumes it, and
 the tables are always built from the store (a resumed sweep gives the table of an
 uninterrupted one). The synthesis layer writes no files: a persistent store is passed
-in by the caller — ``reachwise.io.sweep_store.SweepStore`` (SQLite, one transaction
+in by the caller — ``reachwise.results.sweep_store.SweepStore`` (SQLite, one transaction
 per item) is the one the CLI and the demo use. ``MemoryStore`` keeps the items of one
 process and is the default of ``run_sweep``.
 """
