@@ -77,7 +77,7 @@ def replay(
     (``distances.csv``, ``near.csv``, ``summary.json``, ``report.html`` and the
     ``results_bag``). Further ``spec`` options (``frame``, ``camera_info``, ``links``,
     ``every``, ``block``, ``rate``, ``voxel``, ``tf_tolerance``) go to
-    :class:`reachwise.io.ros.replay.ReplaySpec`.
+    ``reachwise.io.ros.replay.ReplaySpec``.
     """
     model = robot if isinstance(robot, Robot) else load_robot(robot, tip=tip)
     topics = (clouds,) if isinstance(clouds, str) else tuple(clouds)

@@ -59,6 +59,13 @@ def simulate(
         help="Watch each run live in the browser viewer (127.0.0.1:8080 or the next free "
         "port), in real time, then replay the logs there; Ctrl-C stops it.",
     ),
+    bag: Path | None = typer.Option(
+        None,
+        "--bag",
+        help="Also write the run (joint states, the cameras' depth images, CameraInfo and "
+        "clouds, TF) as a ROS 2 bag: .mcap for MCAP, else sqlite3 (the ros extra); "
+        "`reachwise replay` reads it back.",
+    ),
     escape: bool | None = typer.Option(
         None,
         "--escape/--no-escape",
@@ -68,7 +75,8 @@ def simulate(
     ),
 ) -> None:
     """Simulate a scenario with collision avoidance (thesis §3.3, P-III/P-IV/P-V)."""
-    from reachwise.errors import check_choice
+    from reachwise.errors import InputError, check_choice
+    from reachwise.sim.bag_recorder import BagRecorder
     from reachwise.sim.log import SimulationLog
     from reachwise.sim.plant import PLANT_NAMES, PlantName
     from reachwise.sim.scenarios import load_scenario
@@ -80,6 +88,8 @@ def simulate(
         from reachwise.sim.mujoco_model import require_mujoco
 
         require_mujoco()  # a clear error naming the missing extra, before any work
+    if bag is not None and bag.exists():
+        raise InputError(str(bag), "--bag", "exists already; not overwriting a recording")
     sc = load_scenario(scenario)
     if out is not None:  # computed helpers (automatic self-collision pairs) cached there
         sc.cache_dir = out
@@ -116,10 +126,16 @@ def simulate(
                 if round(t / sc.spec.dt) % 10 == 0:
                     bar.update(job, completed=min(t, end), t=f"{t:6.2f} s")
 
-            logs[label] = run(
-                sc, avoidance=avoid, duration=duration, progress=tick, plant=kind, server=link,
-                on_tick=live.hook(avoid, label) if live is not None else None, escape=escape,
-            )  # fmt: skip
+            recorder = BagRecorder(bag) if bag is not None and label == "avoidance" else None
+            try:
+                logs[label] = run(
+                    sc, avoidance=avoid, duration=duration, progress=tick, plant=kind,
+                    server=link, on_tick=live.hook(avoid, label) if live is not None else None,
+                    escape=escape, recorder=recorder,
+                )  # fmt: skip
+            finally:
+                if recorder is not None:
+                    recorder.close()
             bar.update(job, completed=total)
     main = logs["avoidance"]
     base = logs.get("baseline")

@@ -30,7 +30,7 @@ import math
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -56,7 +56,18 @@ if TYPE_CHECKING:
     from reachwise.server.client.owned import ServerOptions
     from reachwise.sim.escape import Escape
 
-__all__ = ["simulate"]
+__all__ = ["RunRecorder", "simulate"]
+
+
+class RunRecorder(Protocol):
+    """Something that records a run: started with the built world, told each tick
+    (index, time) after the distance query, closed at the end."""
+
+    def start(self, world: World) -> None: ...
+
+    def tick(self, k: int, t: float, world: World) -> None: ...
+
+    def close(self) -> None: ...
 
 
 def simulate(
@@ -70,6 +81,7 @@ def simulate(
     static_world: bool = False,
     server: str | ServerOptions | None = None,
     escape: bool | EscapeSpec | None = None,
+    recorder: RunRecorder | None = None,
 ) -> SimulationLog:
     """Run ``scenario`` (a built-in name, a file or a ``Scenario``) in simulated
     time; ``avoidance=False`` runs the conventional controller (the baseline).
@@ -90,6 +102,8 @@ def simulate(
     or the defaults; False: off; or an ``EscapeSpec``): a robot whose controller
     stalls plans a path out with OMPL and follows it (``reachwise.sim.escape``);
     the plans are in ``extras["escape"]``.
+    ``recorder`` (e.g. a :class:`~reachwise.sim.bag_recorder.BagRecorder`) is started
+    with the built world, told each tick after the distance query and closed at the end.
 
     Each tick is three named steps: ``_sense`` (joint states and moving objects
     into the scene, the distance query, the controllers' view), ``_check_contact``
@@ -109,6 +123,8 @@ def simulate(
     pair_objs = [(p.a, p.b) for p in scene.pairs]
     for a in world.agents:
         goals.next_goal(a, 0.0)
+    if recorder is not None:
+        recorder.start(world)
     k = 0
     for k in range(ticks):
         t = k * dt
@@ -118,6 +134,8 @@ def simulate(
         rec.object_poses(k, t)
         if on_tick is not None:
             on_tick(t, {a.name: a.plant.q.copy() for a in world.agents}, res)
+        if recorder is not None:
+            recorder.tick(k, t, world)
         _check_contact(world, pair_objs, res, k, t, rec, goals.events)
         all_done = True
         for a in world.agents:
@@ -132,6 +150,8 @@ def simulate(
         if all_done:
             break
     close_scene(scene)
+    if recorder is not None:
+        recorder.close()
     extras: dict[str, Any] = {"plant": plant, "static_world": static_world}
     if plant == "mujoco":
         extras["tracking"] = {a.name: a.plant.tracking() for a in world.agents}  # type: ignore[union-attr]
