@@ -64,6 +64,8 @@ def main() -> None:
           (``ServerUnavailable``)
     130   interrupted (Ctrl-C); finished work is kept
     ====  ===========================================================================
+
+    A Ctrl-C that no command handles ends it with 130 and the line ``interrupted``.
     """
     from reachwise.errors import ReachwiseError
 
@@ -72,3 +74,6 @@ def main() -> None:
     except ReachwiseError as exc:
         typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
         raise SystemExit(exc.exit_code) from None
+    except KeyboardInterrupt:
+        typer.secho("interrupted", err=True)
+        raise SystemExit(130) from None
