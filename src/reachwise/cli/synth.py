@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import typer
 from rich.console import Console
@@ -13,6 +14,9 @@ from rich.table import Table
 
 from reachwise.cli._help import builtins
 from reachwise.cli._robot_options import LENIENT, PACKAGE_DIRS, TIP, load_with_options
+
+if TYPE_CHECKING:
+    from reachwise.cli.interrupts import Interrupts
 
 
 def synth(
@@ -56,21 +60,53 @@ def synth(
     """Find design parameters, base frame and joints reaching every task pose (P-I),
     then, with --objective, the best reaching design (or a Pareto front, --pareto).
 
-    Ctrl-C stops after the current run and writes the runs finished so far.
+    Ctrl-C (once or more) ends the current run, writes the runs finished before it and
+    exits with 130; during --pareto it ends the sweep and keeps the runs' files.
     """
+    from reachwise.cli.interrupts import deferred_interrupts
+
+    with deferred_interrupts() as interrupts:
+        from reachwise.errors import check_choice
+        from reachwise.synthesis.synthesize import SOLVERS
+
+        solver_name = check_choice(solver, SOLVERS, source="--solver", kind="solver")
+        if pareto is not None and objective is not None:
+            raise typer.BadParameter("give --objective or --pareto, not both")
+        names = _pareto_names(pareto) if pareto is not None else None
+        problem, weights, workspace = _problem(
+            task, robot, tip, package_dir, lenient, min_length, objective, lock, tunnel
+        )
+        if names is not None:
+            weights = {}  # the sweep starts from the reach-only design
+        done = _runs(problem, runs, seed, solver_name, workspace, weights, interrupts, json_out)
+        if not done:
+            Console(stderr=True).print("interrupted before the first run finished: nothing written")
+            raise typer.Exit(130)
+        data = _write(
+            problem, done, solver_name, weights, names, points, workspace, out, figures,
+            json_out, interrupts,
+        )  # fmt: skip
+    result = data.pop("_result")
+    if json_out:
+        typer.echo(json.dumps(data, indent=2))
+    else:
+        _print(result, data)
+    if data["interrupted"]:
+        raise typer.Exit(130)
+
+
+def _problem(
+    task: str, robot: str, tip: str | None, package_dir: list[Path], lenient: bool,
+    min_length: float | None, objective: str | None, lock: list[int], tunnel: bool,
+) -> tuple[Any, dict[str, float], Any]:  # fmt: skip
+    """The synthesis problem of the task and template files, the objective's weights
+    and the workspace (the task's tunnel envelope, or ``None``)."""
     from dataclasses import replace
 
-    from reachwise.errors import check_choice
     from reachwise.io.task_file import load_task
-    from reachwise.report.synthesis import save_synthesis_figures, write_synthesis_report
-    from reachwise.results.synthesis_out import summary, write_synthesis
     from reachwise.synthesis.objectives import check_objective, parse_objective
     from reachwise.synthesis.problem import SynthesisProblem, locked_from_spec
-    from reachwise.synthesis.synthesize import SOLVERS, RunResult, result_of, run_once
 
-    solver_name = check_choice(solver, SOLVERS, source="--solver", kind="solver")
-    if pareto is not None and objective is not None:
-        raise typer.BadParameter("give --objective or --pareto, not both")
     t = load_task(task)
     template = load_with_options(robot, tip, package_dir, lenient)
     if min_length is not None:
@@ -80,51 +116,70 @@ def synth(
         if objective is None
         else parse_objective(objective)
     )
-    names = _pareto_names(pareto) if pareto is not None else None
-    if names is not None:
-        weights = {}  # the sweep starts from the reach-only design
-    workspace = t.envelope if tunnel else None
     problem = SynthesisProblem(template, t, locked_from_spec(template, lock or None))
-    console = Console(stderr=True)
-    done: list[RunResult] = []
-    interrupted = False
+    return problem, weights, (t.envelope if tunnel else None)
+
+
+def _runs(
+    problem: Any, runs: int, seed: int, solver: Any, workspace: Any,
+    weights: dict[str, float], interrupts: Interrupts, quiet: bool,
+) -> list[Any]:  # fmt: skip
+    """The multi-start runs ``seed, seed + 1, ...`` until ``runs`` are done or Ctrl-C:
+    asked between the runs, as the compiled code inside one must not be interrupted."""
+    from reachwise.synthesis.synthesize import run_once
+
+    done = []
     with Progress(
         TextColumn("[bold]synthesis"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-        TextColumn("{task.description}"), console=console, disable=json_out,
+        TextColumn("{task.description}"), console=Console(stderr=True), disable=quiet,
     ) as bar:  # fmt: skip
         job = bar.add_task("", total=runs)
         try:
             for i in range(runs):
-                r = run_once(problem, seed + i, solver_name, workspace=workspace, objective=weights)
+                if interrupts.requested:
+                    break
+                r = run_once(problem, seed + i, solver, workspace=workspace, objective=weights)
                 done.append(r)
                 bar.update(job, advance=1, description=f"run {i}: {r.n_reached}/{problem.K}")
-        except KeyboardInterrupt:
-            interrupted = True
-    if not done:
-        console.print("interrupted before the first run finished: nothing written")
-        raise typer.Exit(130)
-    result = result_of(problem, done, solver_name, weights)
+        except KeyboardInterrupt:  # raised by Python code, not by the handler
+            interrupts.stop()
+    return done
+
+
+def _write(
+    problem: Any, done: list[Any], solver: Any, weights: dict[str, float],
+    names: tuple[str, str] | None, points: int, workspace: Any, out: Path, figures: bool,
+    quiet: bool, interrupts: Interrupts,
+) -> dict[str, Any]:  # fmt: skip
+    """Write the finished runs (and, if not interrupted, the Pareto sweep) into ``out``;
+    the summary data (with the result under ``_result``)."""
+    from reachwise.report.synthesis import save_synthesis_figures, write_synthesis_report
+    from reachwise.results.synthesis_out import summary, write_synthesis
+    from reachwise.synthesis.synthesize import result_of
+
+    result = result_of(problem, done, solver, weights)
     folder = write_synthesis(result, out)
     pngs = save_synthesis_figures(result, folder) if figures else False
     extra = []
     front = None
-    if names is not None and not interrupted:
-        front, section = _pareto(result, names, points, workspace, folder, figures, json_out)
+    if names is not None and not interrupts.requested:
+        try:
+            front, section = _pareto(
+                result, names, points, workspace, folder, figures, quiet, interrupts.check
+            )
+        except KeyboardInterrupt:
+            section = None
         if section is not None:
             extra.append(section)
     report = write_synthesis_report(result, folder, pngs, extra)
     data = summary(result)
     if front is not None:
         data["pareto"] = front
-    data["interrupted"] = interrupted
+    data["interrupted"] = interrupts.requested
     data["out"] = str(folder)
     data["report"] = str(report)
-    if json_out:
-        typer.echo(json.dumps(data, indent=2))
-    else:
-        _print(result, data)
-    if interrupted:
-        raise typer.Exit(130)
+    data["_result"] = result
+    return data
 
 
 def _pareto_names(text: str) -> tuple[str, str]:
@@ -143,10 +198,11 @@ def _pareto_names(text: str) -> tuple[str, str]:
 
 def _pareto(
     result: Any, names: tuple[str, str], points: int, workspace: Any, folder: Path,
-    figures: bool, quiet: bool,
+    figures: bool, quiet: bool, stop: Callable[[], None] | None = None,
 ) -> tuple[dict[str, Any] | None, Any]:  # fmt: skip
     """The Pareto sweep from the best run (if it reaches every pose): files in
-    ``folder/pareto/``, the report section, and the data for the summary."""
+    ``folder/pareto/``, the report section, and the data for the summary. ``stop`` is
+    called between the sweep's solves; it may raise to end the sweep, nothing written."""
     from reachwise.report.design import pareto_figure, pareto_section
     from reachwise.report.png import save_png
     from reachwise.results.pareto_out import write_pareto
@@ -159,7 +215,7 @@ def _pareto(
     prob = result.problem
     if not quiet:
         Console(stderr=True).print(f"Pareto sweep {names[0]}/{names[1]}: {points} weightings")
-    front = pareto_sweep(prob, prob.pack(best.design, best.q), names, points, workspace)
+    front = pareto_sweep(prob, prob.pack(best.design, best.q), names, points, workspace, stop=stop)
     data = write_pareto(front, folder / "pareto")
     fig = pareto_figure(front) if figures else None
     if fig is not None:

@@ -51,7 +51,7 @@ others as ``objectives`` does). Pure math.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
@@ -253,10 +253,12 @@ def pareto_sweep(
     options: ImproveOptions | None = None,
     same: float = SAME,
     max_solves: int | None = None,
+    stop: Callable[[], None] | None = None,
 ) -> ParetoResult:
     """The front of the module docstring from the reaching vector ``z0``: aims at
     ``points`` non-dominated designs with at most ``max_solves`` improvements (default
-    ``4 · points + 4``)."""
+    ``4 · points + 4``). ``stop``, if given, is called before each improvement; it may
+    raise (a command's Ctrl-C) to end the sweep between the compiled solves."""
     a, b = check_names(names)
     if points < 2:
         raise InputError("pareto", "points", f"at least 2, got {points}")
@@ -274,6 +276,8 @@ def pareto_sweep(
     def solve(z: Array, name: str, level: float | None = None, stage: Stage = "level"
               ) -> ParetoPoint:  # fmt: skip
         """Improve ``name`` from ``z`` (holding the other objective at ``level``)."""
+        if stop is not None:
+            stop()
         other = b if name == a else a
         levels = {} if level is None else {other: level}
         obj = Objective(
