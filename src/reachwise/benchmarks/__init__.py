@@ -16,4 +16,5 @@ REGISTRY: dict[str, str] = {
     "pairs": "reachwise.benchmarks.pairs",
     "server": "reachwise.benchmarks.server",
     "realtime": "reachwise.benchmarks.realtime",
+    "replay": "reachwise.benchmarks.replay",
 }

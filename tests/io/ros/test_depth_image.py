@@ -115,3 +115,24 @@ def test_short_step_is_an_error() -> None:
     msg.step = 4
     with pytest.raises(RecordingError, match="step"):
         depth_image_metres(msg)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_projector_equals_points_moved_by_the_pose(seed: int) -> None:
+    from scipy.spatial.transform import Rotation
+
+    from reachwise.io.ros.depth_image import DepthProjector
+
+    rng = np.random.default_rng(seed)
+    raw = rng.uniform(0.3, 5.0, (6, 8)).astype(np.float32)
+    raw[rng.random((6, 8)) < 0.3] = np.nan
+    msg = depth_message(raw, "32FC1", step=32, big=False)
+    cam = camera_from_info(camera_info(8, 6, 9.0, 11.0, 3.5, 2.5))
+    proj = DepthProjector(cam)
+    for _ in range(2):  # a second pose: the rotated rays follow it
+        T = np.eye(4)
+        T[:3, :3] = Rotation.random(random_state=rng).as_matrix()
+        T[:3, 3] = rng.uniform(-2, 2, 3)
+        expected = depth_points(msg, cam) @ T[:3, :3].T + T[:3, 3]
+        np.testing.assert_allclose(proj.points(msg, T), expected, rtol=0, atol=1e-12)

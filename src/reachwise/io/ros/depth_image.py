@@ -25,7 +25,13 @@ from reachwise.geometry.depth_camera import DepthCamera, Intrinsics
 from reachwise.io.ros.recording_error import RecordingError
 from reachwise.io.ros.stamps import header_stamp
 
-__all__ = ["DEPTH_ENCODINGS", "camera_from_info", "depth_image_metres", "depth_points"]
+__all__ = [
+    "DEPTH_ENCODINGS",
+    "DepthProjector",
+    "camera_from_info",
+    "depth_image_metres",
+    "depth_points",
+]
 
 DepthEncoding = Literal["16UC1", "mono16", "32FC1"]
 #: The depth encodings understood, and their pixel types.
@@ -108,3 +114,36 @@ def depth_points(image: Any, camera: DepthCamera, *, topic: str = "Image") -> ND
             f"{camera.shape[1]}×{camera.shape[0]}",
         )
     return camera.points(z)
+
+
+class DepthProjector:
+    """Depth images of one camera straight into another frame: pixel ``(u, v)`` of depth
+    ``z`` becomes ``R · (z · r_uv) + t = z · (R · r_uv) + t`` for the pose ``(R, t)`` of
+    the camera in that frame, with the rotated rays ``R · r_uv`` computed once per pose
+    (a fixed camera: once), so a frame costs one multiply-add per pixel and no matrix
+    product."""
+
+    def __init__(self, camera: DepthCamera) -> None:
+        self.camera = camera
+        self._pose: bytes | None = None
+        self._rays: NDArray[np.float64] = np.zeros((0, 3))
+
+    def points(
+        self, image: Any, pose: NDArray[np.float64], *, topic: str = "Image"
+    ) -> NDArray[np.float64]:
+        """The returned pixels of ``image`` as points ``(k, 3)`` in the frame where the
+        camera is at ``pose`` (4 × 4), row-major pixel order."""
+        cam = self.camera
+        z = depth_image_metres(image, topic=topic)
+        if z.shape != cam.shape:
+            return depth_points(image, cam, topic=topic)  # raises the size error
+        key = np.ascontiguousarray(pose[:3, :3]).tobytes()
+        if key != self._pose:
+            self._rays = np.ascontiguousarray(cam.intrinsics.rays() @ pose[:3, :3].T)
+            self._pose = key
+        flat = z.reshape(-1)
+        keep = np.flatnonzero(np.isfinite(flat))
+        out = self._rays[keep]
+        out *= flat[keep, None]
+        out += pose[:3, 3]
+        return out

@@ -39,9 +39,8 @@ from numpy.typing import NDArray
 from reachwise.distance.scene import Scene
 from reachwise.errors import InputError, UnknownName
 from reachwise.geometry.cloud import PointCloud
-from reachwise.geometry.depth_camera import DepthCamera
 from reachwise.io.ros.bag import Recording
-from reachwise.io.ros.depth_image import camera_from_info, depth_points
+from reachwise.io.ros.depth_image import DepthProjector, camera_from_info
 from reachwise.io.ros.joint_state import JointMatcher, robot_joint_names
 from reachwise.io.ros.pointcloud2 import pointcloud2_points
 from reachwise.io.ros.recording_error import RecordingError
@@ -146,7 +145,7 @@ class _CloudTopic:
         self.topic = topic
         self.msgtype = msgtype
         self.info_topic = info_topic
-        self.camera: DepthCamera | None = None
+        self.projector: DepthProjector | None = None
         self._info_key: tuple[Any, ...] | None = None
         self.count = 0
 
@@ -154,30 +153,32 @@ class _CloudTopic:
         k = getattr(msg, "k", None)
         key = (int(msg.width), int(msg.height), tuple(np.asarray(k if k is not None else msg.K)))
         if key != self._info_key:
-            self.camera = camera_from_info(msg, topic=self.info_topic or "")
+            self.projector = DepthProjector(camera_from_info(msg, topic=self.info_topic or ""))
             self._info_key = key
 
     def points(self, msg: Any, t: float, tree: TransformTree, frame: str) -> tuple[F64, float]:
         """The message's points in ``frame`` and their stamp (s; the bag time when the
         header has none)."""
         stamp = header_stamp(msg) or t
-        if self.msgtype == POINTCLOUD2:
-            pts = pointcloud2_points(msg, topic=self.topic)
-        else:
-            if self.camera is None:
-                raise RecordingError(
-                    self.topic, stamp, "camera_info", f"no CameraInfo on {self.info_topic} yet"
-                )
-            pts = depth_points(msg, self.camera, topic=self.topic)
         source = header_frame(msg)
-        if source and source != frame:
+        if not source:
+            raise RecordingError(self.topic, stamp, "header.frame_id", "is empty")
+        T = None
+        if source != frame:
             try:
                 T = tree.lookup(frame, source, stamp)
             except InputError as exc:
                 raise RecordingError(self.topic, stamp, "header.frame_id", str(exc)) from None
-            pts = pts @ T[:3, :3].T + T[:3, 3]
-        elif not source:
-            raise RecordingError(self.topic, stamp, "header.frame_id", "is empty")
+        if self.msgtype == POINTCLOUD2:
+            pts = pointcloud2_points(msg, topic=self.topic)
+            if T is not None:
+                pts = pts @ T[:3, :3].T + T[:3, 3]
+        else:
+            if self.projector is None:
+                raise RecordingError(
+                    self.topic, stamp, "camera_info", f"no CameraInfo on {self.info_topic} yet"
+                )
+            pts = self.projector.points(msg, np.eye(4) if T is None else T, topic=self.topic)
         if len(pts) == 0:  # nothing returned: the frame says "nothing near"
             pts = _NOWHERE
         return np.ascontiguousarray(pts, dtype=np.float64), stamp
@@ -193,7 +194,7 @@ def _read_tf_and_info(
     for m in rec.messages(topics):
         if m.topic in infos:
             src = infos[m.topic]
-            if src.camera is None:
+            if src.projector is None:
                 src.set_info(m.msg)
             continue
         try:

@@ -1,0 +1,21 @@
+"""The replay benchmark's baseline decodes what ours decodes (a wrong baseline would
+make its ratio meaningless)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from reachwise.benchmarks.replay import _loop_decode
+from reachwise.io.ros.depth_image import camera_from_info, depth_points
+from tests.io.ros._messages import camera_info, depth_message
+
+
+def test_the_per_pixel_loop_equals_depth_points() -> None:
+    rng = np.random.default_rng(2)
+    raw = rng.integers(0, 4000, (7, 9)).astype(np.uint16)
+    raw[0, 0] = 0
+    for big in (False, True):
+        msg = depth_message(raw, "16UC1", step=20, big=big)
+        cam = camera_from_info(camera_info(9, 7, 30.0, 40.0, 4.0, 3.0))
+        loop = np.array(_loop_decode(msg, 30.0, 40.0, 4.0, 3.0))
+        np.testing.assert_allclose(loop, depth_points(msg, cam), rtol=1e-12, atol=1e-15)
