@@ -17,4 +17,5 @@ REGISTRY: dict[str, str] = {
     "server": "reachwise.benchmarks.server",
     "realtime": "reachwise.benchmarks.realtime",
     "replay": "reachwise.benchmarks.replay",
+    "memory": "reachwise.benchmarks.memory",
 }

@@ -1,0 +1,278 @@
+"""A scene memory: depth frames from several cameras fused into one voxel map, so that
+what the cameras cannot see now is never taken for free space.
+
+A depth camera sees surfaces, not volumes: a cloud that replaces the last one each frame
+forgets what left the view and knows nothing of the body behind a surface (P-V's
+occlusion gap, live). The memory keeps four states per voxel of a box-shaped grid:
+
+- **unknown** — never observed; never free, never an obstacle of the distance query;
+- **free** — some camera's ray passed through it (its centre lies in front of the depth
+  measured at its pixel by more than the surface band); cleared at once, whatever it
+  held before: a person who leaves is forgotten with the first frame that sees them gone;
+- **occupied** — it holds an observed surface point (every returned pixel's point marks
+  its voxel at the frame's time);
+- **shadow** — at or behind an observed surface, up to ``shadow_depth`` beyond it: it
+  counts as occupied until some camera sees it free (Flacco et al. 2014 and workcell
+  monitoring practice treat the volume behind a depth pixel as possibly occupied).
+  Occupied voxels not re-observed for ``memory_s`` fade to shadow, never to free.
+
+Pixels that see the robot (a camera's self-filter) and pixels without a return change
+nothing: the space the robot hides from a camera keeps what that camera saw there
+before, and the robot never enters its own map.
+
+**The distance answer.** The occupied and shadow voxels enter the distance scene as
+their centres; every observed point lies in an occupied voxel, within ``inflation`` =
+half the voxel's diagonal of its centre, so a distance to the centres minus
+``inflation`` is never larger than the distance to the observed points (watch the memory
+with the margin plus :attr:`SceneMemory.inflation`). Against the true surface, add the
+camera's sampling: neighbouring pixels' points lie :meth:`DepthCamera.pixel_spacing
+<reachwise.geometry.depth_camera.DepthCamera.pixel_spacing>` apart.
+
+**Defaults and why.** ``voxel`` 3 cm (the P-V downsampling); ``shadow_depth`` 0.5 m —
+the safety practice above sets no limit, but an unlimited shadow fills the cell behind
+every surface up to the far wall and freezes an arm working behind a table; a person's
+body is 0.3–0.5 m deep, so 0.5 m covers the person a camera sees from one side;
+``memory_s`` 3 s; ``free_hold_s`` 0.1 s — a voxel one camera saw free within the last
+0.1 s is not shadowed again by another camera's view from the other side (three frames
+at 30 Hz), so two cameras looking at one person from opposite sides do not make the
+space between them flicker.
+
+The update is the projective one of nvblox (each voxel projected into the depth image),
+with bricks of 8³ voxels culled against the view frustum first; the kernels are in
+:mod:`reachwise.distance._memory_kernel`. Times are passed in (seconds, any epoch):
+nothing here reads a clock.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from reachwise.distance._memory_kernel import (
+    FREE,
+    OCCUPIED,
+    SHADOW,
+    UNKNOWN,
+    decay_and_collect,
+    mark_points,
+    project_frame,
+)
+from reachwise.errors import InputError
+
+__all__ = ["STATES", "MemoryConfig", "MemoryCounts", "SceneMemory", "ViewIntrinsics"]
+
+_SRC = "scene memory"
+#: Most voxels one memory may hold (about 140 MB of state).
+MAX_VOXELS = 8_000_000
+#: The state codes of :attr:`SceneMemory.state`.
+STATES = {
+    "unknown": int(UNKNOWN),
+    "free": int(FREE),
+    "occupied": int(OCCUPIED),
+    "shadow": int(SHADOW),
+}
+
+
+def _positive(value: object, name: str, *, zero: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
+        raise InputError(_SRC, name, f"must be a number, got {value!r}")
+    v = float(value)
+    if not math.isfinite(v) or v < 0.0 or (v == 0.0 and not zero):
+        raise InputError(_SRC, name, f"must be finite and {'≥' if zero else '>'} 0, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class MemoryConfig:
+    """How the memory fuses frames (module docstring): ``voxel`` edge (m),
+    ``shadow_depth`` behind each observed surface (m), ``memory_s`` before an occupied
+    voxel not re-observed fades to shadow (s), ``free_hold_s`` during which a voxel seen
+    free is not shadowed again (s), and the surface ``band`` (m; default: half the
+    voxel's diagonal): a centre closer than that in front of the measured depth is not
+    carved free."""
+
+    voxel: float = 0.03
+    shadow_depth: float = 0.5
+    memory_s: float = 3.0
+    free_hold_s: float = 0.1
+    band: float | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "voxel", _positive(self.voxel, "voxel"))
+        object.__setattr__(
+            self, "shadow_depth", _positive(self.shadow_depth, "shadow_depth", zero=True)
+        )
+        object.__setattr__(self, "memory_s", _positive(self.memory_s, "memory_s", zero=True))
+        object.__setattr__(
+            self, "free_hold_s", _positive(self.free_hold_s, "free_hold_s", zero=True)
+        )
+        if self.band is not None:
+            object.__setattr__(self, "band", _positive(self.band, "band", zero=True))
+
+    @property
+    def surface_band(self) -> float:
+        """The band in front of a measured depth that is not carved free (m)."""
+        return self.band if self.band is not None else 0.5 * math.sqrt(3.0) * self.voxel
+
+
+class ViewIntrinsics(NamedTuple):
+    """A depth image's pinhole model: focal lengths ``fx``, ``fy`` and principal point
+    ``cx``, ``cy`` (pixels; pixel ``(u, v)`` looks along ``((u − cx)/fx, (v − cy)/fy,
+    1)`` in the optical frame) and the valid depth range ``near``, ``far`` (m)."""
+
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    near: float
+    far: float
+
+
+class MemoryCounts(NamedTuple):
+    """How many voxels hold each state."""
+
+    unknown: int
+    free: int
+    occupied: int
+    shadow: int
+
+
+class SceneMemory:
+    """The voxel memory of the axis-aligned box ``lower`` … ``upper`` (m, world frame)
+    under ``config``; :meth:`integrate` fuses one depth frame, :meth:`obstacles` gives
+    the occupied and shadow voxels' centres for the distance scene."""
+
+    def __init__(self, lower: ArrayLike, upper: ArrayLike, config: MemoryConfig | None = None):
+        self.config = config or MemoryConfig()
+        lo = _vector(lower, "lower")
+        hi = _vector(upper, "upper")
+        if not np.all(hi > lo):
+            raise InputError(_SRC, "upper", f"must exceed lower in x, y and z: {lo} … {hi}")
+        vox = self.config.voxel
+        shape = tuple(math.ceil((h - l) / vox - 1e-9) for l, h in zip(lo, hi, strict=True))
+        if math.prod(shape) > MAX_VOXELS:
+            raise InputError(
+                _SRC, "voxel", f"{shape[0]} × {shape[1]} × {shape[2]} voxels exceed the "
+                f"{MAX_VOXELS} a memory may hold: a larger voxel or a smaller box"
+            )  # fmt: skip
+        self.shape: tuple[int, int, int] = shape  # type: ignore[assignment]
+        self.origin = lo
+        self._grid = np.array([*lo, vox])
+        self._grid.setflags(write=False)
+        self.state = np.zeros(shape, dtype=np.uint8)
+        self.seen_at = np.full(shape, -np.inf)
+        self.freed_at = np.full(shape, -np.inf)
+        self._stamp = -math.inf
+
+    @property
+    def inflation(self) -> float:
+        """Half a voxel's diagonal (m): how far an observed point may lie from the centre
+        of its voxel. Subtract it from distances to :meth:`obstacles` (or add it to the
+        margin) for an answer never larger than the distance to the observed points."""
+        return 0.5 * math.sqrt(3.0) * self.config.voxel
+
+    @property
+    def stamp(self) -> float:
+        """The capture time of the newest frame fused (s; -inf before the first)."""
+        return self._stamp
+
+    def integrate(
+        self,
+        depth: ArrayLike,
+        pose: ArrayLike,
+        intrinsics: ViewIntrinsics,
+        t: float,
+        body: ArrayLike | None = None,
+    ) -> None:
+        """Fuse one ``depth`` image (``(height, width)``, m along the optical axis, NaN or
+        0 where there is no return) taken at time ``t`` (s) by a camera at ``pose``
+        (4 × 4, optical frame → world) with ``intrinsics``; ``body`` marks the pixels
+        that saw the robot (filtered: they change nothing)."""
+        z = np.array(depth, dtype=np.float64)
+        if z.ndim != 2 or z.size == 0:
+            raise InputError(_SRC, "depth", f"expected a (height, width) image, got {z.shape}")
+        near, far = float(intrinsics.near), float(intrinsics.far)
+        with np.errstate(invalid="ignore"):
+            z[~((z > 0.0) & (z >= near) & (z <= far))] = np.nan
+        mask = (
+            np.zeros(z.shape, dtype=np.bool_)
+            if body is None
+            else np.ascontiguousarray(body, dtype=np.bool_)
+        )
+        if mask.shape != z.shape:
+            raise InputError(_SRC, "body", f"expected shape {z.shape}, got {mask.shape}")
+        T = _pose(pose)
+        camera = np.array([float(v) for v in intrinsics], dtype=np.float64)
+        if not (np.isfinite(camera).all() and camera[0] > 0 and camera[1] > 0 and 0 <= near < far):
+            raise InputError(
+                _SRC,
+                "intrinsics",
+                f"expected positive focal lengths and 0 ≤ near < far, got {intrinsics}",
+            )
+        tt = float(t)
+        if not math.isfinite(tt):
+            raise InputError(_SRC, "t", f"must be a finite time, got {t!r}")
+        cw = np.linalg.inv(T)
+        cfg = self.config
+        rules = np.array([cfg.surface_band, cfg.shadow_depth, tt, cfg.free_hold_s])
+        for a in (z, mask, camera, cw, T, rules):
+            a.setflags(write=False)
+        project_frame(self.state, self.freed_at, z, mask, camera, cw, self._grid, rules)
+        mark_points(self.state, self.seen_at, z, mask, camera, T, self._grid, tt)
+        self._stamp = max(self._stamp, tt)
+
+    def obstacles(self, t: float | None = None) -> NDArray[np.float64]:
+        """The centres (``(k, 3)``, m, world) of the occupied and shadow voxels at time
+        ``t`` (default: the newest frame's), after occupied voxels older than
+        ``memory_s`` faded to shadow."""
+        tt = self._stamp if t is None else float(t)
+        out = np.empty((max(1024, int(np.count_nonzero(self.state >= OCCUPIED))), 3))
+        n = decay_and_collect(self.state, self.seen_at, self._grid, tt, self.config.memory_s, out)
+        if n > len(out):  # cannot happen: decay only turns occupied into shadow
+            out = np.empty((n, 3))
+            decay_and_collect(self.state, self.seen_at, self._grid, tt, self.config.memory_s, out)
+        return out[:n].copy()
+
+    def counts(self) -> MemoryCounts:
+        """How many voxels hold each state now."""
+        c = np.bincount(self.state.reshape(-1), minlength=4)
+        return MemoryCounts(int(c[UNKNOWN]), int(c[FREE]), int(c[OCCUPIED]), int(c[SHADOW]))
+
+    def voxel_of(self, point: ArrayLike) -> tuple[int, int, int] | None:
+        """The index of the voxel holding ``point`` (m, world), or None outside the grid."""
+        p = _vector(point, "point")
+        idx = np.floor((p - self.origin) / self.config.voxel).astype(np.int64)
+        if np.any(idx < 0) or np.any(idx >= self.shape):
+            return None
+        return (int(idx[0]), int(idx[1]), int(idx[2]))
+
+    def centre(self, index: tuple[int, int, int]) -> NDArray[np.float64]:
+        """The centre (m, world) of the voxel ``index``."""
+        return self.origin + (np.asarray(index, dtype=np.float64) + 0.5) * self.config.voxel
+
+
+def _vector(value: ArrayLike, name: str) -> NDArray[np.float64]:
+    try:
+        v = np.array(value, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise InputError(_SRC, name, f"expected three numbers, got {value!r}") from None
+    if v.shape != (3,) or not np.isfinite(v).all():
+        raise InputError(_SRC, name, f"expected three finite numbers, got {value!r}")
+    return v
+
+
+def _pose(pose: ArrayLike) -> NDArray[np.float64]:
+    try:
+        T = np.array(pose, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(_SRC, "pose", "expected a numeric 4 × 4 matrix") from None
+    if T.shape != (4, 4) or not np.isfinite(T).all():
+        raise InputError(_SRC, "pose", f"expected a finite 4 × 4 matrix, got shape {T.shape}")
+    R = T[:3, :3]
+    if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) <= 0.0:
+        raise InputError(_SRC, "pose", "its rotation part is not a proper rotation")
+    return np.ascontiguousarray(T)

@@ -1,0 +1,238 @@
+"""The scene memory against a brute-force reference and its stated properties: a voxel
+holding an observed point is occupied; a voxel in front of an observed surface is free;
+a shadow voxel is never freed until some camera sees it free; the robot's pixels change
+nothing; the distance answer is never larger than the distance to the observed points."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
+
+from reachwise.distance.scene_memory import (
+    STATES,
+    MemoryConfig,
+    SceneMemory,
+    ViewIntrinsics,
+)
+from reachwise.errors import InputError
+
+FREE, OCC, SHADOW, UNKNOWN = STATES["free"], STATES["occupied"], STATES["shadow"], STATES["unknown"]
+LOWER, UPPER = np.array([-0.6, -0.6, 0.0]), np.array([0.6, 0.6, 0.9])
+
+
+def camera_pose(rng: np.random.Generator) -> np.ndarray:
+    """A camera about 1.5 m from the box's centre, its optical axis towards it."""
+    centre = 0.5 * (LOWER + UPPER)
+    eye = centre + rng.normal(size=3) * [1.0, 1.0, 0.5]
+    eye = centre + (eye - centre) / np.linalg.norm(eye - centre) * rng.uniform(1.0, 1.8)
+    z = centre + rng.normal(scale=0.1, size=3) - eye
+    z /= np.linalg.norm(z)
+    x = np.cross(z, rng.normal(size=3))
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([x, y, z])
+    T[:3, 3] = eye
+    return T
+
+
+def random_frame(rng: np.random.Generator, h: int = 18, w: int = 24):
+    """A depth image with random surfaces (NaN holes) and a random robot mask."""
+    K = ViewIntrinsics(fx=w * 0.9, fy=w * 0.9, cx=(w - 1) / 2, cy=(h - 1) / 2, near=0.2, far=4.0)
+    depth = rng.uniform(0.8, 2.6, size=(h, w))
+    depth[rng.random((h, w)) < 0.1] = np.nan
+    body = rng.random((h, w)) < 0.1
+    return depth, body, K, camera_pose(rng)
+
+
+def reference_update(mem: SceneMemory, depth, body, K, T, t) -> None:
+    """The update written the plainest way: every voxel centre projected, one at a time
+    in numpy, then every pixel's point marked."""
+    cfg = mem.config
+    idx = np.indices(mem.shape).reshape(3, -1).T
+    centres = mem.origin + (idx + 0.5) * cfg.voxel
+    cw = np.linalg.inv(T)
+    pc = centres @ cw[:3, :3].T + cw[:3, 3]
+    z = pc[:, 2]
+    h, w = depth.shape
+    reach = np.nanmax(np.where(body, np.nan, depth)) + cfg.shadow_depth
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.floor(K.fx * pc[:, 0] / z + K.cx + 0.5)
+        v = np.floor(K.fy * pc[:, 1] / z + K.cy + 0.5)
+    ok = (z > K.near) & (z <= reach) & (u >= 0) & (u < w) & (v >= 0) & (v < h)
+    state = mem.state.reshape(-1)
+    freed = mem.freed_at.reshape(-1)
+    for n in np.flatnonzero(ok):
+        r, c = int(v[n]), int(u[n])
+        d = depth[r, c]
+        if body[r, c] or not np.isfinite(d):
+            continue
+        if z[n] < d - cfg.surface_band:
+            state[n], freed[n] = FREE, t
+        elif z[n] <= d + cfg.shadow_depth and state[n] != OCC and t - freed[n] > cfg.free_hold_s:
+            state[n] = SHADOW
+    for r, c in zip(*np.nonzero(np.isfinite(depth) & ~body), strict=True):
+        p = T[:3, :3] @ (np.array([(c - K.cx) / K.fx, (r - K.cy) / K.fy, 1.0]) * depth[r, c])
+        key = mem.voxel_of(p + T[:3, 3])
+        if key is not None:
+            mem.state[key] = OCC
+            mem.seen_at[key] = t
+
+
+def observed_points(depth, body, K, T) -> np.ndarray:
+    r, c = np.nonzero(np.isfinite(depth) & ~body)
+    d = depth[r, c]
+    pc = np.column_stack([(c - K.cx) / K.fx * d, (r - K.cy) / K.fy * d, d])
+    return pc @ T[:3, :3].T + T[:3, 3]
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), frames=st.integers(1, 4))
+def test_the_kernel_equals_the_plain_reference(seed: int, frames: int) -> None:
+    rng = np.random.default_rng(seed)
+    cfg = MemoryConfig(voxel=0.1, shadow_depth=0.3, memory_s=1.0, free_hold_s=0.05)
+    fast, slow = SceneMemory(LOWER, UPPER, cfg), SceneMemory(LOWER, UPPER, cfg)
+    for f in range(frames):
+        depth, body, K, T = random_frame(rng)
+        fast.integrate(depth, T, K, t=0.04 * f, body=body)
+        reference_update(slow, depth, body, K, T, 0.04 * f)
+        assert np.array_equal(fast.state, slow.state)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_observed_points_are_occupied_and_space_before_them_free(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    mem = SceneMemory(LOWER, UPPER, MemoryConfig(voxel=0.08, shadow_depth=0.3))
+    depth, body, K, T = random_frame(rng)
+    mem.integrate(depth, T, K, t=0.0, body=body)
+    pts = observed_points(depth, body, K, T)
+    occupied = set()
+    for p in pts:
+        key = mem.voxel_of(p)
+        if key is not None:
+            assert mem.state[key] == OCC
+            occupied.add(key)
+    # a voxel whose centre lies strictly in front of the surface seen through its pixel
+    # (and that holds no observed point) is free
+    cw = np.linalg.inv(T)
+    for key in zip(*np.nonzero(mem.state != FREE), strict=True):
+        if key in occupied:
+            continue
+        pc = cw[:3, :3] @ mem.centre(key) + cw[:3, 3]
+        if pc[2] <= K.near:
+            continue
+        u = math.floor(K.fx * pc[0] / pc[2] + K.cx + 0.5)
+        v = math.floor(K.fy * pc[1] / pc[2] + K.cy + 0.5)
+        if 0 <= u < depth.shape[1] and 0 <= v < depth.shape[0] and not body[v, u]:
+            d = depth[v, u]
+            assert not (np.isfinite(d) and pc[2] < d - mem.config.surface_band), key
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_a_shadow_is_freed_only_by_a_camera_that_sees_it_free(seed: int) -> None:
+    """Frames from two cameras; after each frame every voxel that was shadow before is
+    free only if that frame's reference update marked it seen free."""
+    rng = np.random.default_rng(seed)
+    cfg = MemoryConfig(voxel=0.1, shadow_depth=0.4, memory_s=0.05, free_hold_s=0.0)
+    mem = SceneMemory(LOWER, UPPER, cfg)
+    for f in range(6):
+        depth, body, K, T = random_frame(rng)
+        before = mem.state.copy()
+        freed_before = mem.freed_at.copy()
+        mem.integrate(depth, T, K, t=0.1 * f, body=body)
+        mem.obstacles()  # decay: occupied voxels older than memory_s become shadow
+        was_shadow = before == SHADOW
+        seen_free_now = mem.freed_at > freed_before
+        assert not np.any(was_shadow & (mem.state == FREE) & ~seen_free_now)
+        assert not np.any((before != FREE) & (mem.state == FREE) & ~seen_free_now)
+        assert not np.any((before != UNKNOWN) & (mem.state == UNKNOWN))
+
+
+def test_occupied_fades_to_shadow_never_to_free_and_a_person_who_leaves_is_forgotten() -> None:
+    K = ViewIntrinsics(fx=60.0, fy=60.0, cx=39.5, cy=29.5, near=0.2, far=4.0)
+    T = np.eye(4)  # looking along world +z from the origin
+    mem = SceneMemory([-1.0, -1.0, 0.5], [1.0, 1.0, 3.5], MemoryConfig(voxel=0.05, memory_s=1.0))
+    wall = np.full((60, 80), 3.0)
+    person = wall.copy()
+    person[20:40, 30:50] = 1.5
+    mem.integrate(person, T, K, t=0.0)
+    front = mem.voxel_of([0.0, 0.0, 1.5])
+    behind = mem.voxel_of([0.0, 0.0, 1.8])  # within shadow_depth behind the person
+    assert mem.state[front] == OCC and mem.state[behind] == SHADOW
+    # the camera is blinded (no returns): nothing is freed, the person fades to shadow
+    mem.integrate(np.full((60, 80), np.nan), T, K, t=2.0)
+    mem.obstacles()
+    assert mem.state[front] == SHADOW and mem.state[behind] == SHADOW
+    # the robot hides the person from the camera: its pixels change nothing
+    body = np.zeros((60, 80), dtype=bool)
+    body[15:45, 25:55] = True
+    mem.integrate(wall, T, K, t=2.1, body=body)
+    assert mem.state[front] == SHADOW and mem.state[behind] == SHADOW
+    # the person is seen gone: one frame forgets them
+    mem.integrate(wall, T, K, t=2.2)
+    assert mem.state[front] == FREE and mem.state[behind] == FREE
+    assert not any(np.linalg.norm(mem.obstacles() - [0, 0, 1.5], axis=1) < 0.5)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_the_distance_answer_is_never_larger_than_the_distance_to_what_was_seen(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    mem = SceneMemory(LOWER - 1.5, UPPER + 1.5, MemoryConfig(voxel=0.07))
+    depth, body, K, T = random_frame(rng)
+    mem.integrate(depth, T, K, t=0.0, body=body)
+    pts = observed_points(depth, body, K, T)
+    inside = np.all((pts >= mem.origin) & (pts < mem.origin + np.array(mem.shape) * 0.07), axis=1)
+    pts = pts[inside]
+    if len(pts) == 0:
+        return
+    centres = mem.obstacles()
+    queries = rng.uniform(LOWER - 1.0, UPPER + 1.0, size=(50, 3))
+    d_map = cKDTree(centres).query(queries)[0] - mem.inflation
+    d_true = cKDTree(pts).query(queries)[0]
+    assert np.all(d_map <= d_true + 1e-12)
+
+
+def test_bad_inputs_are_typed_errors() -> None:
+    with pytest.raises(InputError, match="voxel"):
+        MemoryConfig(voxel=0.0)
+    with pytest.raises(InputError, match="voxel"):
+        MemoryConfig(voxel=True)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="upper"):
+        SceneMemory([0, 0, 0], [1, -1, 1])
+    with pytest.raises(InputError, match="exceed"):
+        SceneMemory([0, 0, 0], [100, 100, 100], MemoryConfig(voxel=0.01))
+    mem = SceneMemory([0, 0, 0], [1, 1, 1], MemoryConfig(voxel=0.1))
+    K = ViewIntrinsics(10.0, 10.0, 4.5, 4.5, 0.1, 3.0)
+    with pytest.raises(InputError, match="pose"):
+        mem.integrate(np.ones((10, 10)), np.eye(4) * 2, K, t=0.0)
+    with pytest.raises(InputError, match="body"):
+        mem.integrate(np.ones((10, 10)), np.eye(4), K, t=0.0, body=np.zeros((3, 3), bool))
+    rot = np.eye(4)
+    rot[:3, :3] = Rotation.from_rotvec([0.1, 0.2, 0.3]).as_matrix()
+    mem.integrate(np.ones((10, 10)), rot, K, t=0.0)  # a valid call
+
+
+def test_the_benchmarks_per_ray_baseline_marks_what_the_memory_marks() -> None:
+    """The baseline of ``bench memory`` (a ray walked voxel by voxel) ends each ray in
+    the voxel the memory marks occupied, and frees only voxels the ray passes."""
+    from reachwise.benchmarks.memory import _per_ray
+
+    rng = np.random.default_rng(3)
+    cfg = MemoryConfig(voxel=0.05, shadow_depth=0.0, free_hold_s=0.0)
+    mem = SceneMemory(LOWER, UPPER, cfg)
+    depth, body, K, T = random_frame(rng, 30, 40)
+    mem.integrate(depth, T, K, t=0.0, body=body)
+    state = np.zeros(mem.shape, dtype=np.uint8)
+    camera = np.array([K.fx, K.fy, K.cx, K.cy, K.near, K.far])
+    _per_ray(state, depth, body, camera, T, np.array([*LOWER, cfg.voxel]))
+    assert np.array_equal(state == 2, mem.state == OCC)
+    assert (state == 1).sum() > 0
