@@ -106,8 +106,8 @@ def _pin_one_core() -> str:
 
 def run(quick: bool = False) -> BenchReport:
     """Replay a recorded cell and decode its depth images (see the module docstring)."""
-    import reachwise
     from reachwise.geometry.cloud import PointCloud
+    from reachwise.io.robot_file import load_robot
     from reachwise.io.ros.bag import Recording
     from reachwise.io.ros.depth_image import camera_from_info, depth_points
     from reachwise.io.ros.replay import ReplaySpec, replay_recording
@@ -120,7 +120,7 @@ def run(quick: bool = False) -> BenchReport:
         with tempfile.TemporaryDirectory() as tmp:
             bag = Path(tmp) / "cell.mcap"
             _record(bag, seconds)
-            robot = reachwise.load_robot("panda")
+            robot = load_robot("panda")
             rng = np.random.default_rng(0)
             clouds = {
                 link: PointCloud(rng.normal(scale=0.06, size=(1000, 3)))
