@@ -15,14 +15,14 @@ from typing import Annotated, Any, Literal
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import ConfigDict, Field, ValidationError, model_validator
 
 from reachwise.errors import InputError, RobotFileError
 from reachwise.io._builtin import Builtin, builtin_names, load_named
 from reachwise.io.atomic import atomic_write
 from reachwise.io.design_bodies import BodyModel, bodies_from_models, bodies_to_dict
 from reachwise.io.robot_geometry import GeometryModel, geometry_to_dict, resolve_meshes
-from reachwise.io.validation import input_error
+from reachwise.io.validation import StrictModel, input_error
 from reachwise.kinematics.robot import (
     BASE_PARAMS,
     DH_PARAMS,
@@ -41,7 +41,7 @@ InfFloat = Annotated[float, Field(allow_inf_nan=True)]
 LimitPair = tuple[InfFloat, InfFloat]
 
 
-class FrameModel(BaseModel):
+class FrameModel(StrictModel):
     model_config = _STRICT
     xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
     rpy: tuple[float, float, float] | None = None
@@ -58,7 +58,7 @@ class FrameModel(BaseModel):
         return pose_from_xyz_rpy(self.xyz, rpy)
 
 
-class JointModel(BaseModel):
+class JointModel(StrictModel):
     model_config = _STRICT
     type: Literal["revolute", "prismatic", "fixed", "passive"]
     a: float = 0.0
@@ -113,7 +113,7 @@ class JointModel(BaseModel):
         )
 
 
-class DesignModel(BaseModel):
+class DesignModel(StrictModel):
     model_config = _STRICT
     joints: dict[int, dict[Literal["a", "alpha", "d", "theta"], Pair]] = {}
     base: dict[Literal["x", "y", "z", "roll", "pitch", "yaw"], Pair] = {}
@@ -133,7 +133,7 @@ class DesignModel(BaseModel):
         return self
 
 
-class RobotModel(BaseModel):
+class RobotModel(StrictModel):
     model_config = _STRICT
     name: str
     convention: Literal["modified", "classic"] = "modified"

@@ -49,13 +49,13 @@ from typing import Any, Literal
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import ConfigDict, Field, ValidationError, field_validator
 from scipy.spatial.transform import Rotation
 
 from reachwise.errors import TaskError
 from reachwise.io._builtin import builtin_names, load_named
 from reachwise.io.atomic import atomic_write
-from reachwise.io.validation import input_error
+from reachwise.io.validation import StrictModel, input_error
 from reachwise.tasks.task import (
     DEFAULT_TOL_ORIENTATION,
     DEFAULT_TOL_POSITION,
@@ -73,13 +73,13 @@ _LENGTHS = {"xyz": 3, "quat": 4, "rpy": 3, "rpy_deg": 3, "axis": 3, "x_range": 2
 _SUFFIX: dict[str, Format] = {".yaml": "yaml", ".yml": "yaml", ".json": "json", ".csv": "csv"}
 
 
-class ToleranceModel(BaseModel):
+class ToleranceModel(StrictModel):
     model_config = _STRICT
     position: float | None = Field(default=None, gt=0)
     orientation: float | None = Field(default=None, gt=0)
 
 
-class PointModel(BaseModel):
+class PointModel(StrictModel):
     model_config = _STRICT
     xyz: Vec3
     quat: tuple[float, float, float, float] | None = None
@@ -114,7 +114,7 @@ class PointModel(BaseModel):
         return a
 
 
-class ProfileModel(BaseModel):
+class ProfileModel(StrictModel):
     model_config = _STRICT
     width: float
     height: float
@@ -124,14 +124,14 @@ class ProfileModel(BaseModel):
     floor_z: float = 0.0
 
 
-class EnvelopeModel(BaseModel):
+class EnvelopeModel(StrictModel):
     model_config = _STRICT
     tunnel: ProfileModel
     face_x: float | None = None
     x_range: tuple[float | None, float | None] | None = None
 
 
-class TaskModel(BaseModel):
+class TaskModel(StrictModel):
     model_config = _STRICT
     name: str | None = None
     description: str = ""

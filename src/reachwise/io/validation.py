@@ -21,13 +21,13 @@ from __future__ import annotations
 import difflib
 import types
 from collections.abc import Mapping, Sequence
-from typing import Annotated, Any, Union, get_args, get_origin
+from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
-from pydantic import BaseModel, ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError, ValidationInfo, field_validator
 
 from reachwise.errors import InputError
 
-__all__ = ["closest_key", "field_path", "input_error", "valid_keys"]
+__all__ = ["StrictModel", "closest_key", "field_path", "input_error", "valid_keys"]
 
 
 def field_path(loc: tuple[Any, ...]) -> str:
@@ -153,3 +153,62 @@ def input_error(
         n = len(problems) - 1
         reason += f"; {n} more problem{'s' if n > 1 else ''}: {rest}"
     return error(source, field, reason)
+
+
+_NUMBERS = (float, int)
+
+
+def _bool_in_number(annotation: Any, value: Any) -> str | None:
+    """Where ``value`` holds a boolean that ``annotation`` means as a number (YAML's
+    ``true`` would pass as 1): ``""`` for the value itself, ``"[2]"`` or ``"[key]"``
+    inside it; ``None`` when there is none. Nested models check their own fields."""
+    members = _members(annotation)
+    if any(m is bool or m is Any for m in members):
+        return None
+    if isinstance(value, bool):
+        numbers = any(
+            m in _NUMBERS
+            or (get_origin(m) is Literal and any(type(a) in _NUMBERS for a in get_args(m)))
+            for m in members
+        )
+        return "" if numbers else None
+    if isinstance(value, list | tuple):
+        for m in members:
+            origin, args = get_origin(m), get_args(m)
+            if origin in (list, tuple, set, frozenset, Sequence) and args:
+                for i, v in enumerate(value):
+                    arg = args[-2] if args[-1] is Ellipsis else args[min(i, len(args) - 1)]
+                    if origin is tuple and args[-1] is not Ellipsis and i >= len(args):
+                        break
+                    at = _bool_in_number(arg, v)
+                    if at is not None:
+                        return f"[{i}]{at}"
+                return None
+    if isinstance(value, dict):
+        for m in members:
+            if get_origin(m) in (dict, Mapping) and len(get_args(m)) == 2:
+                for k, v in value.items():
+                    at = _bool_in_number(get_args(m)[1], v)
+                    if at is not None:
+                        return f"[{k}]{at}"
+                return None
+    return None
+
+
+class StrictModel(BaseModel):
+    """Base of reachwise's file schemas: unknown keys, NaN/inf and booleans where a
+    number is meant (``kv: true``, ``xyz: [true, 0, 0]``) are errors; the rest of
+    pydantic's lax parsing (an integer for a float, a list for a tuple) stays."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _no_bool_as_number(cls, value: Any, info: ValidationInfo) -> Any:
+        field = cls.model_fields.get(info.field_name or "")
+        if field is not None:
+            at = _bool_in_number(field.annotation, value)
+            if at is not None:
+                where = f" at {at}" if at else ""
+                raise ValueError(f"a boolean is not a number{where}")
+        return value

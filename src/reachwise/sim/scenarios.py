@@ -89,7 +89,6 @@ from typing import Any, Literal
 import numpy as np
 import yaml
 from pydantic import (
-    BaseModel,
     ConfigDict,
     Field,
     ValidationError,
@@ -101,7 +100,7 @@ from scipy.spatial.transform import Rotation
 from reachwise.errors import InputError
 from reachwise.io._builtin import builtin_names, load_named
 from reachwise.io.robot_file import FrameModel
-from reachwise.io.validation import input_error
+from reachwise.io.validation import StrictModel, input_error
 from reachwise.sim.motion import ConstantVelocity, Trajectory, WaypointTrajectory
 from reachwise.sim.plant import PlantKind
 
@@ -139,7 +138,7 @@ V3 = tuple[float, float, float]
 FrameSpec = FrameModel
 
 
-class GoalSpec(BaseModel):
+class GoalSpec(StrictModel):
     """A tool goal: ``q`` (the tool pose there) or ``xyz`` with ``quat`` (x, y, z, w) or
     ``rpy_deg``; ``mirror_y`` negates the goal's y coordinate; ``work`` (s) locks the
     robot at the goal (drilling)."""
@@ -184,7 +183,7 @@ class GoalSpec(BaseModel):
         return T
 
 
-class ControllerSpec(BaseModel):
+class ControllerSpec(StrictModel):
     """Overrides of :class:`reachwise.control.ControllerConfig` (and its safety)."""
 
     model_config = _STRICT
@@ -211,7 +210,7 @@ class ControllerSpec(BaseModel):
     reaction_time: float | None = None
 
 
-class PlantSpec(BaseModel):
+class PlantSpec(StrictModel):
     model_config = _STRICT
     kind: PlantKind = "kinematic"
     time_constant: float = Field(default=0.1, gt=0.0)
@@ -220,14 +219,14 @@ class PlantSpec(BaseModel):
     hang_time_constant: float = Field(default=0.0, ge=0.0)
 
 
-class LinkCloudSpec(BaseModel):
+class LinkCloudSpec(StrictModel):
     model_config = _STRICT
     mesh: str
     points: int = Field(default=1000, gt=0)
     pose: FrameSpec = FrameSpec()
 
 
-class RobotFileSpec(BaseModel):
+class RobotFileSpec(StrictModel):
     """A robot file with options: ``file`` (YAML or URDF; a path relative to the
     scenario, ``file://`` or ``package://PKG/…``), ``tip`` (the link that ends the
     chain of a branched URDF), ``package_dirs`` (searched first for ``package://``
@@ -240,7 +239,7 @@ class RobotFileSpec(BaseModel):
     lenient: bool = False
 
 
-class RobotSpec(BaseModel):
+class RobotSpec(StrictModel):
     model_config = _STRICT
     name: str = Field(min_length=1)
     robot: RobotFileSpec | str  # RobotFileSpec first: its errors are the ones shown
@@ -269,7 +268,7 @@ class WaypointSpec(FrameModel):
     t: float = Field(ge=0.0)
 
 
-class MotionSpec(BaseModel):
+class MotionSpec(StrictModel):
     """How an object moves (:mod:`reachwise.sim.motion`): ``waypoints`` (world poses at
     times; linear position, slerp orientation; ``loop`` repeats them) or a constant
     ``velocity`` (m/s) and ``angular_velocity_deg`` (deg/s, world axes) from the
@@ -318,7 +317,7 @@ class MotionSpec(BaseModel):
         )
 
 
-class CloudAtSpec(BaseModel):
+class CloudAtSpec(StrictModel):
     """A cloud that replaces an object's cloud from time ``t`` (s) on (a deforming
     obstacle): ``file``, ``mesh`` (``points`` samples) or ``box`` (size, m)."""
 
@@ -338,14 +337,14 @@ class CloudAtSpec(BaseModel):
         return self
 
 
-class RescanSpec(BaseModel):
+class RescanSpec(StrictModel):
     """Re-run the object's scanner every ``every`` seconds (new seed each time)."""
 
     model_config = _STRICT
     every: float = Field(gt=0.0)
 
 
-class OcclusionSpec(BaseModel):
+class OcclusionSpec(StrictModel):
     """Occlusion fill of a scanned object (:func:`reachwise.geometry.occlusion.shadow_points`):
     the unseen space up to ``depth`` (m) behind every return counts as occupied;
     ``spacing`` (m, default the scan's voxel) between virtual points; ``ground`` (world
@@ -358,7 +357,7 @@ class OcclusionSpec(BaseModel):
     ground: float | None = None
 
 
-class ScanMeshSpec(BaseModel):
+class ScanMeshSpec(StrictModel):
     """A mesh in a scanned scene: ``mesh`` (a file, relative to the scenario) at
     ``pose`` (world), its vertices times ``scale``."""
 
@@ -368,7 +367,7 @@ class ScanMeshSpec(BaseModel):
     scale: float | V3 = 1.0
 
 
-class ScanSpec(BaseModel):
+class ScanSpec(StrictModel):
     """A scene of our own for the simulated scanner (:class:`reachwise.geometry.scanner.
     LaserScanner`, the P-V resolutions by default): ``meshes`` in world, an optional
     ``floor`` (a plane at that z), the scanner at ``pose`` (zero tilt; optical centre at
@@ -399,7 +398,7 @@ class ScanSpec(BaseModel):
         return self
 
 
-class ObjectSpec(BaseModel):
+class ObjectSpec(StrictModel):
     """A cloud not on a robot: ``scanner`` (a built-in scan scene; ``noise`` m,
     ``occlusion`` fill, ``rescan``), ``mesh`` or ``box`` (``points`` surface samples,
     the box centred on the object frame) or ``file``; placed at ``pose``, moving by
@@ -455,7 +454,7 @@ class ObjectSpec(BaseModel):
         return self
 
 
-class WatchSpec(BaseModel):
+class WatchSpec(StrictModel):
     """``self: R`` (pairs among R's links; ``pairs`` lists link pairs, ``pairs: auto``
     picks them (:mod:`reachwise.sim.self_pairs`: adjacent and never-close pairs
     excluded over ``samples`` random configurations, ``seed``), else every
@@ -509,7 +508,7 @@ class WatchSpec(BaseModel):
         return "robot-environment" if self.environment is not None else "robot-robot"
 
 
-class EscapeSpec(BaseModel):
+class EscapeSpec(StrictModel):
     """Local-minimum escape (issue 9, :mod:`reachwise.sim.escape`): when a robot's
     controller reports ``stalled``, plan a joint path with ``planner`` (OMPL
     RRT-Connect, the ``plan`` extra) within ``time_limit`` s of planning, follow it with
@@ -527,7 +526,7 @@ class EscapeSpec(BaseModel):
     seed: int = Field(default=1, ge=1, lt=2**32)
 
 
-class MountSpec(BaseModel):
+class MountSpec(StrictModel):
     """Where a sensor hangs on a robot: ``link`` of ``robot`` (the scenario's robot
     name), at ``offset`` (its pose in the link frame)."""
 
@@ -537,7 +536,7 @@ class MountSpec(BaseModel):
     offset: FrameSpec = FrameSpec()
 
 
-class SensorSpec(BaseModel):
+class SensorSpec(StrictModel):
     """A depth camera (:class:`reachwise.geometry.depth_camera.DepthCamera`) that streams
     its cloud into the scene object ``name`` during a run (:mod:`reachwise.sim.sensors`):
     fixed at ``pose`` (camera → world, optical frame: z forward, x right, y down; with
@@ -611,14 +610,14 @@ class SensorSpec(BaseModel):
         return T
 
 
-class JobsSpec(BaseModel):
+class JobsSpec(StrictModel):
     model_config = _STRICT
     robots: list[str] = Field(min_length=1)
     work: float = Field(default=0.0, ge=0.0)
     goals: list[GoalSpec] = Field(min_length=1)
 
 
-class ScenarioSpec(BaseModel):
+class ScenarioSpec(StrictModel):
     model_config = _STRICT
     name: str = Field(min_length=1)
     description: str = ""
