@@ -170,7 +170,7 @@ class SimulationLog:
         }
 
     def speeds_held(self, tol: float = 1e-9) -> dict[str, bool]:
-        """Per robot: |command| and |actual velocity| ≤ v_max at every tick."""
+        """Per robot: ``|command|`` and ``|actual velocity|`` ≤ ``v_max`` at every tick."""
         return {r: not bool(v.any()) for r, v in self.speed_violations(tol).items()}
 
     def summary(self) -> dict[str, Any]:

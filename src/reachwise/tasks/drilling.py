@@ -110,7 +110,7 @@ def drilling_pattern(
     ``layout`` (:class:`~reachwise.tasks.drill_layout.DrillLayout`, default: its
     defaults) holds the rules; flat ``keywords`` (``face_x=7.5``,
     ``contour_spacing=0.7``, ``cut_type="parallel"``, …; see
-    :class:`~reachwise.tasks.drill_layout.LayoutKeywords`) replace single fields of it.
+    ``LayoutKeywords``) replace single fields of it.
     Every hole is collared on the face plane ``x = face_x`` (m ahead of the machine
     origin) inside ``profile``; its direction is the tool z axis. Zones (each point's
     ``group``; ``name`` is ``"{plan}/{zone}{k:02d}"``):

@@ -176,7 +176,7 @@ class TunnelProfile:
 
     # -- queries ---------------------------------------------------------------------
     def roof_v(self, u: ArrayLike) -> FloatArray:
-        """Height of the ceiling above the floor at lateral offsets ``u`` (|u| ≤ w/2)."""
+        """Height of the ceiling above the floor at lateral offsets ``u`` (``|u| ≤ w/2``)."""
         uu = np.clip(np.asarray(u, dtype=float), -self.half_width, self.half_width)
         if not self.is_arched:
             return np.full_like(uu, self.height)
