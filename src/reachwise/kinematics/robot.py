@@ -98,7 +98,7 @@ class DesignSpace:
     ``margin`` the fraction of each range the ``bounds`` objective keeps free, and
     ``objective`` the weights of the named objectives (``{"gci": 1.0, "size": 0.2}``).
     ``bodies`` are the bodies whose clearance the synthesis keeps
-    (:class:`~reachwise.kinematics.design_bodies.DesignBody`) and ``clearance`` (m) the
+    (``reachwise.kinematics.design_bodies.DesignBody``) and ``clearance`` (m) the
     smallest distance every watched pair keeps at every task pose (0: not checked).
     """
 

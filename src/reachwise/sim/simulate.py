@@ -102,7 +102,7 @@ def simulate(
     or the defaults; False: off; or an ``EscapeSpec``): a robot whose controller
     stalls plans a path out with OMPL and follows it (``reachwise.sim.escape``);
     the plans are in ``extras["escape"]``.
-    ``recorder`` (e.g. a :class:`~reachwise.sim.bag_recorder.BagRecorder`) is started
+    ``recorder`` (e.g. a ``reachwise.sim.bag_recorder.BagRecorder``) is started
     with the built world, told each tick after the distance query and closed at the end.
 
     Each tick is three named steps: ``_sense`` (joint states and moving objects
