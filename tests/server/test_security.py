@@ -126,3 +126,45 @@ def test_curve_server_accepts_only_authorized_clients(
     finally:
         status = proc.stop()
     assert status == 0, (proc.workdir / "server.log").read_text()
+
+
+def test_a_bind_in_use_is_server_unavailable_naming_the_address() -> None:
+    import zmq
+
+    from reachwise import errors
+    from reachwise.server.transport import CollisionServer
+
+    ctx = zmq.Context.instance()
+    taken = ctx.socket(zmq.ROUTER)
+    taken.linger = 0
+    port = taken.bind_to_random_port("tcp://127.0.0.1")
+    address = f"tcp://127.0.0.1:{port}"
+    try:
+        with pytest.raises(errors.ServerUnavailable, match=address):
+            CollisionServer(address).start()
+    finally:
+        taken.close(linger=0)
+
+
+def test_an_unparsable_bind_is_an_input_error_naming_the_address() -> None:
+    from reachwise.errors import InputError
+    from reachwise.server.transport import CollisionServer
+
+    with pytest.raises(InputError, match="tcp://no-such-host-name"):
+        CollisionServer("tcp://no-such-host-name", insecure=True).start()
+
+
+@pytest.mark.parametrize(("address", "code"), [("tcp://192.0.2.1:5591", 4), ("tcp://nonsense", 2)])
+def test_cli_bind_failure_is_typed(
+    address: str,
+    code: int,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # 192.0.2.1 (TEST-NET-1, RFC 5737) is on no host: binding it fails without binding
+    monkeypatch.setattr(sys, "argv", ["reachwise-serve", "--bind", address, "--insecure"])
+    with pytest.raises(SystemExit) as info:
+        serve_cli.main()
+    assert info.value.code == code
+    err = capsys.readouterr().err
+    assert f"cannot bind {address}" in err and "Traceback" not in err

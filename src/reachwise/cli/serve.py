@@ -173,14 +173,15 @@ def keygen(
 
 
 def main() -> None:
-    """Entry point of ``python -m reachwise.cli.serve``: errors as one line, exit 2."""
+    """Entry point of ``python -m reachwise.cli.serve``: errors as one line, with the
+    exit code of their class (2 bad input, 4 the server cannot serve, e.g. its address)."""
     from reachwise.errors import ReachwiseError
 
     try:
         app()
     except ReachwiseError as exc:
         typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
-        raise SystemExit(2) from None
+        raise SystemExit(exc.exit_code) from None
 
 
 if __name__ == "__main__":

@@ -101,8 +101,8 @@ def _protocol_error(exc: Exception, op: str) -> P.ProtocolError:
         return exc
     if isinstance(exc, InputError):
         return _err(P.ErrorCode.INVALID, exc.field or exc.source, str(exc))
-    log.exception("request %s failed", op)
-    return _err(P.ErrorCode.INTERNAL, "", f"{type(exc).__name__}: {exc}")
+    log.error("request %s failed: %s", op, P.failure_text(exc), exc_info=exc)
+    return _err(P.ErrorCode.INTERNAL, "", P.failure_text(exc))
 
 
 def _names(names: Iterable[str], shown: int = 10) -> str:
@@ -1038,7 +1038,7 @@ def answer(service: SceneService, rid: int, req: P.Request) -> tuple[bytes, P.Re
         service.metrics.error(exc.code)
         return P.encode_error(rid, P.ErrorReply.of(exc)), None
     except Exception as exc:  # an unencodable reply would be our bug: still answer
-        log.exception("encoding the reply to %s failed", req.OP)
+        log.error("encoding the reply to %s failed: %s", req.OP, P.failure_text(exc), exc_info=exc)
         service.metrics.error(P.ErrorCode.INTERNAL)
-        err = P.ErrorReply(P.ErrorCode.INTERNAL, "", f"{type(exc).__name__}: {exc}")
+        err = P.ErrorReply(P.ErrorCode.INTERNAL, "", P.failure_text(exc))
         return P.encode_error(rid, err), None

@@ -26,6 +26,7 @@ Threads, so that one request never blocks another longer than its own work:
 from __future__ import annotations
 
 import contextlib
+import errno
 import logging
 import math
 import os
@@ -43,7 +44,7 @@ import zmq.auth.thread
 
 import reachwise.server.protocol as P
 from reachwise.distance.engine import StrategyName
-from reachwise.errors import InputError
+from reachwise.errors import InputError, ServerUnavailable
 from reachwise.runtime.realtime import fifo_refusal
 from reachwise.server.security import DEFAULT_BIND, BindPlan, plan_bind, secure_server_socket
 from reachwise.server.service import LIVE_INTERVAL, CloudWait, SceneService, answer
@@ -90,6 +91,17 @@ def split_frames(frames: list[_F]) -> tuple[list[_F], list[_F]]:
         if len(frames[k]) == 0:
             return frames[: k + 1], frames[k + 1 :]
     return frames[:1], frames[1:]
+
+
+def bind_error(address: str, exc: zmq.ZMQError) -> InputError | ServerUnavailable:
+    """A failed bind as a typed error naming ``address``: an address ZeroMQ cannot
+    parse or a protocol it does not know is bad input (:class:`InputError`); an
+    address in use, not on this host or refused by the system leaves the server
+    unavailable (:class:`ServerUnavailable`)."""
+    why = P.failure_text(exc).split(": ", 1)[-1]
+    if exc.errno in (errno.EINVAL, errno.EPROTONOSUPPORT, zmq.EPROTONOSUPPORT):
+        return InputError("server", "bind", f"cannot bind {address}: {why}")
+    return ServerUnavailable(f"the collision server cannot bind {address}: {why}")
 
 
 class CollisionServer:
@@ -167,7 +179,10 @@ class CollisionServer:
             router.setsockopt(zmq.MAXMSGSIZE, 2 * self.limits.max_message_bytes + 4096)
             if self.plan.keys is not None:
                 secure_server_socket(router, self.plan.keys)
-            router.bind(self.plan.address)
+            try:
+                router.bind(self.plan.address)
+            except zmq.ZMQError as exc:
+                raise bind_error(self.plan.address, exc) from None
             self.endpoint = router.getsockopt_string(zmq.LAST_ENDPOINT)
             replies = ctx.socket(zmq.PULL)
             replies.linger = 0
@@ -266,6 +281,22 @@ class CollisionServer:
                 self._settle_parked(router)
 
     def _on_message(self, router: zmq.Socket[bytes], frames: list[zmq.Frame]) -> None:
+        """Answer one message; whatever fails while handling it (a bug, a
+        ``RecursionError``, a ``MemoryError``) becomes an ``internal`` error reply and
+        the server keeps serving."""
+        try:
+            self._handle(router, frames)
+        except Exception as exc:
+            text = P.failure_text(exc)
+            log.error("handling a message failed: %s", text, exc_info=exc)
+            err = P.ProtocolError(P.ErrorCode.INTERNAL, "", text)
+            try:
+                route, _ = split_frames(frames)
+                self._send_error(router, route, err)
+            except Exception as again:  # the peer is gone or the route is broken
+                log.error("could not send the error reply: %s", P.failure_text(again))
+
+    def _handle(self, router: zmq.Socket[bytes], frames: list[zmq.Frame]) -> None:
         t0 = time.perf_counter()
         data: list[P.Buffer]
         if len(frames) == 3 and len(frames[1]) == 0:  # a REQ peer's one-frame request
@@ -320,7 +351,15 @@ class CollisionServer:
         now = time.monotonic()
         for p in self._parked:
             try:
-                reply = self.service.settle(p.wait)
+                try:
+                    reply = self.service.settle(p.wait)
+                except P.ProtocolError:
+                    raise
+                except Exception as exc:
+                    log.error("settling a hand-over failed: %s", P.failure_text(exc))
+                    raise P.ProtocolError(
+                        P.ErrorCode.INTERNAL, "cloud", P.failure_text(exc)
+                    ) from None
                 if reply is None and now > p.wait.deadline:
                     raise P.ProtocolError(
                         P.ErrorCode.INTERNAL,

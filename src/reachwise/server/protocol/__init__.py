@@ -38,6 +38,9 @@ Rules every decoder here follows (the server and the client alike):
 
 - the message's size is checked *before* decoding (:attr:`Limits.max_message_bytes`),
   and msgpack itself is given length limits, so a hostile frame cannot make it allocate;
+  lists and maps may nest at most :data:`MAX_DEPTH` levels (checked without recursion
+  right after decoding), and an error message never formats a received value whole
+  (:func:`safe_repr`);
 - numpy arrays inside msgpack travel as ``[dtype, shape, bytes]`` (little-endian
   ``"<f8"`` floats, ``"<i8"`` integers, ``"|b1"`` booleans); the byte count must match
   the shape, and the row count of a cloud is checked against
@@ -94,6 +97,7 @@ from reachwise.server.protocol.fields import (
     INPUT_CODES,
     INT,
     MAX_CLOUD_POINTS,
+    MAX_DEPTH,
     MAX_MESSAGE_BYTES,
     PROTOCOL_VERSION,
     SUPPORTED_VERSIONS,
@@ -103,8 +107,11 @@ from reachwise.server.protocol.fields import (
     ProtocolError,
     Reader,
     check_array,
+    check_depth,
     check_name,
     encode_array,
+    failure_text,
+    safe_repr,
     unchecked,
 )
 from reachwise.server.protocol.layout import Layout, layout_key
@@ -174,6 +181,7 @@ __all__ = [
     "INPUT_CODES",
     "INT",
     "MAX_CLOUD_POINTS",
+    "MAX_DEPTH",
     "MAX_MESSAGE_BYTES",
     "PROTOCOL_VERSION",
     "REPLIES",
@@ -222,6 +230,7 @@ __all__ = [
     "WatchRobots",
     "WatchSelf",
     "check_array",
+    "check_depth",
     "check_name",
     "decode_frames",
     "decode_reply",
@@ -236,11 +245,13 @@ __all__ = [
     "encode_tick",
     "encode_tick_inputs",
     "encode_tick_reply",
+    "failure_text",
     "is_tick",
     "is_tick_reply",
     "layout_key",
     "read_tick",
     "read_tick_reply",
+    "safe_repr",
     "tick_query_reply",
     "tick_reply_frame",
     "unchecked",

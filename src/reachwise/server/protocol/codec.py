@@ -25,7 +25,9 @@ from reachwise.server.protocol.fields import (
     Limits,
     ProtocolError,
     Reader,
+    check_depth,
     check_text,
+    safe_repr,
 )
 from reachwise.server.protocol.replies import (
     CLOUD_COLUMNS,
@@ -57,7 +59,7 @@ def _unpack(raw: bytes | memoryview, limits: Limits) -> object:
     if n == 0:
         raise ProtocolError(ErrorCode.BAD_MESSAGE, "message", "empty frame")
     try:
-        return msgpack.unpackb(
+        obj = msgpack.unpackb(
             raw,
             raw=False,
             use_list=True,
@@ -72,6 +74,8 @@ def _unpack(raw: bytes | memoryview, limits: Limits) -> object:
         raise ProtocolError(
             ErrorCode.BAD_MESSAGE, "message", f"not a valid msgpack message: {type(exc).__name__}"
         ) from None
+    check_depth(obj)
+    return obj
 
 
 def _envelope(obj: object, keys: frozenset[str]) -> tuple[dict[str, Any], int | None]:
@@ -291,7 +295,10 @@ def decode_frames(frames: Sequence[Buffer], limits: Limits = DEFAULT_LIMITS) -> 
     cls = REQUESTS.get(op) if isinstance(op, str) else None
     if cls is None:
         raise ProtocolError(
-            ErrorCode.UNKNOWN_OP, "op", f"unknown op {op!r}; known: {sorted(REQUESTS)}", rid
+            ErrorCode.UNKNOWN_OP,
+            "op",
+            f"unknown op {safe_repr(op)}; known: {sorted(REQUESTS)}",
+            rid,
         )
     if len(data) != cls.DATA_FRAMES:
         raise ProtocolError(
@@ -370,7 +377,7 @@ def decode_reply(
             code = ErrorCode(code_s)
         except ValueError:
             raise ProtocolError(
-                ErrorCode.BAD_MESSAGE, e.path("code"), f"unknown error code {code_s!r}"
+                ErrorCode.BAD_MESSAGE, e.path("code"), f"unknown error code {safe_repr(code_s)}"
             ) from None
         err = ErrorReply(
             code,

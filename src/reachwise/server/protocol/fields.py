@@ -31,6 +31,12 @@ MAX_MODEL_DEPTH = 12
 MAX_MODEL_NODES = 20_000
 #: Most names in one list (pairs to query, objects to pair with, exclusions).
 MAX_LIST = 100_000
+#: Deepest nesting of lists and maps in one message (the deepest valid one, a robot
+#: mapping inside a request, is :data:`MAX_MODEL_DEPTH` + 2 levels).
+MAX_DEPTH = 32
+#: Longest field path and message of an error reply (characters; longer ones are cut).
+MAX_FIELD_LENGTH = 300
+MAX_ERROR_LENGTH = 2000
 
 FLOAT = "<f8"
 INT = "<i8"
@@ -92,11 +98,63 @@ class ProtocolError(ReachwiseError):
         self, code: ErrorCode, field: str, message: str, request_id: int | None = None
     ) -> None:
         self.code = ErrorCode(code)
-        self.field = field
-        self.message = message
+        self.field = _cut(field, MAX_FIELD_LENGTH)
+        self.message = _cut(message, MAX_ERROR_LENGTH)
         self.request_id = request_id
-        where = f" ({field})" if field else ""
-        super().__init__(f"{self.code.value}{where}: {message}")
+        where = f" ({self.field})" if self.field else ""
+        super().__init__(f"{self.code.value}{where}: {self.message}")
+
+
+def _cut(text: str, limit: int) -> str:
+    """``text`` cut to ``limit`` characters (an ellipsis marks the cut)."""
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+def failure_text(exc: BaseException) -> str:
+    """``"<type>: <message>"`` of an unexpected failure for an error reply, bounded
+    (:data:`MAX_ERROR_LENGTH`); an exception whose ``str`` fails itself gives its type."""
+    try:
+        text = str(exc)
+    except Exception:
+        text = "(its message could not be formatted)"
+    return _cut(f"{type(exc).__name__}: {_cut(text, MAX_ERROR_LENGTH)}", MAX_ERROR_LENGTH)
+
+
+def safe_repr(value: object, limit: int = 60) -> str:
+    """A bounded description of a value received from the wire, for an error message:
+    the ``repr`` of a scalar cut to ``limit`` characters, the kind and length of a
+    container or binary (never its contents: a nested value could be deep or huge)."""
+    if isinstance(value, list | dict | tuple):
+        return f"{_kind(value)} of {len(value)} entries"
+    if isinstance(value, bytes | bytearray | memoryview):
+        return f"binary data of {len(value)} bytes"
+    if isinstance(value, str):
+        return repr(_cut(value, limit))
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 128:
+        return f"an integer of {value.bit_length()} bits"
+    if value is None or isinstance(value, bool | int | float):
+        return _cut(repr(value), limit)
+    return _kind(value)
+
+
+def check_depth(obj: object, limit: int = MAX_DEPTH) -> None:
+    """Refuse a decoded message whose lists and maps nest deeper than ``limit`` levels
+    (:attr:`ErrorCode.BAD_MESSAGE`), before anything walks or formats it recursively.
+    Walks level by level without recursion; every node is visited once."""
+    level = [obj] if type(obj) is dict or type(obj) is list else []
+    depth = 0
+    while level:
+        depth += 1
+        if depth > limit:
+            raise ProtocolError(
+                ErrorCode.BAD_MESSAGE, "message", f"lists and maps nest deeper than {limit} levels"
+            )
+        inner = []
+        for v in level:
+            for x in v.values() if type(v) is dict else v:
+                if type(x) is dict or type(x) is list:
+                    inner.append(x)
+        level = inner
 
 
 @dataclass(frozen=True)
@@ -133,6 +191,14 @@ def _fmt_shape(shape: Sequence[int | None]) -> str:
     return f"({inner},)" if len(shape) == 1 else f"({inner})"
 
 
+def _shape_text(shp: object) -> str:
+    """A received shape for an error message: its entries when they are a few plain
+    scalars, else :func:`safe_repr`."""
+    if type(shp) is list and len(shp) <= 8 and all(not isinstance(s, list | dict) for s in shp):
+        return "[" + ", ".join(safe_repr(s, 24) for s in shp) + "]"
+    return safe_repr(shp)
+
+
 def check_array(
     value: object,
     where: str,
@@ -154,7 +220,7 @@ def check_array(
     dt, shp, data = value
     if dt != dtype:
         raise ProtocolError(
-            ErrorCode.WRONG_TYPE, where, f"dtype {dt!r} not accepted; send {dtype!r}"
+            ErrorCode.WRONG_TYPE, where, f"dtype {safe_repr(dt)} not accepted; send {dtype!r}"
         )
     ok = type(shp) is list and len(shp) == len(shape)
     if ok:
@@ -164,7 +230,9 @@ def check_array(
                 break
     if not ok:
         raise ProtocolError(
-            ErrorCode.WRONG_SHAPE, where, f"expected shape {_fmt_shape(shape)}, got {shp!r}"
+            ErrorCode.WRONG_SHAPE,
+            where,
+            f"expected shape {_fmt_shape(shape)}, got {_shape_text(shp)}",
         )
     if max_rows is not None and shp[0] > max_rows:
         raise ProtocolError(
@@ -219,7 +287,7 @@ def check_choice(value: object, valid: tuple[_S, ...], where: str) -> _S:
         if name == v:
             return v
     raise ProtocolError(
-        ErrorCode.INVALID, where, f"unknown name {name!r}; valid: {', '.join(valid)}"
+        ErrorCode.INVALID, where, f"unknown name {safe_repr(name)}; valid: {', '.join(valid)}"
     )
 
 

@@ -36,6 +36,7 @@ from reachwise.server.protocol.fields import (
     encode_array,
     omit_none,
     pose_or_none,
+    safe_repr,
     stamp_of,
 )
 
@@ -251,7 +252,7 @@ class ReplaceCloud(Request):
             raise ProtocolError(
                 ErrorCode.WRONG_TYPE,
                 r.path("dtype"),
-                f"dtype {dtype!r} not accepted; send one of {list(CLOUD_DTYPES)}",
+                f"dtype {safe_repr(dtype)} not accepted; send one of {list(CLOUD_DTYPES)}",
             )
         stamp = stamp_of(r)
         blk = r.opt("block")
