@@ -79,6 +79,37 @@ def test_replay_equals_the_live_run(run: tuple[Path, Path]) -> None:
     assert np.abs(res.distance[compared] - log.distance[compared]).max() <= 1e-9
 
 
+def test_reachwise_replay_with_the_scenario_equals_the_live_run(
+    run: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """The command line: ``reachwise replay run.mcap --scenario panda-person-camera``
+    (robot and link clouds from the scenario); distances.csv against the live log."""
+    import csv
+
+    bag, out = run
+    argv = ["reachwise", "replay", str(bag), "--scenario", "panda-person-camera",
+            "--clouds", "/camera/points", "--margin", "0.25", "--out", str(tmp_path)]  # fmt: skip
+    mp = pytest.MonkeyPatch()
+    mp.setattr(sys, "argv", argv)
+    try:
+        cli.main()
+    except SystemExit as exc:
+        assert exc.code in (0, None)
+    finally:
+        mp.undo()
+    world = build_world("panda-person-camera")
+    log, live_stamp = _live_stamps(world, out)
+    column = {f"{p.split('|')[0].split('/')[1]}|/camera/points": j for j, p in enumerate(log.pairs)}
+    compared = 0
+    for row in csv.DictReader((tmp_path / "distances.csv").open()):
+        k = int(np.argmin(np.abs(log.t - float(row["time"]))))
+        live = log.distance[k, column[row["pair"]]]
+        if abs(float(row["cloud_stamp"]) - live_stamp[k]) < 1e-12 and np.isfinite(live):
+            assert abs(float(row["distance"]) - live) <= 1e-9
+            compared += 1
+    assert compared > 200
+
+
 def test_replay_from_the_depth_images(run: tuple[Path, Path]) -> None:
     bag, out = run
     world, res, _ = _replay(bag, "/camera/depth/image_rect_raw")

@@ -16,7 +16,18 @@ def replay(
     bag: Path = typer.Argument(
         ..., help="The recording: a ROS 1 .bag, a ROS 2 bag folder, or a .db3/.mcap file."
     ),
-    robot: str = typer.Option(..., "--robot", help="Built-in robot name, or a YAML/URDF file."),
+    robot: str | None = typer.Option(
+        None, "--robot", help="Built-in robot name, or a YAML/URDF file (or --scenario)."
+    ),
+    scenario: str | None = typer.Option(
+        None,
+        "--scenario",
+        help="Take the robot and its link clouds from this scenario (built-in name or "
+        "file): a run recorded with `reachwise simulate --bag` replays as it ran.",
+    ),
+    scenario_robot: str | None = typer.Option(
+        None, "--scenario-robot", help="The scenario's robot (default: its first)."
+    ),
     tip: str | None = TIP,
     package_dirs: list[Path] = PACKAGE_DIRS,
     lenient: bool = LENIENT,
@@ -110,11 +121,27 @@ def replay(
         voxel=voxel,
         tf_tolerance=tf_tolerance,
     )
-    model = load_with_options(robot, tip, package_dirs, lenient)
+    if robot is not None and scenario is not None:
+        raise InputError("reachwise replay", "--scenario", "give --robot or --scenario, not both")
+    if scenario is not None:
+        from reachwise.sim.bag_recorder import scenario_robot as robot_of_scenario
+
+        model, carried = robot_of_scenario(scenario, scenario_robot)
+    elif robot is not None:
+        model = load_with_options(robot, tip, package_dirs, lenient)
+        carried = link_clouds(model, points)
+    else:
+        raise InputError("reachwise replay", "--robot", "give --robot or --scenario")
     console = Console(stderr=True)
     console.print(f"replaying {bag} with {model.name} …")
-    result = replay_recording(bag, model, spec, link_clouds=link_clouds(model, points))
-    inputs = {"joints": joints, "clouds": list(clouds), "robot": robot, "tip": tip}
+    result = replay_recording(bag, model, spec, link_clouds=carried)
+    inputs = {
+        "joints": joints,
+        "clouds": list(clouds),
+        "robot": robot,
+        "scenario": scenario,
+        "tip": tip,
+    }
     summary = write_replay_outputs(
         result, out, inputs, results_bag=None if results_bag == "none" else results_bag
     )

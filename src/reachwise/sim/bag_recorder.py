@@ -17,6 +17,9 @@
 - ``/tf_static`` ``world`` → ``<camera>_optical`` for a fixed camera, ``/tf`` at each
   capture for one on a robot link.
 
+:func:`scenario_robot` gives a replay the scenario's robot and the clouds its links
+carry, so that ``reachwise replay --scenario`` answers as the run did.
+
 The frames are rendered again from the state at their capture (a sensor renders the
 same frame every time it is asked: :meth:`~reachwise.sim.sensors.DepthSensor.render`),
 so the recorder changes nothing in the run.
@@ -30,15 +33,18 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from reachwise.errors import UnknownName
 from reachwise.io.ros.bag_writer import BagWriter
 from reachwise.io.ros.joint_state import robot_joint_names
 
 if TYPE_CHECKING:
+    from reachwise.geometry.cloud import PointCloud
     from reachwise.geometry.depth_camera import DepthFrame
+    from reachwise.kinematics.robot import Robot
     from reachwise.sim.sensors import DepthSensor
     from reachwise.sim.world import World
 
-__all__ = ["BagRecorder"]
+__all__ = ["BagRecorder", "scenario_robot"]
 
 #: The fixed frame of a recorded run.
 WORLD = "world"
@@ -141,3 +147,29 @@ class BagRecorder:
 
 def _optical(s: DepthSensor) -> str:
     return f"{s.name}_optical"
+
+
+def scenario_robot(
+    scenario: str | Path, robot: str | None = None
+) -> tuple[Robot, dict[str, PointCloud]]:
+    """A scenario's robot (``robot``: its name in the scenario; default the first) as
+    its runs record it, and the clouds its links carry in the run (link → cloud in the
+    link frame): what a replay of a recorded run needs to answer as the run did."""
+    from reachwise.distance.scene import OnLink
+    from reachwise.sim.world import build_world, close_scene
+
+    world = build_world(scenario)
+    try:
+        names = [a.name for a in world.agents]
+        name = names[0] if robot is None else robot
+        if name not in names:
+            raise UnknownName(str(scenario), "robot", name, names)
+        model = next(a.robot for a in world.agents if a.name == name)
+        clouds = {
+            o.source.link: o.cloud
+            for o in world.scene.objects.values()
+            if isinstance(o.source, OnLink) and o.source.robot == name
+        }
+    finally:
+        close_scene(world.scene)
+    return model, clouds
