@@ -2,19 +2,15 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 import reachwise.kinematics._kernels as K
 from reachwise.errors import InputError
-
-if TYPE_CHECKING:
-    from reachwise.kinematics.robot import Robot
+from reachwise.kinematics.model import KinematicModel
 
 
-def as_q(robot: Robot, q: ArrayLike, name: str = "q") -> tuple[NDArray[np.float64], bool]:
+def as_q(robot: KinematicModel, q: ArrayLike, name: str = "q") -> tuple[NDArray[np.float64], bool]:
     """Validate ``q`` as ``(n,)`` or ``(m, n)``; return a C-contiguous ``(m, n)`` and
     whether the input was a single configuration."""
     try:
@@ -33,7 +29,7 @@ def as_q(robot: Robot, q: ArrayLike, name: str = "q") -> tuple[NDArray[np.float6
     return np.ascontiguousarray(Q), single
 
 
-def fk(robot: Robot, q: ArrayLike) -> NDArray[np.float64]:
+def fk(robot: KinematicModel, q: ArrayLike) -> NDArray[np.float64]:
     """Tool pose in world: ``(4, 4)`` for ``q`` of shape ``(n,)``, ``(m, 4, 4)`` for ``(m, n)``."""
     Q, single = as_q(robot, q)
     c = robot.arrays
@@ -41,7 +37,7 @@ def fk(robot: Robot, q: ArrayLike) -> NDArray[np.float64]:
     return T[0] if single else T
 
 
-def fk_all(robot: Robot, q: ArrayLike) -> NDArray[np.float64]:
+def fk_all(robot: KinematicModel, q: ArrayLike) -> NDArray[np.float64]:
     """World pose of every frame in ``robot.link_names`` order: ``(N+2, 4, 4)`` or
     ``(m, N+2, 4, 4)`` — base, link 1 … N, tool."""
     Q, single = as_q(robot, q)
@@ -50,7 +46,7 @@ def fk_all(robot: Robot, q: ArrayLike) -> NDArray[np.float64]:
     return F[0] if single else F
 
 
-def fk_all_into(robot: Robot, q: NDArray[np.float64], out: NDArray[np.float64]) -> None:
+def fk_all_into(robot: KinematicModel, q: NDArray[np.float64], out: NDArray[np.float64]) -> None:
     """:func:`fk_all` of one configuration into ``out`` ``(N+2, 4, 4)``, allocating
     nothing: the per-tick path of a 1 kHz loop. ``q`` must be checked already (a
     C-ordered float64 ``(n,)`` of finite values)."""

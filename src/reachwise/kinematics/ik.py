@@ -22,7 +22,7 @@ drawn from the caller's generator until one attempt converges.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -30,10 +30,8 @@ from numpy.typing import ArrayLike, NDArray
 from reachwise.errors import InputError
 from reachwise.kinematics._ik_kernel import IKBounds, IKSettings, IKTarget, ik_loop
 from reachwise.kinematics.dls import EPSILON_SOLVER, LAMBDA_MAX
+from reachwise.kinematics.model import KinematicModel
 from reachwise.kinematics.transforms import check_pose
-
-if TYPE_CHECKING:
-    from reachwise.kinematics.robot import Robot
 
 
 @dataclass(frozen=True)
@@ -78,7 +76,7 @@ def task_rows(mask: Any) -> tuple[NDArray[np.bool_], bool]:
 
 
 def sample_configurations(
-    robot: Robot, rng: np.random.Generator, m: int | None = None
+    robot: KinematicModel, rng: np.random.Generator, m: int | None = None
 ) -> NDArray[np.float64]:
     """Uniform random configurations within the joint limits (``(n,)`` or ``(m, n)``).
 
@@ -90,7 +88,7 @@ def sample_configurations(
     return np.asarray(rng.uniform(lo, hi, size=size))
 
 
-def finite_limits(robot: Robot) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def finite_limits(robot: KinematicModel) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Joint limits with infinite bounds replaced by ±π (revolute) or ±1 m (prismatic)."""
     inf_fill = np.where(robot.prismatic, 1.0, np.pi)
     lo = np.where(np.isfinite(robot.lower), robot.lower, -inf_fill)
@@ -99,7 +97,7 @@ def finite_limits(robot: Robot) -> tuple[NDArray[np.float64], NDArray[np.float64
 
 
 def solve_ik(
-    robot: Robot,
+    robot: KinematicModel,
     T: ArrayLike,
     q0: ArrayLike | None = None,
     mask: Any = None,

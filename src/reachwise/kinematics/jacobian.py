@@ -6,20 +6,16 @@ All are world-frame, linear rows first, exact (analytic) and batched.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 import reachwise.kinematics._kernels as K
 from reachwise.errors import InputError
 from reachwise.kinematics.fk import as_q
-
-if TYPE_CHECKING:
-    from reachwise.kinematics.robot import Robot
+from reachwise.kinematics.model import KinematicModel
 
 
-def jacobian(robot: Robot, q: ArrayLike) -> NDArray[np.float64]:
+def jacobian(robot: KinematicModel, q: ArrayLike) -> NDArray[np.float64]:
     """Geometric tool Jacobian ``(6, n)`` (or ``(m, 6, n)``), world frame, linear rows first."""
     Q, single = as_q(robot, q)
     c = robot.arrays
@@ -28,7 +24,7 @@ def jacobian(robot: Robot, q: ArrayLike) -> NDArray[np.float64]:
 
 
 def jacobians(
-    robot: Robot, q: ArrayLike, params: bool = True
+    robot: KinematicModel, q: ArrayLike, params: bool = True
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Tool poses, tool Jacobians and DH/base parameter Jacobians in one pass.
 
@@ -41,7 +37,7 @@ def jacobians(
     return T, J, P
 
 
-def param_jacobian(robot: Robot, q: ArrayLike) -> NDArray[np.float64]:
+def param_jacobian(robot: KinematicModel, q: ArrayLike) -> NDArray[np.float64]:
     """``(6, 4N + 6)`` (or batched) Jacobian of the tool pose w.r.t. every DH parameter
     (columns ``a, alpha, d, theta`` per joint, fixed joints included) and the base
     ``x, y, z, roll, pitch, yaw`` (URDF rpy). Linear rows: tool-point velocity; angular
@@ -53,7 +49,7 @@ def param_jacobian(robot: Robot, q: ArrayLike) -> NDArray[np.float64]:
 
 
 def point_jacobian(
-    robot: Robot, q: ArrayLike, link: int | str, point: ArrayLike, frame: str = "link"
+    robot: KinematicModel, q: ArrayLike, link: int | str, point: ArrayLike, frame: str = "link"
 ) -> NDArray[np.float64]:
     """``(3, n)`` Jacobian of a point fixed to ``link``.
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -26,11 +26,15 @@ from numpy.typing import ArrayLike, NDArray
 from reachwise.errors import InputError, RobotFileError, UnknownName
 from reachwise.kinematics.chain import Chain
 from reachwise.kinematics.design_bodies import DesignBody
+from reachwise.kinematics.fk import fk as _fk
+from reachwise.kinematics.fk import fk_all as _fk_all
+from reachwise.kinematics.ik import IKResult
+from reachwise.kinematics.ik import solve_ik as _solve_ik
+from reachwise.kinematics.jacobian import jacobian as _jacobian
+from reachwise.kinematics.jacobian import param_jacobian as _param_jacobian
+from reachwise.kinematics.jacobian import point_jacobian as _point_jacobian
 from reachwise.kinematics.link_geometry import LinkGeometry, shapes_by_link
 from reachwise.kinematics.transforms import Pose, check_pose
-
-if TYPE_CHECKING:
-    from reachwise.kinematics.ik import IKResult
 
 JointType = Literal["revolute", "prismatic", "fixed"]
 Convention = Literal["modified", "classic"]
@@ -303,36 +307,26 @@ class Robot:
     # ---- kinematics (implemented in fk.py / jacobian.py / ik.py) -------------------
     def fk(self, q: ArrayLike) -> Pose:
         """Tool pose in world, ``(4, 4)`` or ``(m, 4, 4)``."""
-        from reachwise.kinematics.fk import fk
-
-        return fk(self, q)
+        return _fk(self, q)
 
     def fk_all(self, q: ArrayLike) -> Pose:
         """World pose of every frame (``link_names`` order): ``(N+2, 4, 4)`` or batched."""
-        from reachwise.kinematics.fk import fk_all
-
-        return fk_all(self, q)
+        return _fk_all(self, q)
 
     def jacobian(self, q: ArrayLike) -> NDArray[np.float64]:
         """Geometric tool Jacobian in world, linear rows first: ``(6, n)`` or ``(m, 6, n)``."""
-        from reachwise.kinematics.jacobian import jacobian
-
-        return jacobian(self, q)
+        return _jacobian(self, q)
 
     def point_jacobian(
         self, q: ArrayLike, link: int | str, point: ArrayLike, frame: str = "link"
     ) -> NDArray[np.float64]:
         """``(3, n)`` Jacobian of a point fixed to ``link`` (given in the link frame, or
         in world coordinates when ``frame="world"``)."""
-        from reachwise.kinematics.jacobian import point_jacobian
-
-        return point_jacobian(self, q, link, point, frame)
+        return _point_jacobian(self, q, link, point, frame)
 
     def param_jacobian(self, q: ArrayLike) -> NDArray[np.float64]:
         """``(6, 4N + 6)`` Jacobian of the tool pose w.r.t. every DH parameter and the base."""
-        from reachwise.kinematics.jacobian import param_jacobian
-
-        return param_jacobian(self, q)
+        return _param_jacobian(self, q)
 
     def ik(
         self,
@@ -343,9 +337,7 @@ class Robot:
         **options: Any,
     ) -> IKResult:
         """Inverse kinematics by damped least squares (see ``reachwise.kinematics.ik``)."""
-        from reachwise.kinematics.ik import solve_ik
-
-        return solve_ik(self, T, q0=q0, mask=mask, rng=rng, **options)
+        return _solve_ik(self, T, q0=q0, mask=mask, rng=rng, **options)
 
     # ---- derived robots and files --------------------------------------------------
     def with_parameters(
