@@ -29,7 +29,7 @@ if TYPE_CHECKING:
     from reachwise.results.synthesis_out import SynthesisOutput
     from reachwise.sim.scenarios import Scenario
     from reachwise.tasks.task import Task
-    from reachwise.viz.viewer import Viewer
+    from reachwise.viz.canvas import Canvas
 
 __all__ = [
     "JointSliders",
@@ -60,7 +60,7 @@ class JointSliders:
 
     def __init__(
         self,
-        viewer: Viewer,
+        viewer: Canvas,
         robot: Robot,
         q: ArrayLike,
         on_change: Callable[[NDArray[np.float64]], None],
@@ -120,7 +120,7 @@ class JointSliders:
 
 
 def show_robot(
-    viewer: Viewer,
+    viewer: Canvas,
     robot: Robot,
     q: ArrayLike | None = None,
     task: Task | None = None,
@@ -151,7 +151,7 @@ def show_robot(
     return sliders
 
 
-def show_scenario(viewer: Viewer, scenario: Scenario | str) -> Any:
+def show_scenario(viewer: Canvas, scenario: Scenario | str) -> Any:
     """A scenario at its start: robots at ``q0`` with their clouds, the environment
     clouds, the goals and the closest-point lines of the watched pairs; the joint
     sliders move the robots and the lines follow."""
@@ -183,7 +183,7 @@ def show_scenario(viewer: Viewer, scenario: Scenario | str) -> Any:
     return sim
 
 
-def _tunnel(viewer: Viewer, task: Task, content: NDArray[np.float64]) -> None:
+def _tunnel(viewer: Canvas, task: Task, content: NDArray[np.float64]) -> None:
     env = task.envelope
     if env is None:
         return
@@ -200,7 +200,7 @@ class SynthesisBrowser:
     and a dropdown choose point ``i``, the robot shows ``q[i]``, the points are coloured
     by status; every configuration's skeleton is available ("configurations")."""
 
-    def __init__(self, viewer: Viewer, out: SynthesisOutput) -> None:
+    def __init__(self, viewer: Canvas, out: SynthesisOutput) -> None:
         self.viewer = viewer
         self.out = out
         robot = out.robot
@@ -287,7 +287,7 @@ class SynthesisBrowser:
             self._busy = False
 
 
-def show_synthesis(viewer: Viewer, out: SynthesisOutput) -> SynthesisBrowser:
+def show_synthesis(viewer: Canvas, out: SynthesisOutput) -> SynthesisBrowser:
     """A synthesis result: the design at each task point (see :class:`SynthesisBrowser`)."""
     browser = SynthesisBrowser(viewer, out)
     viewer.activate(browser)

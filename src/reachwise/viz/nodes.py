@@ -10,7 +10,7 @@ Scene-node names nest as ``/robots/<name>/<link>/cloud`` under the link frame
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -20,9 +20,18 @@ from reachwise.viz.scene_data import skeleton_segments, wxyz_position
 if TYPE_CHECKING:
     from reachwise.geometry.cloud import PointCloud
     from reachwise.kinematics.robot import Robot
-    from reachwise.viz.viewer import Viewer
 
-__all__ = ["CLOUD_RGB", "WATCHED_RGB", "RobotView", "robot_size"]
+__all__ = ["CLOUD_RGB", "WATCHED_RGB", "NodeHost", "RobotView", "robot_size"]
+
+
+class NodeHost(Protocol):
+    """Where a :class:`RobotView` puts its nodes: a viser server and the viewer's node
+    registry (:meth:`reachwise.viz.viewer.Viewer.add_node`)."""
+
+    server: Any
+
+    def add_node(self, name: str, handle: Any, category: str | None = None) -> Any: ...
+
 
 #: Link clouds: plain links, and links whose clouds are watched for collisions.
 CLOUD_RGB = (120, 150, 190)
@@ -44,7 +53,7 @@ class RobotView:
 
     def __init__(
         self,
-        viewer: Viewer,
+        viewer: NodeHost,
         name: str,
         robot: Robot,
         q: ArrayLike,

@@ -44,7 +44,7 @@ if TYPE_CHECKING:
     from reachwise.distance.scene import SceneResult
     from reachwise.sim.log import SimulationLog
     from reachwise.sim.world import World
-    from reachwise.viz.viewer import Viewer
+    from reachwise.viz.canvas import Canvas
 
 __all__ = ["GoalEntry", "Playback", "SimScene", "goal_reached_at", "goal_table"]
 
@@ -111,7 +111,7 @@ class SimScene:
     """A built world in the viewer (see the module doc); ``link_points`` samples the
     links without a cloud in the scene (display only)."""
 
-    def __init__(self, viewer: Viewer, world: World, link_points: int = 400) -> None:
+    def __init__(self, viewer: Canvas, world: World, link_points: int = 400) -> None:
         from reachwise.distance.scene import OnLink, Runtime
         from reachwise.io.robot_clouds import link_cloud
 
@@ -322,7 +322,7 @@ class Playback:
 
     SPEEDS = ("0.25x", "0.5x", "1x", "2x", "4x")
 
-    def __init__(self, viewer: Viewer, log: SimulationLog, world: World, fps: float = 30.0):
+    def __init__(self, viewer: Canvas, log: SimulationLog, world: World, fps: float = 30.0):
         for r in log.robots:
             robot = world.robots.get(r)
             if robot is None or log.q[r].shape[1] != robot.n:

@@ -31,11 +31,11 @@ import yaml
 from reachwise.errors import InputError, UnknownName
 
 if TYPE_CHECKING:
-    from reachwise.viz.viewer import Viewer
+    from reachwise.viz.canvas import Canvas
 
 __all__ = ["find_results", "result_kind"]
 
-Show = Callable[["Viewer"], None]
+Show = Callable[["Canvas"], None]
 MAX_DEPTH = 3
 
 
@@ -113,7 +113,7 @@ def _file(p: Path) -> Show:
 
 
 def _robot(name: str, task: Any = None) -> Show:
-    def show(v: Viewer) -> None:
+    def show(v: Canvas) -> None:
         from reachwise.io.robot_file import load_robot
         from reachwise.viz.modes import show_robot
 
@@ -123,7 +123,7 @@ def _robot(name: str, task: Any = None) -> Show:
 
 
 def _scenario(name: str) -> Show:
-    def show(v: Viewer) -> None:
+    def show(v: Canvas) -> None:
         from reachwise.viz.modes import show_scenario
 
         show_scenario(v, name)
@@ -132,7 +132,7 @@ def _scenario(name: str) -> Show:
 
 
 def _synthesis(folder: Path) -> Show:
-    def show(v: Viewer) -> None:
+    def show(v: Canvas) -> None:
         from reachwise.results.synthesis_out import load_synthesis
         from reachwise.viz.modes import show_synthesis
 
@@ -164,7 +164,7 @@ def scenario_of_log(folder: Path, name: str, scenario: str | Path | None = None)
 def _simulation(folder: Path, scenario: str | Path | None) -> Show:
     cache: dict[str, Any] = {}
 
-    def show(v: Viewer) -> None:
+    def show(v: Canvas) -> None:
         from reachwise.sim.log import load_log
         from reachwise.sim.world import build_world
         from reachwise.viz.playback import Playback
@@ -198,7 +198,7 @@ def _topology(folder: Path, label: str) -> dict[str, Show]:
     out: dict[str, Show] = {}
     for d in designs:
 
-        def show(v: Viewer, d: Path = d) -> None:
+        def show(v: Canvas, d: Path = d) -> None:
             _robot(str(d), task())(v)
 
         out[f"{label}/{d.stem}"] = show

@@ -34,17 +34,17 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from reachwise.viz.nodes import RobotView, robot_size
 from reachwise.viz.scene_data import (
     axis_segments,
     camera_view,
     status_colours,
     wxyz_position,
 )
+from reachwise.viz.sources import find_results
 
 if TYPE_CHECKING:
     import viser
-
-    from reachwise.viz.nodes import RobotView
 
 __all__ = ["CATEGORIES", "Viewer", "serve_results"]
 
@@ -230,8 +230,6 @@ class Viewer:
         watched: set[str] | frozenset[str] = frozenset(),
     ) -> RobotView:
         """Add ``robot`` (its link clouds, skeleton and tool frame) as ``/robots/<name>``."""
-        from reachwise.viz.nodes import RobotView, robot_size
-
         size = max(robot_size(robot, q), 0.25 * self.scale)
         view = RobotView(self, name, robot, q, clouds, watched, size=size)
         self.robots[name] = view
@@ -373,8 +371,6 @@ class Viewer:
         """Show what ``path`` is: a robot or scenario (built-in name or file), a
         simulation or synthesis output folder, or a folder of such results (a
         "Result" dropdown chooses one). See :mod:`reachwise.viz.sources`."""
-        from reachwise.viz.sources import find_results
-
         entries = find_results(path, scenario=scenario)
         self.show_entries(entries)
 
