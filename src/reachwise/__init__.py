@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 from reachwise._version import __version__
 
 if TYPE_CHECKING:
-    from reachwise.api import replay, synthesize
+    from reachwise.api import replay, simulate, synthesize
     from reachwise.geometry.cloud import PointCloud
     from reachwise.io.robot_clouds import link_clouds
     from reachwise.io.robot_file import load_robot, save_robot
@@ -24,7 +24,6 @@ if TYPE_CHECKING:
     from reachwise.kinematics.ik import IKResult
     from reachwise.kinematics.robot import Joint, Robot
     from reachwise.sim.log import SimulationLog
-    from reachwise.sim.simulate import simulate
     from reachwise.synthesis.synthesize import SynthesisResult
     from reachwise.tasks.task import Task, TaskPoint
 
@@ -62,7 +61,7 @@ _HOME = {
     "load_task": "reachwise.io.task_file",
     "replay": "reachwise.api",
     "save_robot": "reachwise.io.robot_file",
-    "simulate": "reachwise.sim.simulate",
+    "simulate": "reachwise.api",
     "synthesize": "reachwise.api",
 }
 

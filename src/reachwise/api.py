@@ -8,9 +8,13 @@ layer, so nothing below ``io`` ever reads a file.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import time
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
 
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_clouds import link_clouds as link_clouds_of
@@ -19,11 +23,21 @@ from reachwise.io.ros.replay import ReplayResult, ReplaySpec, replay_recording
 from reachwise.io.task_file import load_task
 from reachwise.kinematics.robot import Robot
 from reachwise.report.replay import write_replay_outputs
+from reachwise.server.client.owned import ServerOptions, owned_scene
+from reachwise.sim.log import SimulationLog
+from reachwise.sim.plant import PlantName
+from reachwise.sim.scenarios import EscapeSpec, Scenario
+from reachwise.sim.simulate import RunRecorder
+from reachwise.sim.simulate import simulate as run_simulation
+from reachwise.sim.world import SceneFactory
 from reachwise.synthesis.synthesize import SynthesisResult
 from reachwise.synthesis.synthesize import synthesize as synthesize_objects
 from reachwise.tasks.task import Task
 
-__all__ = ["replay", "synthesize"]
+if TYPE_CHECKING:
+    from reachwise.distance.scene import SceneResult
+
+__all__ = ["replay", "server_scene", "simulate", "synthesize"]
 
 
 def synthesize(
@@ -88,3 +102,40 @@ def replay(
         inputs = {"joints": joints, "clouds": list(topics), "robot": model.name}
         write_replay_outputs(result, out, inputs, results_bag=results_bag)
     return result
+
+
+def server_scene(server: str | ServerOptions) -> SceneFactory:
+    """A :data:`~reachwise.sim.world.SceneFactory` for a simulation on the collision
+    server ``server`` (an address or :class:`~reachwise.server.client.ServerOptions`):
+    a client that owns the server's scene (it clears it, registers the scenario's and
+    sends the inputs with each query), stamped with the simulation's clock."""
+
+    def make(clock: Callable[[], float] | None) -> Any:
+        return owned_scene(server, clock or time.monotonic)
+
+    return make
+
+
+def simulate(
+    scenario: Scenario | str | Path,
+    avoidance: bool = True,
+    *,
+    duration: float | None = None,
+    progress: Callable[[float, float], None] | None = None,
+    on_tick: Callable[[float, dict[str, NDArray[np.float64]], SceneResult], None] | None = None,
+    plant: PlantName = "scenario",
+    static_world: bool = False,
+    server: str | ServerOptions | None = None,
+    escape: bool | EscapeSpec | None = None,
+    recorder: RunRecorder | None = None,
+) -> SimulationLog:
+    """Run ``scenario`` (a built-in name, a file or a ``Scenario``) in simulated time:
+    :func:`reachwise.sim.simulate.simulate`, whose options these are. ``server`` (an
+    address or :class:`~reachwise.server.client.ServerOptions`) runs the distance
+    queries on that collision server instead of in process (:func:`server_scene`)."""
+    make_scene = None if server is None else server_scene(server)
+    return run_simulation(
+        scenario, avoidance, duration=duration, progress=progress, on_tick=on_tick,
+        plant=plant, static_world=static_world, make_scene=make_scene, escape=escape,
+        recorder=recorder,
+    )  # fmt: skip

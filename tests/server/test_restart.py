@@ -26,12 +26,12 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
+from reachwise.api import simulate
 from reachwise.benchmarks.server import ServerProcess
 from reachwise.distance.scene import SceneResult
 from reachwise.server import protocol as P
 from reachwise.server.client import SceneClient, ServerOptions
 from reachwise.sim.scenarios import scenario_from_dict
-from reachwise.sim.simulate import simulate
 
 from .conftest import start_server
 

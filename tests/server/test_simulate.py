@@ -12,12 +12,12 @@ import numpy as np
 import typer
 from typer.testing import CliRunner
 
+from reachwise.api import simulate
 from reachwise.benchmarks.server import ServerProcess
 from reachwise.cli.simulate import simulate as simulate_cli
 from reachwise.io.robot_file import load_robot
 from reachwise.server.client import SceneClient, ServerOptions, owned_scene
 from reachwise.sim.log import SimulationLog
-from reachwise.sim.simulate import simulate
 
 from .conftest import HANG_GUARD
 

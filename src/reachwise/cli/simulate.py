@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import typer
 from rich.console import Console
@@ -12,6 +14,10 @@ from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeElapsedCo
 
 from reachwise.cli._help import builtins
 from reachwise.io.atomic import atomic_write
+
+if TYPE_CHECKING:
+    from reachwise.server.client import ServerOptions
+    from reachwise.sim.world import SceneFactory
 
 
 def simulate(
@@ -93,13 +99,14 @@ def simulate(
     sc = load_scenario(scenario)
     if out is not None:  # computed helpers (automatic self-collision pairs) cached there
         sc.cache_dir = out
-    link = None
+    make_scene = None
     if server is not None:
         from reachwise.server.client import ServerOptions
 
         link = ServerOptions(
             server, deadline=server_deadline, keys=server_keys, ready_timeout=server_timeout
         )
+        make_scene = _server_scene(link)
     console = Console(stderr=True)
     live = None
     if view:
@@ -130,8 +137,8 @@ def simulate(
             try:
                 logs[label] = run(
                     sc, avoidance=avoid, duration=duration, progress=tick, plant=kind,
-                    server=link, on_tick=live.hook(avoid, label) if live is not None else None,
-                    escape=escape, recorder=recorder,
+                    make_scene=make_scene, escape=escape, recorder=recorder,
+                    on_tick=live.hook(avoid, label) if live is not None else None,
                 )  # fmt: skip
             finally:
                 if recorder is not None:
@@ -255,3 +262,16 @@ def _print_tracking(extras: dict, out: Console) -> None:  # type: ignore[type-ar
             f"max joint difference {c['joint_difference_max']:.4f}, max tool difference "
             f"{fmt(c['tool_difference_max'])}"
         )
+
+
+def _server_scene(link: ServerOptions) -> SceneFactory:
+    """The scene of a simulation on the collision server ``link``: a client that owns
+    the server's scene, stamped with the simulation's clock."""
+    import time
+
+    from reachwise.server.client import owned_scene
+
+    def make(clock: Callable[[], float] | None) -> Any:
+        return owned_scene(link, clock or time.monotonic)
+
+    return make

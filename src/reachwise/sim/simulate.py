@@ -43,6 +43,7 @@ from reachwise.sim.plant import PlantName
 from reachwise.sim.scenarios import EscapeSpec, Scenario
 from reachwise.sim.world import (
     Agent,
+    SceneFactory,
     SimClock,
     Twists,
     World,
@@ -53,7 +54,6 @@ from reachwise.sim.world import (
 )
 
 if TYPE_CHECKING:
-    from reachwise.server.client.owned import ServerOptions
     from reachwise.sim.escape import Escape
 
 __all__ = ["RunRecorder", "simulate"]
@@ -79,7 +79,7 @@ def simulate(
     on_tick: Callable[[float, dict[str, NDArray[np.float64]], SceneResult], None] | None = None,
     plant: PlantName = "scenario",
     static_world: bool = False,
-    server: str | ServerOptions | None = None,
+    make_scene: SceneFactory | None = None,
     escape: bool | EscapeSpec | None = None,
     recorder: RunRecorder | None = None,
 ) -> SimulationLog:
@@ -93,11 +93,11 @@ def simulate(
     ``static_world=True`` is the static-world baseline for moving obstacles: the
     controllers see every object where it was at the start, while the logged
     distances and the contact check follow the objects' true motion.
-    ``server`` (an address or ``reachwise.server.client.ServerOptions``) runs
-    the distance queries on that collision server instead of in process: the
-    simulation clears the server's scene and registers its own; a reply that misses
-    its deadline (a server lost or restarting) reaches the controllers as missing
-    data (protective stop), and the run goes on when the server answers again.
+    ``make_scene`` makes the distance scene (:data:`reachwise.sim.world.SceneFactory`;
+    default: in process); :func:`reachwise.simulate` passes a collision server's
+    client here for its ``server`` option. With a server, a reply that misses its
+    deadline (a server lost or restarting) reaches the controllers as missing data
+    (protective stop), and the run goes on when the server answers again.
     ``escape`` (default: the scenario's ``escape:`` block; True: on, with its options
     or the defaults; False: off; or an ``EscapeSpec``): a robot whose controller
     stalls plans a path out with OMPL and follows it (``reachwise.sim.escape``);
@@ -110,7 +110,7 @@ def simulate(
     (distances and the first overlap into the ``_Recorder``) and ``_act``
     (each robot's goal bookkeeping in ``_Goals``, controller and plant)."""
     clock = SimClock()
-    world = build_world(scenario, avoidance, plant=plant, server=server, clock=clock)
+    world = build_world(scenario, avoidance, plant=plant, make_scene=make_scene, clock=clock)
     spec = world.scenario.spec
     dt = spec.dt
     T_end = spec.duration if duration is None else float(duration)

@@ -36,11 +36,18 @@ from reachwise.sim.scenarios import (
 from reachwise.sim.sensors import BodySurface, DepthSensor, ObjectSurface, Sight
 
 if TYPE_CHECKING:
-    from reachwise.server.client.owned import ServerOptions
     from reachwise.sim.mujoco_plant import MujocoPlant
 
 
-__all__ = ["Agent", "Twists", "World", "build_world"]
+__all__ = ["Agent", "SceneFactory", "Twists", "World", "build_world"]
+
+#: Makes the distance scene a world is built in, given the clock that stamps its inputs
+#: and answers (``None``: its own). The caller chooses: an in-process
+#: :class:`~reachwise.distance.scene.Scene` by default, or a client of a collision
+#: server that owns the server's scene (``reachwise.server.client.owned_scene``), which
+#: has the same interface (``SceneLike``), so the world, the converters and the
+#: controllers use it unchanged.
+SceneFactory = Callable[[Callable[[], float] | None], SceneLike]
 
 #: The moving objects' twists at one tick, ``{name: (v, ω, origin)}`` (world frame).
 Twists = dict[str, tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]]
@@ -95,23 +102,27 @@ def build_world(
     avoidance: bool = True,
     *,
     plant: PlantName = "scenario",
-    server: str | ServerOptions | None = None,
+    make_scene: SceneFactory | None = None,
     clock: Callable[[], float] | None = None,
 ) -> World:
     """Robots, clouds (links, meshes, files, the scanner), scene, controllers, plants
     (``plant``: ``"scenario"`` — each robot's own — or ``"mujoco"``, see
-    :mod:`reachwise.sim.mujoco_plant`). The scene is in process, or with ``server``
-    (an address or :class:`~reachwise.server.client.ServerOptions`) on a collision
-    server (:func:`_server_scene`); ``clock`` stamps its inputs and answers.
+    :mod:`reachwise.sim.mujoco_plant`). The distance scene is ``make_scene(clock)``
+    (:data:`SceneFactory`; default: in process); ``clock`` stamps its inputs and answers.
 
-    The steps: the scene (:func:`_make_scene`), the robots and their link clouds
+    The steps: the scene, the robots and their link clouds
     (:func:`_add_robots`), the other objects (:func:`_add_objects`), the sensors and
     what they see (:func:`_add_sensors`), the watched pairs (:func:`_watch_pairs`), one
     agent per robot (:func:`_make_agent`) and the shared jobs (:func:`_shared_jobs`)."""
     plant = check_choice(plant, PLANT_NAMES, source="simulate", kind="plant")
     sc = load_scenario(scenario)
     check_requirements(sc)
-    scene = _make_scene(server, clock)
+    scene = Scene(clock=clock) if make_scene is None else make_scene(clock)
+    return _assemble(scene, sc, avoidance, plant)
+
+
+def _assemble(scene: SceneLike, sc: Scenario, avoidance: bool, plant: PlantName) -> World:
+    """Fill ``scene`` with the scenario and make the agents (see :func:`build_world`)."""
     robots, solids = _add_robots(scene, sc)
     movers = _add_objects(scene, sc, solids)
     sight, sensors = _add_sensors(scene, sc, robots, movers)
@@ -129,11 +140,6 @@ def build_world(
     return World(
         sc, scene, robots, agents, pairs, margins, solids, jobs, movers, sensors, sight, truth
     )
-
-
-def _make_scene(server: str | ServerOptions | None, clock: Callable[[], float] | None) -> SceneLike:
-    """The distance scene: in process, or on the collision server ``server``."""
-    return Scene(clock=clock) if server is None else _server_scene(server, clock)
 
 
 def _add_robots(
@@ -423,19 +429,6 @@ def _shared_jobs(sc: Scenario, robots: dict[str, Robot]) -> list[tuple[Goal, Goa
         (_goal(g, first), g if g.work > 0 else g.model_copy(update={"work": work}))
         for g in sc.spec.jobs.goals
     ]
-
-
-def _server_scene(server: str | ServerOptions, clock: Callable[[], float] | None) -> SceneLike:
-    """A client of the collision server at ``server`` that owns its scene (cleared,
-    mirrored locally, inputs sent with each query; :func:`reachwise.server.client.
-    owned_scene`). It has the in-process scene's interface (``SceneLike``), so the
-    world, the converters and the controllers use it unchanged; a reply that misses
-    its deadline is an invalid result (missing data: a protective stop)."""
-    import time
-
-    from reachwise.server.client.owned import owned_scene
-
-    return owned_scene(server, clock or time.monotonic)
 
 
 def close_scene(scene: SceneLike) -> None:
