@@ -22,6 +22,7 @@ from reachwise.io._builtin import Builtin, builtin_names, load_named
 from reachwise.io.atomic import atomic_write
 from reachwise.io.design_bodies import BodyModel, bodies_from_models, bodies_to_dict
 from reachwise.io.robot_geometry import GeometryModel, geometry_to_dict, resolve_meshes
+from reachwise.io.text_input import parse_text, read_text
 from reachwise.io.validation import StrictModel, input_error
 from reachwise.kinematics.robot import (
     BASE_PARAMS,
@@ -266,11 +267,8 @@ def load_robot_file(
         raise RobotFileError(
             str(p), "tip", "tip selects the chain of a URDF; a YAML robot is one chain"
         )
-    try:
-        data = yaml.safe_load(p.read_text())
-    except yaml.YAMLError as exc:
-        raise RobotFileError(str(p), "", f"not valid YAML: {exc}") from None
-    robot = robot_from_dict(data, str(p))
+    text = read_text(p, str(p), RobotFileError)
+    robot = robot_from_dict(parse_text(text, str(p), "yaml", RobotFileError), str(p))
     return resolve_meshes(robot, p.parent, package_dirs or (), lenient)
 
 

@@ -55,6 +55,7 @@ from scipy.spatial.transform import Rotation
 from reachwise.errors import TaskError
 from reachwise.io._builtin import builtin_names, load_named
 from reachwise.io.atomic import atomic_write
+from reachwise.io.text_input import parse_text, read_text
 from reachwise.io.validation import StrictModel, input_error
 from reachwise.tasks.task import (
     DEFAULT_TOL_ORIENTATION,
@@ -351,7 +352,13 @@ def _csv_to_dict(text: str, source: str, default_name: str) -> tuple[dict[str, A
         if body.lower().startswith("name:"):
             name = body[5:].strip()
         start += 1
-    rows = list(csv.reader(lines[start:]))
+    reader = csv.reader(lines[start:])
+    try:
+        rows = list(reader)
+    except csv.Error as exc:  # a cell beyond csv.field_size_limit, a NUL byte
+        raise TaskError(
+            source, f"line {start + reader.line_num}", f"not valid CSV: {exc}"
+        ) from None
     if not rows:
         raise TaskError(source, "header", "no CSV header (need at least columns x, y, z)")
     header = [h.strip() for h in rows[0]]
@@ -397,7 +404,8 @@ def _csv_to_dict(text: str, source: str, default_name: str) -> tuple[dict[str, A
                     )
                 pt[key] = vals
         if get.get("dims"):
-            pt["dims"] = int(get["dims"]) if get["dims"].isdigit() else get["dims"]
+            dims = get["dims"]
+            pt["dims"] = int(dims) if dims.isascii() and dims.isdigit() else dims
         tol_cols = (("position", "tol_position"), ("orientation", "tol_orientation"))
         tol = {k: get[c] for k, c in tol_cols if get.get(c)}
         if tol:
@@ -471,14 +479,10 @@ def load_task_file(path: str | Path) -> Task:
     fmt = _format(p, None)
     if not p.is_file():
         raise TaskError(str(p), "", "no such file")
-    text = p.read_text()
+    text = read_text(p, str(p), TaskError)
     if fmt == "csv":
         return _csv_task(text, str(p), p.stem)
-    try:
-        data = json.loads(text) if fmt == "json" else yaml.safe_load(text)
-    except (yaml.YAMLError, json.JSONDecodeError) as exc:
-        raise TaskError(str(p), "", f"not valid {fmt.upper()}: {exc}") from None
-    return task_from_dict(data, str(p), p.stem)
+    return task_from_dict(parse_text(text, str(p), fmt, TaskError), str(p), p.stem)
 
 
 # -- built-in tasks -------------------------------------------------------------------

@@ -87,7 +87,6 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-import yaml
 from pydantic import (
     ConfigDict,
     Field,
@@ -100,6 +99,7 @@ from scipy.spatial.transform import Rotation
 from reachwise.errors import InputError
 from reachwise.io._builtin import builtin_names, load_named
 from reachwise.io.robot_file import FrameModel
+from reachwise.io.text_input import parse_text, read_text
 from reachwise.io.validation import StrictModel, input_error
 from reachwise.sim.motion import ConstantVelocity, Trajectory, WaypointTrajectory
 from reachwise.sim.plant import PlantKind
@@ -747,12 +747,8 @@ def load_scenario(name_or_path: str | Path | Scenario) -> Scenario:
 def _load_scenario_file(path: Path) -> Scenario:
     if not path.is_file():
         raise InputError(str(path), "", "no such file")
-    return _parse(path.read_text(), str(path), path.parent)
+    return _parse(read_text(path, str(path)), str(path), path.parent)
 
 
 def _parse(text: str, source: str, folder: Path) -> Scenario:
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise InputError(source, "", f"not valid YAML: {exc}") from None
-    return scenario_from_dict(data, source, folder)
+    return scenario_from_dict(parse_text(text, source, "yaml"), source, folder)
