@@ -5,15 +5,17 @@ recording in the recording's own order and time: the robot's joint states as the
 (each one a :meth:`~reachwise.distance.scene.Scene.set_joints` and, at most every
 ``every`` seconds of recording time, one :meth:`~reachwise.distance.scene.Scene.query_all`,
 a *frame*), and each cloud topic's messages decoded to points in the fixed frame and
-handed over with :meth:`~reachwise.distance.scene.Scene.replace_cloud`. By default
-the hand-over blocks, so every frame uses the newest cloud received by its time, the
-same on any machine. ``block=False`` hands clouds over as a live robot does: a frame
-uses the newest cloud whose index is ready, and says which (its stamp); with ``rate``
-the replay is paced at ``rate`` times the recording's speed (1: as recorded; the
-worker that indexes clouds then has the time it had live), without it the replay runs
-as fast as it can and frames use older clouds the faster it runs. The robot's links
-carry the clouds of ``link_clouds``; every watched link is paired with every cloud
-topic.
+handed over with :meth:`~reachwise.distance.scene.Scene.replace_cloud`. Messages
+received at the same time are taken clouds first, then joint states, so a frame counts
+every cloud received at or before its time (bag formats keep such ties in different
+orders). By default the hand-over blocks, so every frame uses the newest cloud
+received by its time, the same on any machine. ``block=False`` hands clouds over as a
+live robot does: a frame uses the newest cloud whose index is ready, and says which
+(its stamp); with ``rate`` the replay is paced at ``rate`` times the recording's speed
+(1: as recorded; the worker that indexes clouds then has the time it had live),
+without it the replay runs as fast as it can and frames use older clouds the faster it
+runs. The robot's links carry the clouds of ``link_clouds``; every watched link is
+paired with every cloud topic.
 
 A cloud topic is a ``sensor_msgs/PointCloud2`` or a depth ``sensor_msgs/Image`` with
 its ``sensor_msgs/CameraInfo`` (by default the sibling topic ``camera_info``). Clouds
@@ -28,8 +30,9 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
+from itertools import groupby
 from pathlib import Path
 from typing import Any
 
@@ -39,7 +42,7 @@ from numpy.typing import NDArray
 from reachwise.distance.scene import Scene
 from reachwise.errors import InputError, UnknownName
 from reachwise.geometry.cloud import PointCloud
-from reachwise.io.ros.bag import Recording
+from reachwise.io.ros.bag import BagMessage, Recording
 from reachwise.io.ros.depth_image import DepthProjector, camera_from_info
 from reachwise.io.ros.joint_state import JointMatcher, robot_joint_names
 from reachwise.io.ros.pointcloud2 import pointcloud2_points
@@ -299,7 +302,8 @@ def _drive(
     seen: dict[str, set[int]] = {topic: set() for topic in sources}
     last = -math.inf
     pace = _Pace(spec.rate)
-    for m in rec.messages(topics):
+    rank = {topic: 0 for topic in infos} | {topic: 1 for topic in sources} | {spec.joints: 2}
+    for m in _in_time_order(rec.messages(topics), rank):
         pace.wait(m.t)
         if m.topic in infos:
             infos[m.topic].set_info(m.msg)
@@ -344,6 +348,15 @@ def _drive(
         stack(pb, P, 3),
         {c: len(v) for c, v in seen.items()},
     )
+
+
+def _in_time_order(messages: Iterable[BagMessage], rank: dict[str, int]) -> Iterator[BagMessage]:
+    """``messages`` (in receive-time order) with those of one receive time ordered by
+    the ``rank`` of their topic: camera infos, then clouds, then joint states, so a
+    frame uses every cloud received at or before its time whatever order the storage
+    kept ties in."""
+    for _, group in groupby(messages, key=lambda m: m.t):
+        yield from sorted(group, key=lambda m: rank[m.topic])
 
 
 class _Pace:
