@@ -147,6 +147,6 @@ def test_main_prints_one_line_and_exits_2(
         main()
     assert exc.value.code == 2
     err = capsys.readouterr().err.strip()
-    assert err.startswith("error: ") and "cut.ply: file: not a valid PLY file" in err
+    assert err.startswith("error: ") and "cut.ply: header: not a valid PLY file" in err
     assert len(err.splitlines()) == 1 and "Traceback" not in err
     assert issubclass(CloudError, ReachwiseError)

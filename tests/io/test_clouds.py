@@ -105,6 +105,17 @@ def test_structured_npy(tmp_path: Path) -> None:
 # ------------------------------------------------------------------ broken and bad files
 
 
+CUT_PLY = (
+    r"cut\.ply: (file: not a valid PLY file|header: not a valid PLY file: no 'end_header'"
+    r"|element vertex: header declares 257 (vertex \(6168 bytes|data rows))"
+)
+CUT_PCD = r"cut\.pcd: (POINTS: header declares 257 points of 24 bytes|header: not a valid PCD)"
+CUT_NPY = (
+    r"cut\.npy: (shape: header declares shape \(257, 3\) of float64 \(6168 bytes\)"
+    r"|header: not a valid NPY file)"
+)
+
+
 @pytest.mark.parametrize("ascii", [False, True])
 def test_truncated_ply(tmp_path: Path, cloud: PointCloud, ascii: bool) -> None:
     good = tmp_path / "good.ply"
@@ -114,7 +125,10 @@ def test_truncated_ply(tmp_path: Path, cloud: PointCloud, ascii: bool) -> None:
     bad = tmp_path / "cut.ply"
     for cut in (len(data) - 200, header_end + 30, header_end, header_end - 20, 3):
         bad.write_bytes(data[:cut])
-        with pytest.raises(CloudError, match=r"cut\.ply: file: not a valid PLY file"):
+        with pytest.raises(
+            CloudError,
+            match=CUT_PLY,
+        ):
             load_cloud(bad)
 
 
@@ -125,11 +139,17 @@ def test_truncated_pcd(tmp_path: Path, cloud: PointCloud) -> None:
     body = data.index(b"DATA binary\n") + len(b"DATA binary\n")
     bad = tmp_path / "cut.pcd"
     bad.write_bytes(data[: body + 24 * 100])  # 100 whole points of 257
-    with pytest.raises(CloudError, match=r"cut\.pcd: POINTS: header declares 257 .* holds 100"):
+    with pytest.raises(
+        CloudError,
+        match=r"cut\.pcd: POINTS: header declares 257 points of 24 bytes .* holds 2400 bytes",
+    ):
         load_cloud(bad)
     for cut in (body + 24 * 100 + 5, body - 10, 20):
         bad.write_bytes(data[:cut])
-        with pytest.raises(CloudError, match=r"cut\.pcd: file: not a valid PCD file"):
+        with pytest.raises(
+            CloudError,
+            match=CUT_PCD,
+        ):
             load_cloud(bad)
 
 
@@ -150,7 +170,10 @@ def test_truncated_npy(tmp_path: Path, cloud: PointCloud) -> None:
     bad = tmp_path / "cut.npy"
     for cut in (len(data) - 8, 40, 0):
         bad.write_bytes(data[:cut])
-        with pytest.raises(CloudError, match=r"cut\.npy: file: not a valid NPY file"):
+        with pytest.raises(
+            CloudError,
+            match=CUT_NPY,
+        ):
             load_cloud(bad)
 
 
@@ -158,7 +181,7 @@ def test_truncated_npy(tmp_path: Path, cloud: PointCloud) -> None:
 def test_empty_file(tmp_path: Path, suffix: str) -> None:
     path = tmp_path / f"empty{suffix}"
     path.write_bytes(b"")
-    with pytest.raises(CloudError, match=rf"empty\{suffix}: (file|points)"):
+    with pytest.raises(CloudError, match=rf"empty\{suffix}: (file|points|header: not a valid)"):
         load_cloud(path)
 
 
@@ -255,13 +278,15 @@ def test_wrong_shapes_and_types(tmp_path: Path) -> None:
         with pytest.raises(CloudError, match=match):
             load_cloud(tmp_path / name)
     np.save(tmp_path / "obj.npy", np.array([[1, 2, 3]], dtype=object), allow_pickle=True)
-    with pytest.raises(CloudError, match=r"obj\.npy: file: not a valid NPY file"):
+    with pytest.raises(
+        CloudError, match=r"obj\.npy: dtype: objects \(object\) are not coordinates"
+    ):
         load_cloud(tmp_path / "obj.npy")
     (tmp_path / "bin.xyz").write_bytes(b"\xff\xfe\x00garbage")
-    with pytest.raises(CloudError, match=r"bin\.xyz: file: not a UTF-8 text file"):
+    with pytest.raises(CloudError, match=r"bin\.xyz: line 1: not UTF-8 text"):
         load_cloud(tmp_path / "bin.xyz")
     (tmp_path / "junk.ply").write_bytes(b"not a ply at all\n")
-    with pytest.raises(CloudError, match=r"junk\.ply: file: not a valid PLY"):
+    with pytest.raises(CloudError, match=r"junk\.ply: (file|header): not a valid PLY"):
         load_cloud(tmp_path / "junk.ply")
 
 

@@ -45,10 +45,13 @@ from numpy.typing import NDArray
 from reachwise.errors import CloudError
 from reachwise.geometry.cloud import DEFAULT_MESH_POINTS, PointCloud, sample_mesh_surface
 from reachwise.io.atomic import atomic_open
+from reachwise.io.cloud_headers import MAX_CLOUD_POINTS, check_npy, check_pcd, check_ply
 from reachwise.io.meshes import MESH_FORMATS, load_mesh
+from reachwise.io.text_input import decode_text
 
 __all__ = [
     "CLOUD_FORMATS",
+    "MAX_CLOUD_POINTS",
     "MESH_FORMATS",
     "cloud_format",
     "load_cloud",
@@ -97,6 +100,7 @@ def load_cloud(
     frame: str = "world",
     name: str | None = None,
     drop_non_finite: bool = False,
+    max_points: int = MAX_CLOUD_POINTS,
 ) -> PointCloud:
     """Read a point cloud file into a :class:`PointCloud` (float64, metres).
 
@@ -104,7 +108,9 @@ def load_cloud(
     NaN or infinite coordinates are an error that states their count and the first
     row, unless ``drop_non_finite`` is set: then they are removed (organized scans mark
     "no return" with NaN), and a file of nothing but such rows is still an error. The
-    cloud's ``name`` defaults to the path as given.
+    cloud's ``name`` defaults to the path as given. A file declaring or holding more
+    than ``max_points`` points is refused before it is read; binary headers are checked
+    against the file's size (:mod:`reachwise.io.cloud_headers`).
     """
     source = str(path)
     kind = cloud_format(path, fmt)
@@ -115,13 +121,16 @@ def load_cloud(
         raise CloudError(source, "file", "not a regular file")
     try:
         if kind == "ply":
+            check_ply(p, source, max_points)
             pts = _read_ply(p, source)
         elif kind == "pcd":
+            check_pcd(p, source, max_points)
             pts = _read_pcd(p, source)
         elif kind == "npy":
+            check_npy(p, source, max_points)
             pts = _read_npy(p, source)
         else:
-            pts = _read_text(p, source)
+            pts = _read_text(p, source, max_points)
     except OSError as exc:
         raise CloudError(source, "file", f"cannot read: {exc.strerror or exc}") from None
     return _to_cloud(pts, source, frame, source if name is None else name, drop_non_finite)
@@ -233,11 +242,8 @@ def _is_number(token: str) -> bool:
     return True
 
 
-def _read_text(path: Path, source: str) -> NDArray[Any]:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise CloudError(source, "file", f"not a UTF-8 text file: {exc.reason}") from None
+def _read_text(path: Path, source: str, max_points: int) -> NDArray[Any]:
+    text = decode_text(path.read_bytes(), source, CloudError)
     rows = [
         (no, line.split("#", 1)[0].strip()) for no, line in enumerate(text.splitlines(), start=1)
     ]
@@ -260,6 +266,11 @@ def _read_text(path: Path, source: str) -> NDArray[Any]:
         rows = rows[1:]
         if not rows:
             raise CloudError(source, "points", "the file holds a header but no points")
+    if len(rows) > max_points:
+        raise CloudError(
+            source, "points", f"{len(rows)} rows, more than the bound {max_points} points "
+            "(raise it with --max-points / max_points)",
+        )  # fmt: skip
     if ncols < 3:
         raise CloudError(
             source, f"line {rows[0][0]}", f"expected at least 3 columns (x, y, z), got {ncols}"
