@@ -71,3 +71,12 @@ def test_bad_recording_exits_2_naming_topic_and_time(
     code, err = _main(argv, monkeypatch, capsys)
     assert code == 2
     assert "topic /joint_states" in err and "wrist_3_joint" in err and "t = 0.000000000 s" in err
+
+
+def test_a_bad_memory_box_exits_2(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: Any
+) -> None:
+    argv = ["replay", str(tmp_path / "x.mcap"), "--robot", "panda", "--clouds", "/d",
+            "--memory", "0.05", "--memory-box", "1,2,3"]  # fmt: skip
+    code, err = _main(argv, monkeypatch, capsys)
+    assert code == 2 and "six numbers" in err

@@ -81,6 +81,17 @@ def replay(
     points: int | None = typer.Option(
         None, "--points", min=1, help="Points sampled per link (default: the robot's own)."
     ),
+    memory: float | None = typer.Option(
+        None,
+        "--memory",
+        min=0.001,
+        help="Fuse the depth-image topics into one scene memory of this voxel edge (m): "
+        "the object 'memory' (occupied and shadow voxels; unseen is never free). Needs "
+        "--memory-box.",
+    ),
+    memory_box: str | None = typer.Option(
+        None, "--memory-box", help="x0,y0,z0,x1,y1,z1: the memory's box in --frame (m)."
+    ),
     tf_tolerance: float = typer.Option(
         0.0,
         "--tf-tolerance",
@@ -97,6 +108,7 @@ def replay(
 ) -> None:
     """Replay a recorded cell: per frame the smallest distance of every watched pair
     (distances.csv, near.csv, summary.json, report.html, a results bag)."""
+    from reachwise.distance.scene_memory import MemoryConfig
     from reachwise.errors import InputError
     from reachwise.io.robot_clouds import link_clouds
     from reachwise.io.ros.replay import ReplaySpec, replay_recording
@@ -108,6 +120,15 @@ def replay(
         if not sep or not image or not info:
             raise InputError("--camera-info", item, "expected IMAGE_TOPIC=INFO_TOPIC")
         infos[image] = info
+    box = None
+    if memory_box is not None:
+        try:
+            c = [float(v) for v in memory_box.split(",")]
+        except ValueError:
+            c = []
+        if len(c) != 6:
+            raise InputError("--memory-box", memory_box, "expected six numbers x0,y0,z0,x1,y1,z1")
+        box = ((c[0], c[1], c[2]), (c[3], c[4], c[5]))
     spec = ReplaySpec(
         joints=joints,
         clouds=tuple(clouds),
@@ -120,6 +141,8 @@ def replay(
         rate=rate,
         voxel=voxel,
         tf_tolerance=tf_tolerance,
+        memory=None if memory is None else MemoryConfig(voxel=memory),
+        memory_box=box,
     )
     if robot is not None and scenario is not None:
         raise InputError("reachwise replay", "--scenario", "give --robot or --scenario, not both")

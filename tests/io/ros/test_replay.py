@@ -201,3 +201,37 @@ def test_a_ros1_copy_replays_the_same(cell: Path, tmp_path: Path) -> None:
     np.testing.assert_array_equal(a.t, b.t)
     np.testing.assert_array_equal(a.cloud_stamp, b.cloud_stamp)
     np.testing.assert_array_equal(a.distance, b.distance)
+
+
+def test_depth_frames_fused_into_a_scene_memory(cell: Path) -> None:
+    """With a scene memory the depth topic feeds one object ``memory`` (voxel centres):
+    its distance less the memory's inflation never exceeds the brute-force distance to
+    the frame's observed points."""
+    from reachwise.distance.scene_memory import MemoryConfig
+
+    robot = _cell.panda()
+    clouds = _cell.link_clouds(robot)
+    config = MemoryConfig(voxel=0.05)
+    spec = ReplaySpec(
+        joints="/joint_states",
+        clouds=("/points", "/depth/image"),
+        memory=config,
+        memory_box=((-1.0, -1.5, -1.0), (2.0, 1.5, 2.0)),
+    )
+    res = replay_recording(cell, robot, spec, link_clouds=clouds)
+    assert res.pairs[-3:] == tuple(f"{link}|memory" for link in clouds)
+    assert res.clouds == {"/points": 10, "/depth/image": 10}
+    inflation = 0.5 * np.sqrt(3.0) * config.voxel
+    checked = 0
+    for f in np.flatnonzero(~np.isnan(res.cloud_stamp[:, -1])):
+        stamp = res.cloud_stamp[f, -1]
+        k = round((stamp - 0.05) / 0.1)
+        pts = _cell.depth_world_points(k, stamp)
+        q = _cell.joint_path(res.t[f])
+        for p, link in enumerate(clouds, start=3):
+            bound = _brute(robot, clouds, q, link, pts)
+            assert res.distance[f, p] - inflation <= bound + 1e-9
+            checked += 1
+    assert checked > 200
+    with pytest.raises(InputError, match="memory_box"):
+        ReplaySpec(joints="/j", clouds=("/c",), memory=config)

@@ -40,10 +40,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from reachwise.distance.scene import Scene
+from reachwise.distance.scene_memory import MemoryConfig, SceneMemory, ViewIntrinsics
 from reachwise.errors import InputError, UnknownName
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.ros.bag import BagMessage, Recording
-from reachwise.io.ros.depth_image import DepthProjector, camera_from_info
+from reachwise.io.ros.depth_image import (
+    DepthProjector,
+    camera_from_info,
+    depth_image_metres,
+    depth_points,
+)
 from reachwise.io.ros.joint_state import JointMatcher, robot_joint_names
 from reachwise.io.ros.pointcloud2 import pointcloud2_points
 from reachwise.io.ros.recording_error import RecordingError
@@ -62,6 +68,10 @@ TF_TOPICS = ("/tf", "/tf_static")
 #: Where a cloud topic's object sits until its first message: far from everything; its
 #: pairs' answers are not reported until then.
 _NOWHERE = np.full((1, 3), 1.0e6)
+#: The scene object of the scene memory.
+MEMORY = "memory"
+#: The far limit given to the scene memory: the image's own invalid pixels are NaN or 0.
+_FAR = 1.0e3
 
 
 @dataclass(frozen=True)
@@ -73,7 +83,11 @@ class ReplaySpec:
     ``every`` (s; 0: a frame per joint state), ``block`` (hand clouds over blocking:
     each frame then uses the newest cloud received), the pace ``rate`` (a multiple of
     the recording's speed; None: as fast as possible), the scene's ``voxel`` thinning
-    (m, or None) and the TF ``tf_tolerance`` (s)."""
+    (m, or None) and the TF ``tf_tolerance`` (s). With ``memory`` (a
+    :class:`~reachwise.distance.scene_memory.MemoryConfig`) the depth-image topics are
+    fused into one scene memory of the box ``memory_box`` (lower and upper corner, m,
+    in ``frame``) instead of replacing a cloud each: the scene object ``memory``, the
+    occupied and shadow voxels' centres, paired with every link."""
 
     joints: str
     clouds: tuple[str, ...]
@@ -86,6 +100,8 @@ class ReplaySpec:
     rate: float | None = None
     voxel: float | None = None
     tf_tolerance: float = 0.0
+    memory: MemoryConfig | None = None
+    memory_box: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
 
     def __post_init__(self) -> None:
         if not self.clouds:
@@ -94,6 +110,8 @@ class ReplaySpec:
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
                 raise InputError("replay", name, f"must be a finite number >= 0, got {v!r}")
+        if (self.memory is None) != (self.memory_box is None):
+            raise InputError("replay", "memory_box", "give memory and memory_box together")
         if self.rate is not None and not (math.isfinite(self.rate) and self.rate > 0):
             raise InputError("replay", "rate", f"must be a finite number > 0, got {self.rate!r}")
 
@@ -109,7 +127,8 @@ class ReplayResult:
     """The answers of a replay, one row per frame (query): ``t`` (F,) recording time
     (s) of the joint state queried; per watched pair (``pairs``, ``"link|topic"``):
     ``distance`` (F, P, m; NaN before the pair's cloud arrived), ``cloud_stamp``
-    (F, P, s; the stamp of the cloud the answer used, NaN before), ``point_a``,
+    (F, P, s; the stamp of the cloud the answer used, NaN before; ``link|memory`` for
+    the scene memory), ``point_a``,
     ``point_b`` (F, P, 3; the closest points in the fixed frame); ``margin``;
     ``clouds`` (per topic, the number of clouds handed over) and ``swapped`` (how many
     of them some frame used)."""
@@ -159,32 +178,56 @@ class _CloudTopic:
             self.projector = DepthProjector(camera_from_info(msg, topic=self.info_topic or ""))
             self._info_key = key
 
-    def points(self, msg: Any, t: float, tree: TransformTree, frame: str) -> tuple[F64, float]:
-        """The message's points in ``frame`` and their stamp (s; the bag time when the
-        header has none)."""
+    def pose(self, msg: Any, t: float, tree: TransformTree, frame: str) -> tuple[F64 | None, float]:
+        """Where the message's frame is in ``frame`` at its stamp (None: it is ``frame``),
+        and the stamp (s; the bag time when the header has none)."""
         stamp = header_stamp(msg) or t
         source = header_frame(msg)
         if not source:
             raise RecordingError(self.topic, stamp, "header.frame_id", "is empty")
-        T = None
-        if source != frame:
-            try:
-                T = tree.lookup(frame, source, stamp)
-            except InputError as exc:
-                raise RecordingError(self.topic, stamp, "header.frame_id", str(exc)) from None
+        if source == frame:
+            return None, stamp
+        try:
+            return tree.lookup(frame, source, stamp), stamp
+        except InputError as exc:
+            raise RecordingError(self.topic, stamp, "header.frame_id", str(exc)) from None
+
+    def _projector(self, stamp: float) -> DepthProjector:
+        if self.projector is None:
+            raise RecordingError(
+                self.topic, stamp, "camera_info", f"no CameraInfo on {self.info_topic} yet"
+            )
+        return self.projector
+
+    def points(self, msg: Any, t: float, tree: TransformTree, frame: str) -> tuple[F64, float]:
+        """The message's points in ``frame`` and their stamp (s)."""
+        T, stamp = self.pose(msg, t, tree, frame)
         if self.msgtype == POINTCLOUD2:
             pts = pointcloud2_points(msg, topic=self.topic)
             if T is not None:
                 pts = pts @ T[:3, :3].T + T[:3, 3]
         else:
-            if self.projector is None:
-                raise RecordingError(
-                    self.topic, stamp, "camera_info", f"no CameraInfo on {self.info_topic} yet"
-                )
-            pts = self.projector.points(msg, np.eye(4) if T is None else T, topic=self.topic)
+            proj = self._projector(stamp)
+            pts = proj.points(msg, np.eye(4) if T is None else T, topic=self.topic)
         if len(pts) == 0:  # nothing returned: the frame says "nothing near"
             pts = _NOWHERE
         return np.ascontiguousarray(pts, dtype=np.float64), stamp
+
+    def fuse(
+        self, memory: SceneMemory, msg: Any, t: float, tree: TransformTree, frame: str
+    ) -> tuple[F64, float]:
+        """Fuse the depth image ``msg`` into ``memory``; its obstacles (voxel centres in
+        ``frame``) and the image's stamp."""
+        T, stamp = self.pose(msg, t, tree, frame)
+        cam = self._projector(stamp).camera
+        z = depth_image_metres(msg, topic=self.topic)
+        if z.shape != cam.shape:
+            depth_points(msg, cam, topic=self.topic)  # raises the size error
+        i = cam.intrinsics
+        view = ViewIntrinsics(i.fx, i.fy, i.cx, i.cy, 0.0, _FAR)
+        memory.integrate(z, np.eye(4) if T is None else T, view, stamp)
+        pts = memory.obstacles(stamp)
+        return (pts if len(pts) else _NOWHERE), stamp
 
 
 def _read_tf_and_info(
@@ -219,7 +262,7 @@ def _sources(rec: Recording, spec: ReplaySpec) -> dict[str, _CloudTopic]:
 
 
 def _scene(
-    robot: Robot, link_clouds: Mapping[str, PointCloud], spec: ReplaySpec
+    robot: Robot, link_clouds: Mapping[str, PointCloud], spec: ReplaySpec, objects: list[str]
 ) -> tuple[Scene, list[tuple[str, str]]]:
     links = list(link_clouds) if spec.links is None else list(spec.links)
     for link in links:
@@ -232,11 +275,11 @@ def _scene(
     for link in links:
         scene.add_object(link, link_clouds[link], robot=robot.name, link=link)
     pairs = []
-    for topic in spec.clouds:
-        scene.add_object(topic, _NOWHERE)
+    for name in objects:
+        scene.add_object(name, _NOWHERE)
         for link in links:
-            scene.watch(link, topic, math.inf, kind="robot-environment")
-            pairs.append((link, topic))
+            scene.watch(link, name, math.inf, kind="robot-environment")
+            pairs.append((link, name))
     return scene, pairs
 
 
@@ -255,7 +298,11 @@ def replay_recording(
         sources = _sources(rec, spec)
         try:
             tree = _read_tf_and_info(rec, spec, sources)
-            scene, pairs = _scene(robot, link_clouds, spec)
+            fused = spec.memory is not None
+            objects = [t for t, s in sources.items() if not (fused and s.msgtype == IMAGE)]
+            if fused:
+                objects.append(MEMORY)
+            scene, pairs = _scene(robot, link_clouds, spec, objects)
             try:
                 rows = _drive(rec, spec, sources, tree, scene, pairs, matcher, robot.name)
             finally:
@@ -299,7 +346,11 @@ def _drive(
     stamps: list[F64] = []
     pa: list[F64] = []
     pb: list[F64] = []
-    seen: dict[str, set[int]] = {topic: set() for topic in sources}
+    memory = None
+    if spec.memory is not None and spec.memory_box is not None:
+        memory = SceneMemory(spec.memory_box[0], spec.memory_box[1], spec.memory)
+    objects = sorted(set(cloud_of))
+    seen: dict[str, set[int]] = {name: set() for name in objects}
     last = -math.inf
     pace = _Pace(spec.rate)
     rank = {topic: 0 for topic in infos} | {topic: 1 for topic in sources} | {spec.joints: 2}
@@ -309,9 +360,13 @@ def _drive(
             infos[m.topic].set_info(m.msg)
         elif m.topic in sources:
             src = sources[m.topic]
-            pts, stamp = src.points(m.msg, m.t, tree, spec.frame)
             src.count += 1
-            scene.replace_cloud(m.topic, pts, block=spec.block, stamp=stamp)
+            if memory is not None and src.msgtype == IMAGE:
+                pts, stamp = src.fuse(memory, m.msg, m.t, tree, spec.frame)
+                scene.replace_cloud(MEMORY, pts, block=spec.block, stamp=stamp)
+            else:
+                pts, stamp = src.points(m.msg, m.t, tree, spec.frame)
+                scene.replace_cloud(m.topic, pts, block=spec.block, stamp=stamp)
         else:
             q = matcher.positions(m.msg, topic=m.topic)
             t = _joint_time(m.msg, m.t)
@@ -331,7 +386,7 @@ def _drive(
             )  # fmt: skip
             pa.append(np.where(fresh[:, None], r[:, 1:4], np.nan))
             pb.append(np.where(fresh[:, None], r[:, 4:7], np.nan))
-            for c in sources:
+            for c in objects:
                 v = versions.get(c, 0)
                 if v > 0:
                     seen[c].add(v)
