@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -85,27 +85,18 @@ def topology(
     what is done. Ctrl-C stops submitting, waits for the running runs, stores them and
     exits (130); a killed sweep loses nothing it stored.
     """
-    from reachwise.io.robot_file import load_robot
     from reachwise.io.task_file import load_task
-    from reachwise.report.ranking import write_report
-    from reachwise.report.topology import write_topology_report
-    from reachwise.results.sweep_store import SweepStore
+    from reachwise.synthesis.objectives import parse_objective
     from reachwise.synthesis.rank import check_key
-    from reachwise.synthesis.sweep import SweepConfig, SweepInterrupted, dask_executor, run_sweep
-    from reachwise.synthesis.topology import (
-        TemplateOptions,
-        Topology,
-        builtin_set,
-        enumerate_topologies,
-        parse_rules,
-        topologies_from_specs,
-    )
+    from reachwise.synthesis.sweep import SweepConfig
+    from reachwise.synthesis.topology import TemplateOptions
 
-    if sum(x is not None and x != [] for x in (set_name, rules, specs or None)) != 1:
-        raise typer.BadParameter("give exactly one of --set, --enumerate, --spec")
+    source = TopologySource(set_name, rules, tuple(specs))
+    place = SweepPlace(workers, dask)
+    output = SweepOutput(db, out, figures, json_out)
+    source.check()
     key = check_key(rank_key)
-    if dask is not None and workers == 0:
-        raise typer.BadParameter("--workers 0 runs in process; drop it with --dask")
+    place.check()
     t = load_task(task)
     lo, hi = _bounds(base_box, "--base-box")
     options = TemplateOptions(
@@ -113,34 +104,94 @@ def topology(
         prismatic_limits=_bounds(stroke, "--stroke"),
         base_bounds={c: (lo, hi) for c in "xyz"},
     )
-    topos: list[Topology]
-    if set_name is not None:
-        topos = builtin_set(set_name, load_robot)
-    elif rules is not None:
-        r = parse_rules(rules)
-        if "rotations=" not in rules:  # rule 4 from the task: 6-D needs 3 axes, 5-D 2
-            need = {6: 3, 5: 2, 3: 0}[int(t.dims.max())]
-            r = replace(r, min_rotation_axes=need)
-        topos = topologies_from_specs(enumerate_topologies(r, options), options)
-    else:
-        topos = topologies_from_specs(specs, options)
-    if not topos:
-        raise typer.BadParameter("the rules leave no topology")
+    topos = source.topologies(t, options)
     if list_only:
         _list(topos, json_out)
         return
-    from reachwise.synthesis.objectives import parse_objective
-
     cfg = SweepConfig(
         subset=subset, top=top, runs=runs, seed=seed, rank_key=key, workspace=tunnel,
         batch_size=batch, objective=parse_objective(objective) if objective else None,
     )  # fmt: skip
+    result = _sweep(t, topos, cfg, place, output)
+    _report(result, output)
+
+
+@dataclass(frozen=True)
+class TopologySource:
+    """Which topologies to sweep: exactly one of a built-in set (``--set``),
+    enumeration rules (``--enumerate``) or specs (``--spec``)."""
+
+    set_name: str | None
+    rules: str | None
+    specs: tuple[str, ...]
+
+    def check(self) -> None:
+        given = (self.set_name, self.rules, self.specs or None)
+        if sum(x is not None for x in given) != 1:
+            raise typer.BadParameter("give exactly one of --set, --enumerate, --spec")
+
+    def topologies(self, task: Any, options: Any) -> list[Any]:
+        """The topologies for ``task`` (enumeration needs as many rotation axes as the
+        task's dimension asks for, unless the rules say otherwise)."""
+        from reachwise.io.robot_file import load_robot
+        from reachwise.synthesis.topology import (
+            builtin_set,
+            enumerate_topologies,
+            parse_rules,
+            topologies_from_specs,
+        )
+
+        if self.set_name is not None:
+            topos = builtin_set(self.set_name, load_robot)
+        elif self.rules is not None:
+            r = parse_rules(self.rules)
+            if "rotations=" not in self.rules:  # rule 4 from the task: 6-D needs 3 axes, 5-D 2
+                need = {6: 3, 5: 2, 3: 0}[int(task.dims.max())]
+                r = replace(r, min_rotation_axes=need)
+            topos = topologies_from_specs(enumerate_topologies(r, options), options)
+        else:
+            topos = topologies_from_specs(list(self.specs), options)
+        if not topos:
+            raise typer.BadParameter("the rules leave no topology")
+        return list(topos)
+
+
+@dataclass(frozen=True)
+class SweepPlace:
+    """Where the runs execute: ``workers`` processes (``None`` all cores, 0 in
+    process), or a dask scheduler (``tcp://HOST:8786`` or ``local``)."""
+
+    workers: int | None
+    dask: str | None
+
+    def check(self) -> None:
+        if self.dask is not None and self.workers == 0:
+            raise typer.BadParameter("--workers 0 runs in process; drop it with --dask")
+
+
+@dataclass(frozen=True)
+class SweepOutput:
+    """Where the sweep goes: the results database ``db``, the report folder ``out``,
+    whether to draw PNG ``figures``, and JSON (``json_out``) or a table on stdout."""
+
+    db: Path
+    out: Path
+    figures: bool
+    json_out: bool
+
+
+def _sweep(t: Any, topos: list[Any], cfg: Any, place: SweepPlace, output: SweepOutput) -> Any:
+    """Run the sweep with a progress bar, storing every run in ``output.db``; on
+    Ctrl-C say how to resume and exit with 130."""
+    from reachwise.results.sweep_store import SweepStore
+    from reachwise.synthesis.sweep import SweepInterrupted, dask_executor, run_sweep
+
     console = Console(stderr=True)
     interrupted = False
-    with SweepStore(db) as store, Progress(
+    with SweepStore(output.db) as store, Progress(
         TextColumn("[bold]{task.fields[label]}"), BarColumn(), MofNCompleteColumn(),
         TimeElapsedColumn(), TextColumn("{task.description}"), console=console,
-        disable=json_out,
+        disable=output.json_out,
     ) as bar:  # fmt: skip
         jobs: dict[int, Any] = {}
 
@@ -158,23 +209,33 @@ def topology(
                 )
 
         try:
-            if dask is not None:
-                with dask_executor(dask, workers) as ex:
+            if place.dask is not None:
+                with dask_executor(place.dask, place.workers) as ex:
                     result = run_sweep(t, topos, cfg, executor=ex, store=store, on_event=on_event)
             else:
-                result = run_sweep(t, topos, cfg, workers=workers, store=store, on_event=on_event)
+                result = run_sweep(
+                    t, topos, cfg, workers=place.workers, store=store, on_event=on_event
+                )
         except SweepInterrupted:
             interrupted = True
     if interrupted:
         console.print(
-            f"interrupted: finished runs are stored in {db}; run the same command to resume"
+            f"interrupted: finished runs are stored in {output.db}; run the same command to resume"
         )
         raise typer.Exit(130)
-    data = write_report(result, out, figures=figures)
-    data["db"] = str(db)
-    data["out"] = str(out)
-    data["report"] = str(write_topology_report(result, out, data["designs"], figures))
-    if json_out:
+    return result
+
+
+def _report(result: Any, output: SweepOutput) -> None:
+    """Write the ranking and the topology report into ``output.out`` and print them."""
+    from reachwise.report.ranking import write_report
+    from reachwise.report.topology import write_topology_report
+
+    data = write_report(result, output.out, figures=output.figures)
+    data["db"] = str(output.db)
+    data["out"] = str(output.out)
+    data["report"] = str(write_topology_report(result, output.out, data["designs"], output.figures))
+    if output.json_out:
         typer.echo(json.dumps(data, indent=2))
     else:
         _print(result, data)
