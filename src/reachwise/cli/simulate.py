@@ -68,9 +68,9 @@ def simulate(
     bag: Path | None = typer.Option(
         None,
         "--bag",
-        help="Also write the run (joint states, the cameras' depth images, CameraInfo and "
-        "clouds, TF) as a ROS 2 bag: .mcap for MCAP, else sqlite3 (the ros extra); "
-        "`reachwise replay` reads it back.",
+        help="Also write the avoidance run (joint states, the cameras' depth images, "
+        "CameraInfo and clouds, TF) as a ROS 2 bag: .mcap for MCAP, else sqlite3 (the ros "
+        "extra); `reachwise replay BAG --scenario SCENARIO` reads it back.",
     ),
     escape: bool | None = typer.Option(
         None,
