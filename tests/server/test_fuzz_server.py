@@ -204,7 +204,7 @@ def _templates(robot: Robot) -> list[P.Request]:
         P.Query(),
         P.Query(1.0, {name: crane_q(robot, 7)}, None, (("link_6", "environment"),)),
         P.Describe(True),
-        P.Poses(),
+        P.OperationCall("object_poses", {}),
     ]
 
 

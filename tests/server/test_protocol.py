@@ -50,7 +50,7 @@ def sample_requests(crane: Robot) -> list[P.Request]:
         P.Query(),
         P.Query(1.0, {"hiab-xs033": np.zeros(crane.n)}, {"probe": _pose()}, (("a", "b"),), "x-1"),
         P.Describe(True),
-        P.Poses(),
+        P.OperationCall("object_poses", {}),
     ]
 
 
@@ -114,7 +114,7 @@ def test_replies_round_trip(crane: Robot) -> None:
                 4,
             ),
         ),
-        ("poses", P.PosesReply({"part": _pose()})),
+        ("call", P.OperationResult({"part": P.encode_array(_pose())})),
     ]
     for op, rep in replies:
         back = P.decode_reply(P.encode_reply(11, rep), P.REPLIES[op])

@@ -200,7 +200,7 @@ class SceneService:
             P.Clear: self._clear,
             P.Query: self._query,
             P.Describe: self._describe,
-            P.Poses: self._poses,
+            P.OperationCall: self._operation,
         }
 
     @property
@@ -561,10 +561,14 @@ class SceneService:
                 self.sequence.last,
             )
 
-    def _poses(self, req: P.Poses) -> P.Reply:
+    def _operation(self, req: P.OperationCall) -> P.Reply:
+        """A registered scene operation (:mod:`reachwise.distance.scene_ops`) run on
+        this server's scene, its result in the wire form its result type gives."""
+        op = P.operation(req.operation, "body.operation")
         with self.lock:
-            self.scene.swap_in()
-            return P.PosesReply(self.scene.poses())
+            return P.OperationResult(
+                P.encode_value(op.function(self.scene, **req.arguments), op.result)
+            )
 
     # ------------------------------------------------------------------ initialization phase
     def _add_robot(self, req: P.AddRobot) -> P.Reply:

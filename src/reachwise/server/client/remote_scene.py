@@ -84,6 +84,7 @@ from reachwise.distance.scene import (
     SceneObject,
     WatchedPair,
 )
+from reachwise.distance.scene_queries import object_poses
 from reachwise.errors import CloudError, InputError, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_file import robot_from_dict, robot_to_dict
@@ -196,6 +197,23 @@ class SceneClient:
         if not isinstance(rep, kind):  # decode_reply parsed it as REPLIES[op]
             raise ServerError(f"unexpected reply {type(rep).__name__} to {request.OP}")
         return rep
+
+    def run_operation(
+        self, name: str, arguments: dict[str, Any], deadline: float | None = None
+    ) -> Any:
+        """Run the registered scene operation ``name``
+        (:func:`reachwise.distance.scene_ops.scene_operation`) with ``arguments`` (by
+        name) on the server's scene and return its result, checked against the
+        operation's result type. Joint states and poses not sent yet go first. Raises
+        as :meth:`call`; calling the operation with this client does this."""
+        op = P.operation(name, "operation")
+        if self._pending_joints or self._pending_poses:
+            self.flush(deadline)
+        rep = self._setup(P.OperationCall(name, arguments), P.OperationResult, deadline)
+        try:
+            return P.decode_value(rep.result, op.result, "body.result")
+        except P.ProtocolError as exc:
+            raise ServerError(f"invalid reply to {name}: {exc}", exc.code, exc.field) from None
 
     def close(self) -> None:
         """Close the socket and the client's ZeroMQ context (and the mirror's worker)."""
@@ -529,7 +547,7 @@ class SceneClient:
         what this client sent)."""
         if self._mirror is not None:
             return self._mirror.poses()
-        return self._setup(P.Poses(), P.PosesReply).poses
+        return object_poses(self)
 
     # ------------------------------------------------------------------ queries
     def query_all(

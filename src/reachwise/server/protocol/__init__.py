@@ -74,7 +74,9 @@ The package: :mod:`~reachwise.server.protocol.fields` (limits, error codes, the 
 checks), :mod:`~reachwise.server.protocol.requests`,
 :mod:`~reachwise.server.protocol.replies`, :mod:`~reachwise.server.protocol.codec`
 (frames, and the fast path of the per-tick msgpack messages),
-:mod:`~reachwise.server.protocol.layout` and :mod:`~reachwise.server.protocol.tick`;
+:mod:`~reachwise.server.protocol.layout`, :mod:`~reachwise.server.protocol.tick` and
+:mod:`~reachwise.server.protocol.typed` (the messages of registered scene operations,
+derived from their type hints);
 everything public is here.
 """
 
@@ -127,9 +129,9 @@ from reachwise.server.protocol.replies import (
     MetricsReply,
     ObjectInfo,
     ObjectReply,
+    OperationResult,
     PairInfo,
     PairsReply,
-    PosesReply,
     QueryReply,
     Reply,
     RobotReply,
@@ -144,7 +146,7 @@ from reachwise.server.protocol.requests import (
     Health,
     Hello,
     Metrics,
-    Poses,
+    OperationCall,
     Query,
     ReplaceCloud,
     Request,
@@ -171,6 +173,7 @@ from reachwise.server.protocol.tick import (
     tick_query_reply,
     tick_reply_frame,
 )
+from reachwise.server.protocol.typed import decode_value, encode_value, operation
 
 __all__ = [
     "BOOL",
@@ -210,10 +213,10 @@ __all__ = [
     "MetricsReply",
     "ObjectInfo",
     "ObjectReply",
+    "OperationCall",
+    "OperationResult",
     "PairInfo",
     "PairsReply",
-    "Poses",
-    "PosesReply",
     "ProtocolError",
     "Query",
     "QueryReply",
@@ -237,6 +240,7 @@ __all__ = [
     "decode_request",
     "decode_tick",
     "decode_tick_reply",
+    "decode_value",
     "encode_array",
     "encode_error",
     "encode_frames",
@@ -245,10 +249,12 @@ __all__ = [
     "encode_tick",
     "encode_tick_inputs",
     "encode_tick_reply",
+    "encode_value",
     "failure_text",
     "is_tick",
     "is_tick_reply",
     "layout_key",
+    "operation",
     "read_tick",
     "read_tick_reply",
     "safe_repr",

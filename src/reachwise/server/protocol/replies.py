@@ -482,17 +482,20 @@ class DescribeReply(Reply):
 
 
 @dataclass(frozen=True, eq=False)
-class PosesReply(Reply):
-    """World pose (4x4) of every object."""
+class OperationResult(Reply):
+    """The result of an :class:`~reachwise.server.protocol.requests.OperationCall` as
+    sent: ``result`` is plain data, which
+    :func:`~reachwise.server.protocol.typed.decode_value` checks against the
+    operation's result type."""
 
-    poses: dict[str, NDArray[np.float64]]
+    result: Any
 
     def body(self) -> Body:
-        return {"poses": {k: encode_array(v) for k, v in self.poses.items()}}
+        return {"result": self.result}
 
     @classmethod
     def parse(cls, r: Reader) -> Self:
-        return cls(_array_map(r, "poses", (4, 4)) or {})
+        return cls(r.get("result"))
 
 
 #: The reply type of every request op.
@@ -513,7 +516,7 @@ REPLIES: dict[str, type[Reply]] = {
     "clear": Ack,
     "query": QueryReply,
     "describe": DescribeReply,
-    "poses": PosesReply,
+    "call": OperationResult,
 }
 
 

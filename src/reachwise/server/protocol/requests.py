@@ -39,6 +39,7 @@ from reachwise.server.protocol.fields import (
     safe_repr,
     stamp_of,
 )
+from reachwise.server.protocol.typed import decode_value, encode_value, operation
 
 
 @dataclass(frozen=True)
@@ -526,11 +527,37 @@ class Describe(Request):
         return cls(check_bool(r.get("clouds"), r.path("clouds")))
 
 
-@dataclass(frozen=True)
-class Poses(Request):
-    """The current world pose of every object."""
+@dataclass(frozen=True, eq=False)
+class OperationCall(Request):
+    """Run the registered scene operation ``operation``
+    (:func:`reachwise.distance.scene_ops.scene_operation`) with ``arguments`` by name;
+    their wire form and its checks come from the operation's type hints
+    (:mod:`~reachwise.server.protocol.typed`)."""
 
-    OP: ClassVar[str] = "poses"
+    OP: ClassVar[str] = "call"
+    operation: str
+    arguments: dict[str, Any]
+
+    def body(self) -> Body:
+        op = operation(self.operation, "operation")
+        hints = {a.name: a.hint for a in op.arguments}
+        return {
+            "operation": self.operation,
+            "arguments": {k: encode_value(v, hints[k]) for k, v in self.arguments.items()},
+        }
+
+    @classmethod
+    def parse(cls, r: Reader, limits: Limits) -> Self:
+        name = check_name(r.get("operation"), r.path("operation"))
+        op = operation(name, r.path("operation"))
+        a = Reader(r.get("arguments"), r.path("arguments"))
+        arguments = {}
+        for arg in op.arguments:
+            raw = a.get(arg.name, optional=arg.has_default)
+            if arg.name in a.body:
+                arguments[arg.name] = decode_value(raw, arg.hint, a.path(arg.name))
+        a.done()
+        return cls(name, arguments)
 
 
 REQUESTS: dict[str, type[Request]] = {
@@ -552,6 +579,6 @@ REQUESTS: dict[str, type[Request]] = {
         Clear,
         Query,
         Describe,
-        Poses,
+        OperationCall,
     )
 }

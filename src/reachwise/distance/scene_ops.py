@@ -1,0 +1,154 @@
+"""Scene queries written once: a registry of typed operations on a distance scene.
+
+A function that reads a :class:`~reachwise.distance.scene.Scene` — ``(scene, *args) ->
+result`` with type hints on every argument and on the result — becomes a *scene
+operation* with :func:`scene_operation`. Its name, typed arguments and typed result
+are all the collision server needs: the wire messages of the call and of its answer are
+derived from the hints (``reachwise.server.protocol.typed``), the server dispatches
+the call to the same function on its own scene, and calling the function with a
+remote scene (anything with a :meth:`RemoteOperations.run_operation`, such as
+``reachwise.server.client.SceneClient``) carries the call over the wire. So a new
+query is written once and works in process and through the server alike::
+
+    @scene_operation
+    def watched_count(scene: Scene, kind: PairKind) -> int:
+        return sum(p.kind == kind for p in scene.pairs)
+
+    watched_count(scene, "self")   # in process
+    watched_count(client, "self")  # through the collision server
+
+Operations read the scene; they run under the server's scene lock, between queries.
+Argument and result types the wire carries: ``bool``, ``int``, ``float``, ``str``,
+``None``, ``Literal`` names, float64 arrays (``NDArray[np.float64]``, their shape
+given by :class:`ArrayShape`), ``tuple``,
+``list``, ``dict`` with string keys, unions with ``None`` and frozen dataclasses of
+those.
+"""
+
+from __future__ import annotations
+
+import functools
+import inspect
+import typing
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Concatenate, ParamSpec, Protocol, TypeVar, runtime_checkable
+
+from reachwise.errors import InputError
+
+__all__ = [
+    "OPERATIONS",
+    "Argument",
+    "ArrayShape",
+    "RemoteOperations",
+    "SceneOperation",
+    "scene_operation",
+]
+
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
+_S = TypeVar("_S")
+
+
+@runtime_checkable
+class RemoteOperations(Protocol):
+    """A scene held elsewhere that runs registered operations by name."""
+
+    def run_operation(self, name: str, arguments: dict[str, Any]) -> Any: ...
+
+
+@dataclass(frozen=True)
+class ArrayShape:
+    """What an array argument or result must be on the wire, given as
+    ``Annotated[NDArray[np.float64], ArrayShape((4, 4))]``: its ``shape`` (None: any
+    length) and whether every value must be ``finite``. An array hint without it takes
+    any shape of up to four dimensions, NaN and inf included."""
+
+    shape: tuple[int | None, ...]
+    finite: bool = True
+
+
+@dataclass(frozen=True)
+class Argument:
+    """One argument of an operation: its ``name``, type ``hint`` and whether it has a
+    ``default`` (then ``default`` holds it)."""
+
+    name: str
+    hint: Any
+    has_default: bool = False
+    default: Any = None
+
+
+@dataclass(frozen=True)
+class SceneOperation:
+    """A registered scene query: wire ``name``, the ``function`` that answers it on a
+    scene, its typed ``arguments`` (after the scene) and ``result`` type."""
+
+    name: str
+    function: Callable[..., Any]
+    arguments: tuple[Argument, ...]
+    result: Any
+
+    def bind(self, args: tuple[Any, ...], kwargs: dict[str, Any]) -> dict[str, Any]:
+        """The call's arguments by name (defaults left out); a wrong call is an
+        :class:`~reachwise.errors.InputError`."""
+        names = [a.name for a in self.arguments]
+        if len(args) > len(names):
+            raise InputError(
+                self.name, "arguments", f"takes {len(names)} arguments, got {len(args)}"
+            )
+        out = dict(zip(names, args, strict=False))
+        for key, value in kwargs.items():
+            if key not in names:
+                raise InputError(self.name, key, f"unknown argument; arguments: {names}")
+            if key in out:
+                raise InputError(self.name, key, "given twice")
+            out[key] = value
+        for a in self.arguments:
+            if a.name not in out and not a.has_default:
+                raise InputError(self.name, a.name, "required argument is missing")
+        return out
+
+
+#: Every registered operation by name.
+OPERATIONS: dict[str, SceneOperation] = {}
+
+
+def _describe(function: Callable[..., Any], name: str) -> SceneOperation:
+    hints = typing.get_type_hints(function, include_extras=True)
+    params = list(inspect.signature(function).parameters.values())
+    if not params:
+        raise TypeError(f"scene operation {name!r} must take the scene as its first argument")
+    arguments = []
+    for p in params[1:]:
+        if p.kind not in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY):
+            raise TypeError(f"scene operation {name!r}: argument {p.name!r} must be named")
+        if p.name not in hints:
+            raise TypeError(f"scene operation {name!r}: argument {p.name!r} has no type hint")
+        has_default = p.default is not inspect.Parameter.empty
+        arguments.append(Argument(p.name, hints[p.name], has_default, p.default))
+    if "return" not in hints:
+        raise TypeError(f"scene operation {name!r} has no result type hint")
+    return SceneOperation(name, function, tuple(arguments), hints["return"])
+
+
+def scene_operation(
+    function: Callable[Concatenate[_S, _P], _R],
+) -> Callable[Concatenate[_S | RemoteOperations, _P], _R]:
+    """Register ``function`` (``(scene, *args) -> result``, fully type-hinted) as the
+    scene operation of its name and return it, extended: called with a remote scene
+    (:class:`RemoteOperations`) it runs on that scene's server instead."""
+    name = function.__name__
+    if name in OPERATIONS and OPERATIONS[name].function is not function:
+        raise ValueError(f"a scene operation named {name!r} is registered already")
+    op = _describe(function, name)
+
+    @functools.wraps(function)
+    def call(scene: _S | RemoteOperations, /, *args: _P.args, **kwargs: _P.kwargs) -> _R:
+        if isinstance(scene, RemoteOperations):
+            result: _R = scene.run_operation(name, op.bind(tuple(args), dict(kwargs)))
+            return result
+        return function(scene, *args, **kwargs)
+
+    OPERATIONS[name] = SceneOperation(name, function, op.arguments, op.result)
+    return call
