@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from reachwise.benchmarks.replay import _loop_decode
+from reachwise.benchmarks.replay import _cloud_message, _loop_cloud, _loop_decode
 from reachwise.io.ros.depth_image import camera_from_info, depth_points
+from reachwise.io.ros.pointcloud2 import pointcloud2_points
 from tests.io.ros._messages import camera_info, depth_message
 
 
@@ -19,3 +20,10 @@ def test_the_per_pixel_loop_equals_depth_points() -> None:
         cam = camera_from_info(camera_info(9, 7, 30.0, 40.0, 4.0, 3.0))
         loop = np.array(_loop_decode(msg, 30.0, 40.0, 4.0, 3.0))
         np.testing.assert_allclose(loop, depth_points(msg, cam), rtol=1e-12, atol=1e-15)
+
+
+def test_the_point_loop_equals_pointcloud2_points() -> None:
+    pts = np.random.default_rng(3).normal(size=(40, 3)).astype(np.float32).astype(np.float64)
+    msg = _cloud_message(pts)
+    np.testing.assert_array_equal(np.array(_loop_cloud(msg)), pts)
+    np.testing.assert_array_equal(pointcloud2_points(msg), pts)

@@ -14,7 +14,11 @@ links carry 1000-point clouds. Then, on one core (the process is pinned to one C
 - ``decode.ours`` vs ``decode.loop``: one 307 200-pixel depth image to points in the
   optical frame, with :func:`~reachwise.io.ros.depth_image.depth_points` and with a
   plain per-pixel loop (``struct.unpack_from`` and the pinhole formula, pixel by
-  pixel), interleaved; ``loop_over_ours``.
+  pixel), interleaved; ``loop_over_ours``;
+- ``cloud.ours`` vs ``cloud.loop``: the same 307 200 points as a driver's PointCloud2
+  (float32 x, y, z, rgb; 16 bytes a point) to an ``(N, 3)`` float32 array with
+  :func:`~reachwise.io.ros.pointcloud2.pointcloud2_points` and point by point with
+  ``struct`` as the ROS reference ``read_points`` does.
 """
 
 from __future__ import annotations
@@ -95,6 +99,49 @@ def _loop_decode(
     return out
 
 
+def _cloud_message(points: np.ndarray) -> Any:
+    """A PointCloud2 of ``points`` as a depth camera driver sends it: float32 x, y, z
+    and a float32 rgb, 16 bytes a point, one row."""
+    from types import SimpleNamespace as Msg
+
+    n = len(points)
+    rec = np.zeros(n, dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("rgb", "<f4")])
+    for j, c in enumerate("xyz"):
+        rec[c] = points[:, j]
+    fields = [Msg(name=c, offset=4 * j, datatype=7, count=1) for j, c in enumerate("xyz")]
+    fields.append(Msg(name="rgb", offset=12, datatype=7, count=1))
+    return Msg(
+        header=Msg(stamp=Msg(sec=0, nanosec=0), frame_id="cam"),
+        height=1,
+        width=n,
+        fields=fields,
+        is_bigendian=False,
+        point_step=16,
+        row_step=16 * n,
+        data=rec.view(np.uint8),
+        is_dense=True,
+    )
+
+
+def _loop_cloud(msg: Any) -> list[tuple[float, float, float]]:
+    """The baseline: point by point with struct, as ``read_points`` does."""
+    raw = bytes(msg.data)
+    offsets = {f.name: f.offset for f in msg.fields}
+    fmt = ("<" if not msg.is_bigendian else ">") + "f"
+    out = []
+    for v in range(msg.height):
+        for u in range(msg.width):
+            base = v * msg.row_step + u * msg.point_step
+            out.append(
+                (
+                    struct.unpack_from(fmt, raw, base + offsets["x"])[0],
+                    struct.unpack_from(fmt, raw, base + offsets["y"])[0],
+                    struct.unpack_from(fmt, raw, base + offsets["z"])[0],
+                )
+            )
+    return out
+
+
 def _pin_one_core() -> str:
     try:
         cpu = min(os.sched_getaffinity(0))
@@ -110,6 +157,7 @@ def run(quick: bool = False) -> BenchReport:
     from reachwise.io.robot_file import load_robot
     from reachwise.io.ros.bag import Recording
     from reachwise.io.ros.depth_image import camera_from_info, depth_points
+    from reachwise.io.ros.pointcloud2 import pointcloud2_points
     from reachwise.io.ros.replay import ReplaySpec, replay_recording
 
     rep = BenchReport("replay")
@@ -157,9 +205,19 @@ def run(quick: bool = False) -> BenchReport:
                 repeat=1 if quick else 3,
                 warmup=1,
             )
+            cloud = _cloud_message(depth_points(image, cam))
+            samples |= time_interleaved(
+                {
+                    "cloud.ours": lambda _: pointcloud2_points(cloud, dtype=np.float32),
+                    "cloud.loop": lambda _: _loop_cloud(cloud),
+                },
+                repeat=1 if quick else 3,
+                warmup=1,
+            )
             for name, s in samples.items():
                 rep.add_samples(name, s)
             rep.ratio("decode.loop", "decode.ours")
+            rep.ratio("cloud.loop", "cloud.ours")
     finally:
         if affinity is not None:
             os.sched_setaffinity(0, affinity)
