@@ -47,10 +47,14 @@ def deflect_for_tool_parts(pG, pR, rows, pts, settings):  # type: ignore[no-unty
 
 
 @njit(cache=True)
-def guard_scales(sol, w, rec, xrec, pG, pR, wG, six, q, limits, rows, pts, gains, settings):  # type: ignore[no-untyped-def]
+def guard_scales(sol, joints, task, limits, rows, pts, gains, settings):  # type: ignore[no-untyped-def]
     """The task scale ``s`` (bisection on feasibility), the guard scale (≤ 1: the whole
     motion slowed down when even ``s = 0`` closes a pair in too fast) and the joint
-    velocity for ``s``. Returns ``(s, guard, q̇)``."""
+    velocity for ``s``, from the joint solution ``sol``, the
+    :class:`~reachwise.control.tick.joints.JointMotion` ``joints`` and the
+    :class:`~reachwise.control.tick.task.TaskParts` ``task``. Returns
+    ``(s, guard, q̇)``."""
+    q, w, rec, xrec = joints.q, joints.w, joints.rec, joints.xrec
     rho_stop = settings.stop_distance
     xi = settings.approach_speed
     normal = rows.normal
@@ -92,7 +96,7 @@ def guard_scales(sol, w, rec, xrec, pG, pR, wG, six, q, limits, rows, pts, gains
     hi_s = 1.0
     for it in range(16):
         trial = 1.0 if it == 0 else (0.0 if it == 1 else 0.5 * (lo_s + hi_s))
-        task_velocity(trial, pG, pR, wG, six, gains, xd)
+        task_velocity(trial, task, gains, xd)
         for k in range(n):
             acc = 0.0
             for j in range(r):
@@ -129,7 +133,7 @@ def guard_scales(sol, w, rec, xrec, pG, pR, wG, six, q, limits, rows, pts, gains
             else:
                 hi_s = trial
         s = lo_s
-    task_velocity(s, pG, pR, wG, six, gains, xd)
+    task_velocity(s, task, gains, xd)
     for k in range(n):
         acc = 0.0
         for j in range(r):

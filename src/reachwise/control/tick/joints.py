@@ -4,10 +4,24 @@ joint's bounds (see ``reachwise.control.limits`` for the same rules in numpy).""
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
 from reachwise.control.limits import joint_velocity_interval
+
+
+class JointMotion(NamedTuple):
+    """The joints of a tick: positions ``q`` (n,, rad or m), weights ``w`` (n,, 1 for a
+    usable joint inside its range, lowered near a limit), the recovery velocities
+    ``rec`` (n,) of joints outside their range, and the task velocity they cause,
+    ``xrec`` (r,)."""
+
+    q: np.ndarray
+    w: np.ndarray
+    rec: np.ndarray
+    xrec: np.ndarray
 
 
 @njit(cache=True)

@@ -27,12 +27,15 @@ class JointSolution(NamedTuple):
 
 
 @njit(cache=True)
-def solve_joints(J, w, rec, xrec, pG, pR, wG, six, q, limits, rows, pts, recalled, gains, avoid):  # type: ignore[no-untyped-def]
+def solve_joints(J, joints, task, limits, rows, pts, recalled, gains, avoid):  # type: ignore[no-untyped-def]
     """``q̇ = W (J̃⁺ (ẋ − ẋ_rec) + Σ_i (I − J⁺J) J̃_Oi⁺ ẋ_Oi) + q̇_rec`` (Eq. 3.18) for
     the weighted Jacobian ``J W``, solved once more if a joint moving toward a limit
-    within its ``zone`` gets a weight below 1 (P-II Eq. 25–28; ``w`` is updated). Every
-    body point that acts (not a tool part, not recalled) pushes through the null space.
+    within its ``zone`` gets a weight below 1 (P-II Eq. 25–28; ``joints.w`` is
+    updated). Every body point that acts (not a tool part, not recalled) pushes through
+    the null space. ``joints``: a :class:`~reachwise.control.tick.joints.JointMotion`,
+    ``task``: a :class:`~reachwise.control.tick.task.TaskParts`.
     """
+    q, w, rec, xrec = joints.q, joints.w, joints.rec, joints.xrec
     r, n = J.shape
     m = rows.distance.shape[0]
     normal = rows.normal
@@ -80,7 +83,7 @@ def solve_joints(J, w, rec, xrec, pG, pR, wG, six, q, limits, rows, pts, recalle
                 for j in range(n):
                     acc += P[k, j] * zsum[j]
                 unull[k] = zsum[k] - acc
-        task_velocity(1.0, pG, pR, wG, six, gains, xd)
+        task_velocity(1.0, task, gains, xd)
         for j in range(r):
             xs[j] = xd[j] - xrec[j]
         for k in range(n):

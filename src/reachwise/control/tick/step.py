@@ -15,11 +15,11 @@ from numba import njit
 from numpy.typing import NDArray
 
 from reachwise.control.tick.guard import deflect_for_tool_parts, guard_scales
-from reachwise.control.tick.joints import joint_weights, limit_scale
+from reachwise.control.tick.joints import JointMotion, joint_weights, limit_scale
 from reachwise.control.tick.memory import local_lines, recall, remember, static_rows
 from reachwise.control.tick.points import active_points
 from reachwise.control.tick.solve import solve_joints
-from reachwise.control.tick.task import primary_task
+from reachwise.control.tick.task import TaskParts, primary_task
 from reachwise.control.tick.types import (
     GAINS,
     LIMITS,
@@ -102,18 +102,16 @@ def tick(chain, limits, gains, settings, target, rows, memory, q):  # type: igno
         xrec[j] = acc
 
     # ---- damped pseudo-inverse, avoidance in the null space (Eq. 3.5–3.7, 3.18)
-    sol = solve_joints(
-        J, w, rec, xrec, pG, pts.pR, wG, six, q, limits, extended, pts, recalled, gains, avoid
-    )
+    joints = JointMotion(q, w, rec, xrec)
+    task = TaskParts(pG, pts.pR, wG, six)
+    sol = solve_joints(J, joints, task, limits, extended, pts, recalled, gains, avoid)
 
     # ---- guard: the task is scaled down (s < 1) before any pair closes in too fast
     s = 1.0
     guard = 1.0
     qd1 = sol.qd
     if guard_on and pts.n_guard > 0:
-        s, guard, qd1 = guard_scales(
-            sol, w, rec, xrec, pG, pts.pR, wG, six, q, limits, extended, pts, gains, settings
-        )
+        s, guard, qd1 = guard_scales(sol, joints, task, limits, extended, pts, gains, settings)
 
     # ---- limits: scale the whole vector (never clip one joint into another direction)
     alpha = limit_scale(qd1, guard, q, limits, gains.k_limit)

@@ -4,11 +4,23 @@ Eq. 3.8–3.13) with the tool parts' repulsion added in task space (P-V Eq. 6–
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from reachwise.kinematics.orientation import quaternion_error_into
+
+
+class TaskParts(NamedTuple):
+    """The parts of a tick's task velocity: the goal's linear ``pG`` (3,, m/s) and
+    angular ``wG`` (3,, rad/s) velocities, the tool parts' repulsion ``pR`` (3,, m/s,
+    P-V Eq. 6) and ``six`` (a 6-D goal: the angular part is controlled)."""
+
+    pG: np.ndarray
+    pR: np.ndarray
+    wG: np.ndarray
+    six: bool
 
 
 @njit(cache=True)
@@ -45,20 +57,20 @@ def bounded(v, vmax):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def task_velocity(s, pG, pR, wG, six, gains, xd):  # type: ignore[no-untyped-def]
+def task_velocity(s, task, gains, xd):  # type: ignore[no-untyped-def]
     """``ẋ(s) = [bound(s ṗ_G + Σ ṗ_O); bound(s ω_G)]`` into ``xd`` (Eq. 3.11–3.13,
-    P-V Eq. 6–7): the goal part scaled by the guard's task scale ``s``, the tool parts'
-    repulsion ``pR`` not."""
+    P-V Eq. 6–7) from the :class:`TaskParts` ``task``: the goal part scaled by the
+    guard's task scale ``s``, the tool parts' repulsion ``pR`` not."""
     v = np.empty(3)
     for i in range(3):
-        v[i] = s * pG[i] + pR[i]
+        v[i] = s * task.pG[i] + task.pR[i]
     bounded(v, gains.v_max)
     for i in range(3):
         xd[i] = v[i]
-    if six:
+    if task.six:
         w = np.empty(3)
         for i in range(3):
-            w[i] = s * wG[i]
+            w[i] = s * task.wG[i]
         bounded(w, gains.w_max)
         for i in range(3):
             xd[3 + i] = w[i]
