@@ -49,6 +49,9 @@ __all__ = [
 DEFAULT_VOXEL = 0.03
 #: Points per CAD part in the thesis (P-III, P-V: "restricted to 1000").
 DEFAULT_MESH_POINTS = 1000
+#: Most points sampled on one mesh or shape (a bound against a count that would only
+#: exhaust memory; the thesis samples 1000 per part).
+MAX_SAMPLED_POINTS = 5_000_000
 
 
 @dataclass(frozen=True, eq=False)
@@ -171,6 +174,8 @@ def _count(value: object, source: str, field_name: str) -> int:
     out = int(value)
     if out < 1:
         raise CloudError(source, field_name, f"must be >= 1, got {out}")
+    if out > MAX_SAMPLED_POINTS:
+        raise CloudError(source, field_name, f"at most {MAX_SAMPLED_POINTS} points, got {out}")
     return out
 
 

@@ -136,7 +136,7 @@ class DesignModel(StrictModel):
 
 class RobotModel(StrictModel):
     model_config = _STRICT
-    name: str
+    name: str = Field(min_length=1)
     convention: Literal["modified", "classic"] = "modified"
     description: str = ""
     joints: list[JointModel] = Field(min_length=1)

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Any
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from reachwise.errors import RobotFileError
+from reachwise.geometry.cloud import MAX_SAMPLED_POINTS
 from reachwise.io.mesh_uri import resolve_uri
 from reachwise.kinematics.link_geometry import LinkGeometry
 from reachwise.kinematics.transforms import pose_from_xyz_rpy, xyz_rpy_from_pose
@@ -56,7 +57,7 @@ class GeometryModel(BaseModel):
     capsule: tuple[float, float] | None = None  # radius, cylinder length (along z)
     sphere: float | None = None  # radius
     scale: float | tuple[float, float, float] | None = None
-    points: int = Field(default=1000, gt=0)
+    points: int = Field(default=1000, gt=0, le=MAX_SAMPLED_POINTS)
     xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
     rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
 

@@ -97,7 +97,9 @@ from pydantic import (
 from scipy.spatial.transform import Rotation
 
 from reachwise.errors import InputError
+from reachwise.geometry.cloud import MAX_SAMPLED_POINTS
 from reachwise.io._builtin import builtin_names, load_named
+from reachwise.io.cloud_headers import MAX_CLOUD_POINTS
 from reachwise.io.robot_file import FrameModel
 from reachwise.io.text_input import parse_text, read_text
 from reachwise.io.validation import StrictModel, input_error
@@ -132,6 +134,8 @@ __all__ = [
 
 _STRICT = ConfigDict(extra="forbid", allow_inf_nan=False)
 V3 = tuple[float, float, float]
+#: Largest width or height of a simulated depth camera (pixels).
+MAX_IMAGE_SIDE = 8192
 
 
 # Frames in scenario files use the robot file's schema: xyz + rpy | rpy_deg.
@@ -205,7 +209,7 @@ class ControllerSpec(StrictModel):
     stall_time: float | None = None
     stall_progress: float | None = None
     max_age_ticks: float | None = None
-    stop_ticks: int | None = None
+    stop_ticks: int | None = Field(default=None, ge=1)
     velocity_aware: bool | None = None
     reaction_time: float | None = None
 
@@ -222,7 +226,7 @@ class PlantSpec(StrictModel):
 class LinkCloudSpec(StrictModel):
     model_config = _STRICT
     mesh: str
-    points: int = Field(default=1000, gt=0)
+    points: int = Field(default=1000, gt=0, le=MAX_SAMPLED_POINTS)
     pose: FrameSpec = FrameSpec()
 
 
@@ -246,9 +250,9 @@ class RobotSpec(StrictModel):
     base: FrameSpec | None = None
     q0: list[float]
     links: list[str] | None = None
-    points: int | None = Field(default=None, gt=0)
+    points: int | None = Field(default=None, gt=0, le=MAX_SAMPLED_POINTS)
     density: float | None = Field(default=None, gt=0.0)
-    seed: int = 0
+    seed: int = Field(default=0, ge=0)
     link_clouds: dict[str, LinkCloudSpec] = {}
     tool_links: list[str] | None = None
     controller: ControllerSpec = ControllerSpec()
@@ -326,7 +330,7 @@ class CloudAtSpec(StrictModel):
     file: str | None = None
     mesh: str | None = None
     box: V3 | None = None
-    points: int = Field(default=1000, gt=0)
+    points: int = Field(default=1000, gt=0, le=MAX_SAMPLED_POINTS)
 
     @model_validator(mode="after")
     def _one(self) -> CloudAtSpec:
@@ -395,6 +399,12 @@ class ScanSpec(StrictModel):
                 raise ValueError(f"{name}: min {lo} > max {hi}")
         if any(a >= b for a, b in zip(self.crop[0], self.crop[1], strict=True)):
             raise ValueError("crop: each min must be below its max")
+        beams = (self.azimuth_deg[1] - self.azimuth_deg[0]) / self.resolution_deg + 1
+        lines = (self.tilt_deg[1] - self.tilt_deg[0]) / self.line_step_deg + 1
+        if beams * lines > MAX_CLOUD_POINTS:
+            raise ValueError(
+                f"{beams:.0f} beams x {lines:.0f} lines is more than {MAX_CLOUD_POINTS} points"
+            )
         return self
 
 
@@ -413,8 +423,8 @@ class ObjectSpec(StrictModel):
     mesh: str | None = None
     file: str | None = None
     box: V3 | None = None
-    points: int = Field(default=1000, gt=0)
-    seed: int = 0
+    points: int = Field(default=1000, gt=0, le=MAX_SAMPLED_POINTS)
+    seed: int = Field(default=0, ge=0)
     pose: FrameSpec = FrameSpec()
     noise: float | None = Field(default=None, ge=0.0)
     occlusion: OcclusionSpec | None = None
@@ -470,7 +480,7 @@ class WatchSpec(StrictModel):
     links: list[str] | None = None
     pairs: list[tuple[str, str]] | Literal["auto"] | None = None
     samples: int = Field(default=10_000, ge=1)
-    seed: int = 0
+    seed: int = Field(default=0, ge=0)
     margin: float = Field(gt=0.0)
 
     @model_validator(mode="before")
@@ -555,8 +565,8 @@ class SensorSpec(StrictModel):
     link: MountSpec | None = None
     rate: float = Field(default=30.0, gt=0.0)
     latency: float = Field(default=0.0, ge=0.0)
-    width: int = Field(default=640, gt=0)
-    height: int = Field(default=480, gt=0)
+    width: int = Field(default=640, gt=0, le=MAX_IMAGE_SIDE)
+    height: int = Field(default=480, gt=0, le=MAX_IMAGE_SIDE)
     fov: float | None = Field(default=None, gt=0.0, lt=math.pi)
     fov_deg: float | None = Field(default=None, gt=0.0, lt=180.0)
     near: float = Field(default=0.2, ge=0.0)
@@ -564,7 +574,7 @@ class SensorSpec(StrictModel):
     noise: float = Field(default=0.0, ge=0.0)
     dropout: float = Field(default=0.0, ge=0.0, lt=1.0)
     voxel: float | None = Field(default=None, gt=0.0)
-    seed: int = 0
+    seed: int = Field(default=0, ge=0)
     self_filter: bool = True
 
     @model_validator(mode="after")

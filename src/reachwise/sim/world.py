@@ -156,6 +156,7 @@ def _add_robots(
         robots[rs.name] = robot
         scene.add_robot(robot, rs.q0)
         links = rs.links if rs.links is not None else list(robot.geometry)
+        _check_link_clouds(sc, rs, robot, links)
         for link in links:
             if link not in robot.link_names:
                 raise InputError(sc.source, f"robots.{rs.name}.links", f"no link {link!r}")
@@ -164,6 +165,22 @@ def _add_robots(
             scene.add_object(obj, cloud, robot=rs.name, link=link)
             solids[obj] = (solid, rs.name, link)
     return robots, solids
+
+
+def _check_link_clouds(sc: Scenario, rs: RobotSpec, robot: Robot, links: list[str]) -> None:
+    """Each ``link_clouds`` entry names a link that is given a cloud: an entry that would
+    never be used (a misspelt link, one outside ``links``) is an error."""
+    for link in rs.link_clouds:
+        where = f"robots.{rs.name}.link_clouds.{link}"
+        if link not in robot.link_names:
+            valid = ", ".join(robot.link_names)
+            raise InputError(sc.source, where, f"no link {link!r}; valid: {valid}")
+        if link not in links:
+            raise InputError(
+                sc.source, where,
+                f"{link!r} is not among the links given clouds ({', '.join(links)}); "
+                "add it to links",
+            )  # fmt: skip
 
 
 def _link_mesh(sc: Scenario, rs: RobotSpec, link: str) -> Any:
@@ -357,6 +374,8 @@ def _watch_rule(
     made = []
     if w.self_ is not None:
         r = robots[w.self_]
+        if w.links is not None:  # each a link with a cloud
+            _robot_objects(scene, w.self_, w.links, sc.source, where)
         rspec = next(x for x in sc.spec.robots if x.name == w.self_)
         listed = watched_self_pairs(w, r, rspec, scene, sc, where)
         if listed is not None:
@@ -399,7 +418,13 @@ def _make_agent(
     job_robots: set[str],
 ) -> Agent:
     """One robot's controller, scene converter, plant and own goals."""
-    cfg = _controller_config(rs, sc.spec.dt, avoidance)
+    try:
+        cfg = _controller_config(rs, sc.spec.dt, avoidance)
+    except InputError as exc:  # the controller's own checks name the scenario field
+        where = f"robots.{rs.name}.controller.{exc.field}".rstrip(".")
+        raise InputError(sc.source, where, exc.reason) from None
+    except ValueError as exc:
+        raise InputError(sc.source, f"robots.{rs.name}.controller", str(exc)) from None
     try:
         tl = rs.tool_links
         conv = SceneConverter(scene, robot, tool_links=tl, margins=control)
