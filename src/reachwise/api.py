@@ -105,8 +105,8 @@ def replay(
 
 
 def server_scene(server: str | ServerOptions) -> SceneFactory:
-    """A :data:`~reachwise.sim.world.SceneFactory` for a simulation on the collision
-    server ``server`` (an address or :class:`~reachwise.server.client.ServerOptions`):
+    """A ``SceneFactory`` (``reachwise.sim.world``) for a simulation on the collision
+    server ``server`` (an address or ``reachwise.server.client.ServerOptions``):
     a client that owns the server's scene (it clears it, registers the scenario's and
     sends the inputs with each query), stamped with the simulation's clock."""
 
@@ -130,9 +130,9 @@ def simulate(
     recorder: RunRecorder | None = None,
 ) -> SimulationLog:
     """Run ``scenario`` (a built-in name, a file or a ``Scenario``) in simulated time:
-    :func:`reachwise.sim.simulate.simulate`, whose options these are. ``server`` (an
-    address or :class:`~reachwise.server.client.ServerOptions`) runs the distance
-    queries on that collision server instead of in process (:func:`server_scene`)."""
+    ``reachwise.sim.simulate.simulate``, whose options these are. ``server`` (an
+    address or ``reachwise.server.client.ServerOptions``) runs the distance
+    queries on that collision server instead of in process (:func:`~reachwise.api.server_scene`)."""
     make_scene = None if server is None else server_scene(server)
     return run_simulation(
         scenario, avoidance, duration=duration, progress=progress, on_tick=on_tick,
