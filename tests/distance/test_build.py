@@ -11,13 +11,12 @@ from hypothesis.extra.numpy import arrays
 
 from reachwise.distance._build import (
     MEDIAN_UP_TO,
-    _sorted_lsd,
-    _sorted_msd,
     build_tree,
     build_tree_as,
     morton_order,
     summary,
 )
+from reachwise.distance._morton import _sorted_lsd, _sorted_msd
 
 
 def check_layout(points: np.ndarray, leaf_size: int, median: bool | None = None) -> None:

@@ -16,7 +16,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from reachwise.distance._build import MORTON_BITS, _spread, tree_of_sorted
+from reachwise.distance._build import tree_of_sorted
+from reachwise.distance._morton import MORTON_BITS, _spread
 from reachwise.geometry.cloud import PointCloud
 
 _RADIX = 1 << 15

@@ -40,7 +40,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-import reachwise.distance._kernels as K
+import reachwise.distance._thesis_kernels as TK
 from reachwise.distance._common import NO_RISK, DistanceResult, result_from_pair, world
 from reachwise.distance.index import cloud_index
 from reachwise.geometry.boxes import eobb, obb_overlap, overlap_box
@@ -67,10 +67,10 @@ def thesis_candidates(
     vb = overlap_box(eb, ea)
     if va is None or vb is None:
         return None
-    sa = K.range_query(ta.points, ta.boxes, ta.info, np.array(va.lo), np.array(va.hi))
+    sa = TK.range_query(ta.points, ta.boxes, ta.info, np.array(va.lo), np.array(va.hi))
     if sa.shape[0] == 0:
         return None
-    sb = K.range_query(tb.points, tb.boxes, tb.info, np.array(vb.lo), np.array(vb.hi))
+    sb = TK.range_query(tb.points, tb.boxes, tb.info, np.array(vb.lo), np.array(vb.hi))
     if sb.shape[0] == 0:
         return None
     return ta.perm[sa], tb.perm[sb]
@@ -91,5 +91,5 @@ def thesis_closest(
     ia, ib = cand
     wa = np.ascontiguousarray(world(a.points[ia], pose_a))  # step 10
     wb = np.ascontiguousarray(world(b.points[ib], pose_b))
-    _, i, j = K.min_pair(wa, wb)  # step 11
+    _, i, j = TK.min_pair(wa, wb)  # step 11
     return result_from_pair(a, b, pose_a, pose_b, int(ia[i]), int(ib[j]), margin)
