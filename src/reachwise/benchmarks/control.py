@@ -9,10 +9,10 @@ ticks (``--quick``: 1 000) with avoidance, the robots shuttling between their go
   controller step (the plant integration and the logging are not part of it);
 - ``<scenario>.controller``: the controller step alone.
 
-Targets (issue 6): tick median ≤ 1 ms and p99.9 ≤ 10 ms (P-V's 10 ms sample time),
+Targets: tick median ≤ 1 ms and p99.9 ≤ 10 ms (P-V's 10 ms sample time),
 controller median ≤ 100 µs.
 
-``panda-shelf`` (issue 16, when the ``robots`` extra is installed): a real arm, the
+``panda-shelf`` (when the ``robots`` extra is installed): a real arm, the
 example-robot-data Panda with its collision meshes, every link a 1000-point cloud,
 automatic self-collision pairs and a ≈2800-point scan of a shelf. Targets: tick median
 ≤ 300 µs, p99.9 ≤ 1 ms.

@@ -1,4 +1,4 @@
-"""``reachwise bench distance``: the exact distance query against its baselines (issue 3).
+"""``reachwise bench distance``: the exact distance query against its baselines.
 
 Workload (P-V §IV sizes): a 1000-point non-convex part — an L-shaped bracket's surface
 sampled with trimesh — against a 5500-point scan-like environment: a 2.5 m x 2.0 m

@@ -13,7 +13,7 @@ link, 9 links, 36 pairs), margin 5 cm:
   configurations, the share of the pairs that come within the margin there (and of all
   such configuration-pair events) that are watched.
 
-Targets (issue 16): 10 000 samples in seconds (≤ 10 s), recall ≥ 99.9 %.
+Targets: 10 000 samples in seconds (≤ 10 s), recall ≥ 99.9 %.
 """
 
 from __future__ import annotations

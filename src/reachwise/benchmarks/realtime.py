@@ -1,4 +1,4 @@
-"""``reachwise bench realtime``: live clouds at camera rate and a 1 kHz control loop (issue 17).
+"""``reachwise bench realtime``: live clouds at camera rate and a 1 kHz control loop.
 
 One run measures:
 
@@ -63,7 +63,7 @@ libfranka and ros2_control run theirs, transparent huge pages off for the proces
 that the kernel never write-locks its memory map to collapse them under a tick): see
 the README's realtime section.
 
-Targets (issue 17): tick median ≤ 300 µs, p99.9 ≤ 1 ms, max ≤ 3 ms; 0 ticks waited
+Targets: tick median ≤ 300 µs, p99.9 ≤ 1 ms, max ≤ 3 ms; 0 ticks waited
 for a build; ≥ 29 swaps/s; hand-off p99 ≤ 2 ms; builds: 300 k ≤ 20 ms, 1 M ≤ 80 ms.
 """
 
