@@ -1,5 +1,5 @@
 """``reachwise bench server``: the collision server against the same scene in process
-(issue 7), and keeping up with a depth camera while a 1 kHz loop queries it (issue 17).
+and keeping up with a depth camera while a 1 kHz loop queries it.
 
 The thesis's collision server answered the control system every 10 ms cycle (P-V §V:
 all pairs in 1.0 ms on average, σ 1.7 ms, on a laptop; P-IV §5: 8 ms). Here the server
@@ -82,9 +82,9 @@ __all__ = ["EchoProcess", "ServerProcess", "run", "streaming_figures"]
 SCAN_EVERY = 100  # ticks
 WARMUP_TICKS = 200
 LOST_DEADLINE = 0.1  # s: a reply later than this counts as lost
-#: Protocol overhead target beyond the bare echo (µs, p50; issue 17).
+#: Protocol overhead target beyond the bare echo (µs, p50).
 PROTOCOL_OVERHEAD_LIMIT_US = 30.0
-#: Streaming workload of issue 17: a 640 x 480 depth camera at 30 Hz, a 1 kHz loop.
+#: Streaming workload: a 640 x 480 depth camera at 30 Hz, a 1 kHz loop.
 STREAM_POINTS = 300_000
 STREAM_HZ = 30.0
 QUERY_HZ = 1000.0
@@ -313,7 +313,7 @@ def _stream_options(quick: bool) -> dict[str, Any]:
 def streaming_figures(
     *, quick: bool = False, round_trips: int | None = None, seconds: float | None = None
 ) -> dict[str, Any]:
-    """The server figures of issue 17 in one run, for ``reachwise bench realtime``: a
+    """The streaming server figures in one run, for ``reachwise bench realtime``: a
     server process, the round trip against the bare ZeroMQ echo (``round_trips``
     queries; protocol overhead), then a camera process streaming 300 000-point clouds
     at 30 Hz while this process queries at 1 kHz (``seconds``).

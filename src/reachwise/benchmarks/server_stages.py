@@ -1,6 +1,6 @@
 """Where a query's microseconds go beyond the distance computation: each stage of the
 request path timed alone, in this process (no network), for the full msgpack path and
-for the binary tick path (issue 17: "the request path trims our own work").
+for the binary tick path: how much of a request's time is our own work.
 
 Stages, per query of the benchmark's crane scene carrying one joint state: the
 client's request (making the :class:`~reachwise.server.protocol.Query` and encoding

@@ -1,5 +1,5 @@
-"""A depth camera streaming into the collision server while a control loop queries it
-(issue 17, "the server keeps up").
+"""A depth camera streaming into the collision server while a control loop queries it:
+does the server keep up?
 
 One client process stands for the camera: it hands the server a fresh
 ``points``-point float32 cloud (a 640 x 480 depth frame is 307 200) ``stream_hz``
