@@ -1,4 +1,4 @@
-"""A MuJoCo model of a reachwise robot, built with ``mujoco.MjSpec`` (issue 9: dynamics).
+"""A MuJoCo model of a reachwise robot for simulating its dynamics, built with ``mujoco.MjSpec``.
 
 One body per frame of the DH chain: ``link_0`` is welded to the world at the robot's
 base pose, ``link_i`` (i = 1 … N) is the child of ``link_{i-1}``. Its body frame *is*

@@ -111,7 +111,7 @@ def p5_occlusion(
 ) -> ScanScene:
     """A variant of :func:`p5_floor_obstacle` whose scan misses the obstacle's far half.
 
-    Our choice, for the occlusion study of issue 9 (P-V Fig. 5: the return path went
+    Our choice, for the occlusion study (P-V Fig. 5: the return path went
     wrong behind the obstacle, where the scan had no points): the same floor and a
     taller box, 0.70 (x) x 0.80 (y) x 1.00 (z) m centred at (2.7, 0) m, scanned by the
     P-V scanner (same resolutions) standing low in front of it, behind the crane,

@@ -48,7 +48,7 @@ objects:                    # clouds not on a robot: scanner, mesh, box or file
              rpy_deg: [0, 0, 90]}], loop: false}
   - {name: heap, file: heap0.ply, clouds: [{t: 5, file: heap1.ply}]}  # deforming
   - {name: walker, mesh: person.obj, scene: false, motion: ...}  # only sensors see it
-sensors:                    # depth cameras (issue 17): each streams its cloud into the
+sensors:                    # depth cameras: each streams its cloud into the
   - kind: depth             #   scene object `name` at `rate` frames/s of simulated time
     name: camera            # watch it like an object: environment: [camera]
     pose: {xyz: [2, 0, 2]}  # camera -> world, optical frame (z forward, x right, y down):
@@ -519,7 +519,7 @@ class WatchSpec(StrictModel):
 
 
 class EscapeSpec(StrictModel):
-    """Local-minimum escape (issue 9, :mod:`reachwise.sim.escape`): when a robot's
+    """Local-minimum escape (:mod:`reachwise.sim.escape`): when a robot's
     controller reports ``stalled``, plan a joint path with ``planner`` (OMPL
     RRT-Connect, the ``plan`` extra) within ``time_limit`` s of planning, follow it with
     the same controller at ``speed`` × the joint, tool and angular speed bounds, then

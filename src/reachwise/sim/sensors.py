@@ -1,5 +1,5 @@
 """Depth cameras in a simulation: frames rendered at their rate in simulated time and
-streamed into the distance scene (issue 17).
+streamed into the distance scene.
 
 A scenario's ``sensors:`` (:class:`~reachwise.sim.scenarios.SensorSpec`) become
 :class:`DepthSensor` objects, each feeding one scene object (the sensor's ``name``): a
