@@ -1,4 +1,4 @@
-"""A live view attached to a running simulation (issue 8).
+"""A live view attached to a running simulation.
 
 :class:`LiveRun` runs :func:`reachwise.sim.simulate.simulate` with an ``on_tick``
 hook that pushes each tick's ``q`` and the scene's answer (``res.pairs[i].result``,

@@ -6,7 +6,7 @@ It keeps a registry of what it put in the scene (``viewer.nodes``: scene-node na
 viser handle, ``viewer.categories``: display category → names) so that the
 "Display" checkboxes, tests and the modes can find them.
 
-What it shows (issue 8), one *mode* at a time, switched from a "Result" dropdown when
+What it shows, one *mode* at a time, switched from a "Result" dropdown when
 a folder holds several results (:func:`serve_results`):
 
 - a robot with joint sliders (:func:`reachwise.viz.modes.show_robot`);
