@@ -1,7 +1,7 @@
 """Cloud ingestion off the querying thread: new clouds are indexed on a worker thread.
 
 A depth camera hands over a 300 000-point cloud 30 times a second while the control
-loop queries the scene 1000 times a second (issue 17). Building the new cloud's index
+loop queries the scene 1000 times a second. Building the new cloud's index
 takes milliseconds; the loop must not wait for it. :class:`CloudIngest` takes each
 hand-over (:meth:`CloudIngest.submit`: a reference to the points, no copy, no
 validation, no build — microseconds), and one worker thread checks the points, makes

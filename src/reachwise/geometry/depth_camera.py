@@ -1,7 +1,7 @@
 """A simulated depth camera: a pinhole model that sees the scene's meshes as a cloud.
 
 The robots our users drive see their cell through depth cameras (structured light,
-stereo or time of flight) at about 30 frames/s and 640 × 480 pixels (issue 17). The
+stereo or time of flight) at about 30 frames/s and 640 × 480 pixels. The
 model, in the camera frame of OpenCV and ROS optical frames (``z`` forward along the
 optical axis, ``x`` right, ``y`` down in the image):
 

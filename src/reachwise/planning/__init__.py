@@ -1,4 +1,4 @@
-"""Global planning for the hybrid controller (issue 9): escape a local minimum.
+"""Global planning for the hybrid controller: escape a local minimum.
 
 The reactive controller reports ``stalled`` in a local minimum (thesis Fig. 3.3);
 :func:`plan_path` plans a collision-free joint path with OMPL's RRT-Connect (the
