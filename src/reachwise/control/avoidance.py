@@ -43,7 +43,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
-from typing import Any, Protocol
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -250,65 +250,13 @@ class SceneConverter:
             return replace(empty, valid=False, reason=result.reason or "missing distance data")
         if not twists and isinstance(result.pairs, PairAnswers):
             return self._from_rows(result, result.pairs, stamp, computed)
-        a_link: list[int] = []
-        a_pt: list[NDArray[np.float64]] = []
-        b_link: list[int] = []
-        b_pt: list[NDArray[np.float64]] = []
-        normal: list[NDArray[np.float64]] = []
-        dist: list[float] = []
-        margin: list[float] = []
-        task: list[bool] = []
-        names: list[str] = []
-        vel: list[NDArray[np.float64]] = []
-        nan3 = np.full(3, np.nan)
-        zero3 = np.zeros(3)
         tw = twists or {}
-        for p in result.pairs:
-            r = p.result
-            if r.no_risk:
-                continue
-            la = self._link.get(p.a)
-            lb = self._link.get(p.b)
-            if la is None and lb is None:
-                continue
-            rho0 = self._margins.get((p.a, p.b), p.margin)
-            # a moving object's pair counts out to the scene's margin: the controller
-            # brings it in by the obstacle's travel during its reaction time
-            other_moves = (la is not None and p.b in tw) or (lb is not None and p.a in tw)
-            if r.distance > rho0 and not (other_moves and r.distance <= p.margin):
-                continue
-            if la is not None and lb is not None:
-                a_link.append(la)
-                a_pt.append(r.point_a)
-                b_link.append(lb)
-                b_pt.append(r.point_b)
-                normal.append(r.direction)
-                task.append(False)
-                vel.append(zero3)
-            elif la is not None:
-                a_link.append(la)
-                a_pt.append(r.point_a)
-                b_link.append(-1)
-                b_pt.append(nan3)
-                normal.append(r.direction)
-                task.append(la in self.tool_links)
-                vel.append(_point_velocity(tw.get(p.b), r.point_b, zero3))
-            else:
-                lbi = -1 if lb is None else lb
-                a_link.append(lbi)
-                a_pt.append(r.point_b)
-                b_link.append(-1)
-                b_pt.append(nan3)
-                normal.append(-np.asarray(r.direction))
-                task.append(lbi in self.tool_links)
-                vel.append(_point_velocity(tw.get(p.a), r.point_a, zero3))
-            dist.append(r.distance)
-            margin.append(rho0)
-            names.append(f"{p.a}|{p.b}")
+        rows = [row for p in result.pairs if (row := self._row(p, tw)) is not None]
         cloud_stamp, cloud = self._oldest_cloud(result, _watched(result.pairs, self._link))
-        if not dist:
+        if not rows:
             empty = AvoidancePoints.empty(result.sequence, stamp, computed)
             return replace(empty, cloud_stamp=cloud_stamp, cloud=cloud)
+        a_link, a_pt, b_link, b_pt, normal, dist, margin, task, names, vel = zip(*rows, strict=True)
         return AvoidancePoints(
             result.sequence,
             stamp,
@@ -326,6 +274,43 @@ class SceneConverter:
             cloud_stamp=cloud_stamp,
             cloud=cloud,
         )
+
+    def _row(self, p: Any, tw: Mapping[str, tuple[ArrayLike, ArrayLike, ArrayLike]]) -> _Row | None:
+        """The avoidance row of one answered pair ``p``, or ``None`` when it does not
+        act (no risk, no robot link in it, or beyond its margin). A robot part against
+        a robot part is a self-collision row; a part against an object keeps the part
+        as point a (the direction turned if the part is the pair's ``b``), with the
+        object's point velocity from its twist in ``tw``."""
+        r = p.result
+        if r.no_risk:
+            return None
+        la = self._link.get(p.a)
+        lb = self._link.get(p.b)
+        if la is None and lb is None:
+            return None
+        rho0 = self._margins.get((p.a, p.b), p.margin)
+        # a moving object's pair counts out to the scene's margin: the controller
+        # brings it in by the obstacle's travel during its reaction time
+        other_moves = (la is not None and p.b in tw) or (lb is not None and p.a in tw)
+        if r.distance > rho0 and not (other_moves and r.distance <= p.margin):
+            return None
+        name = f"{p.a}|{p.b}"
+        if la is not None and lb is not None:
+            return _Row(
+                la, r.point_a, lb, r.point_b, r.direction, r.distance, rho0, False, name, _ZERO3
+            )
+        if la is not None:
+            vel = _point_velocity(tw.get(p.b), r.point_b, _ZERO3)
+            return _Row(
+                la, r.point_a, -1, _NAN3, r.direction, r.distance, rho0,
+                la in self.tool_links, name, vel,
+            )  # fmt: skip
+        lbi = -1 if lb is None else lb
+        vel = _point_velocity(tw.get(p.a), r.point_a, _ZERO3)
+        return _Row(
+            lbi, r.point_b, -1, _NAN3, -np.asarray(r.direction), r.distance, rho0,
+            lbi in self.tool_links, name, vel,
+        )  # fmt: skip
 
     def _from_rows(
         self, result: SceneResult, answers: PairAnswers, stamp: float, computed: float
@@ -386,6 +371,27 @@ class SceneConverter:
                 oldest = t
                 name = o
         return oldest, name
+
+
+_NAN3 = np.full(3, np.nan)
+_NAN3.setflags(write=False)
+_ZERO3 = np.zeros(3)
+_ZERO3.setflags(write=False)
+
+
+class _Row(NamedTuple):
+    """One avoidance point being collected (the fields of :class:`AvoidancePoints`)."""
+
+    a_link: int
+    a_point: Any
+    b_link: int
+    b_point: Any
+    normal: Any
+    distance: float
+    margin: float
+    task_space: bool
+    name: str
+    obstacle_velocity: Any
 
 
 @dataclass(frozen=True, eq=False)

@@ -324,6 +324,27 @@ def _shape_area(aspect: float, arch_ratio: float) -> float:
     return TunnelProfile(1.0, aspect, arch_ratio).area
 
 
+def _plan_profile(k: int, n: int, largest: TunnelProfile, smallest_area: float) -> TunnelProfile:
+    """The face of plan ``k`` of ``n`` (see :func:`tunnel_plans`): its area linearly
+    spaced from ``smallest_area`` (m²) to the largest's, its height/width from 1.05 to
+    the largest's, its roof rise/width from 0.30 to the largest's; sizes round to 5 cm.
+    The last plan's face is ``largest`` itself."""
+    if k == n - 1:
+        return largest
+    t = k / (n - 1)
+    area = smallest_area + (largest.area - smallest_area) * t
+    aspect = 1.05 + (largest.height / largest.width - 1.05) * t
+    arch = 0.30 + (largest.arch_height / largest.width - 0.30) * t
+    w = math.sqrt(area / _shape_area(aspect, arch))
+    return TunnelProfile(
+        round(w * 20) / 20,
+        round(aspect * w * 20) / 20,
+        round(arch * w * 20) / 20,
+        largest.y_center,
+        largest.floor_z,
+    )
+
+
 def tunnel_plans(
     n_plans: int = TUNNEL_87_PLANS,
     *,
@@ -354,21 +375,7 @@ def tunnel_plans(
     big_env = TunnelEnvelope(largest)
     plans = []
     for k in range(n):
-        t = k / (n - 1) if n > 1 else 1.0
-        if k == n - 1:
-            prof = largest
-        else:
-            area = smallest_area + (largest.area - smallest_area) * t
-            aspect = 1.05 + (largest.height / largest.width - 1.05) * t
-            arch = 0.30 + (largest.arch_height / largest.width - 0.30) * t
-            w = math.sqrt(area / _shape_area(aspect, arch))
-            prof = TunnelProfile(
-                round(w * 20) / 20,
-                round(aspect * w * 20) / 20,
-                round(arch * w * 20) / 20,
-                largest.y_center,
-                largest.floor_z,
-            )
+        prof = _plan_profile(k, n, largest, smallest_area)
         face_x = round(float(rng.uniform(5.5, 8.5)), 1)
         shift = float(rng.uniform(-1.0, 1.0)) * min(0.6, max(largest.width - prof.width, 0) / 4)
         cut_v = bool(rng.random() < 0.5)
