@@ -21,6 +21,7 @@ input 2, missing dependency 3, unavailable service 4, anything else 1.
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Iterable
 from typing import ClassVar, TypeVar
 
@@ -77,7 +78,8 @@ _LISTED = 30
 
 
 class UnknownName(InputError, KeyError):
-    """A lookup of ``name`` among ``valid`` names failed; the message lists the valid ones.
+    """A lookup of ``name`` among ``valid`` names failed; the message lists the valid ones
+    and, when one is close (:mod:`difflib`), the name meant (``did you mean 'sb60'?``).
 
     ``kind`` says what was looked up (``"robot"``, ``"object"``, ``"strategy"``, …).
     It is a ``KeyError`` too, so code that looks names up in a mapping keeps working.
@@ -95,6 +97,11 @@ class UnknownName(InputError, KeyError):
             if self.valid
             else (f"unknown {kind} {name!r}; there are none")
         )
+        close = difflib.get_close_matches(str(name), self.valid, n=1, cutoff=0.6)
+        #: The valid name ``name`` most likely misspells, or None.
+        self.suggestion = close[0] if close else None
+        if self.suggestion is not None:
+            reason += f"; did you mean {self.suggestion!r}?"
         super().__init__(source, kind, reason)
 
 

@@ -141,3 +141,7 @@ def test_builtins_files_and_unknown_names(tmp_path: Path) -> None:
     assert isinstance(err, InputError) and isinstance(err, KeyError)
     assert err.name == "sb61" and err.valid == tuple(builtin_names("robots"))
     assert "unknown built-in robot 'sb61'; valid: hiab-xs033, p2-man1" in str(err)
+    assert str(err).endswith("; did you mean 'sb60'?") and err.suggestion == "sb60"
+    with pytest.raises(UnknownName) as info:
+        load("zzzz")
+    assert info.value.suggestion is None and "did you mean" not in str(info.value)
