@@ -47,14 +47,10 @@ def deflect_for_tool_parts(pG, pR, rows, pts, settings):  # type: ignore[no-unty
 
 
 @njit(cache=True)
-def guard_scales(sol, joints, task, limits, rows, pts, gains, settings):  # type: ignore[no-untyped-def]
-    """The task scale ``s`` (bisection on feasibility), the guard scale (≤ 1: the whole
-    motion slowed down when even ``s = 0`` closes a pair in too fast) and the joint
-    velocity for ``s``, from the joint solution ``sol``, the
-    :class:`~reachwise.control.tick.joints.JointMotion` ``joints`` and the
-    :class:`~reachwise.control.tick.task.TaskParts` ``task``. Returns
-    ``(s, guard, q̇)``."""
-    q, w, rec, xrec = joints.q, joints.w, joints.rec, joints.xrec
+def _pair_rates(rows, pts, settings, n):  # type: ignore[no-untyped-def]
+    """Per active row: ``g`` (m, n) with ``g_i q̇ = n_iᵀ J_Oi q̇`` the rate of its
+    distance, and its lowest allowed rates: ``lo_rate`` (the moving damper against an
+    approaching obstacle, else the static one) and ``lo_static`` (the static damper)."""
     rho_stop = settings.stop_distance
     xi = settings.approach_speed
     normal = rows.normal
@@ -63,14 +59,7 @@ def guard_scales(sol, joints, task, limits, rows, pts, gains, settings):  # type
     approach = pts.approach
     deff = pts.deff
     JO = pts.JO
-    M = sol.M
-    unull = sol.unull
-    n, r = M.shape
     m = rows.distance.shape[0]
-    xd = np.empty(r)
-    qd1 = np.empty(n)
-    s = 1.0
-    guard = 1.0
     g = np.zeros((m, n))
     lo_rate = np.zeros(m)
     lo_static = np.zeros(m)
@@ -86,38 +75,71 @@ def guard_scales(sol, joints, task, limits, rows, pts, gains, settings):  # type
         lo_rate[i] = lo_static[i]
         if approach[i] > 0.0:
             lo_rate[i] = moving_damper_bound(deff[i], rho0[i], rho_stop, xi, approach[i])
-    qs = np.empty(n)
+    return g, lo_rate, lo_static
+
+
+@njit(cache=True)
+def _scaled_joint_velocity(s, sol, joints, task, gains, xd, qd):  # type: ignore[no-untyped-def]
+    """``q̇(s) = W (J̃⁺ (ẋ(s) − ẋ_rec) + u_null) + q̇_rec`` into ``qd``: the joint
+    velocity of ``sol`` for the task scaled by ``s`` (``xd`` is scratch)."""
+    M = sol.M
+    unull = sol.unull
+    w, rec, xrec = joints.w, joints.rec, joints.xrec
+    n, r = M.shape
+    task_velocity(s, task, gains, xd)
+    for k in range(n):
+        acc = 0.0
+        for j in range(r):
+            acc += M[k, j] * (xd[j] - xrec[j])
+        qd[k] = w[k] * (acc + unull[k]) + rec[k]
+
+
+@njit(cache=True)
+def _feasible(qs, g, lo_rate, pts, q, limits, gains, moving):  # type: ignore[no-untyped-def]
+    """Whether the joint velocity ``qs`` keeps every active row's distance rate above
+    its bound; a moving obstacle's row is checked on the command actually sent, after
+    the joint-speed scaling (scaling slows a retreat down as well)."""
+    active = pts.active
+    approach = pts.approach
+    a_s = limit_scale(qs, 1.0, q, limits, gains.k_limit) if moving else 1.0
+    for i in range(g.shape[0]):
+        if not active[i]:
+            continue
+        rate = 0.0
+        for k in range(g.shape[1]):
+            rate += g[i, k] * qs[k]
+        if rate < lo_rate[i] - 1e-12:
+            return False
+        if approach[i] > 0.0 and a_s * rate < lo_rate[i] - 1e-12:
+            return False
+    return True
+
+
+@njit(cache=True)
+def guard_scales(sol, joints, task, limits, rows, pts, gains, settings):  # type: ignore[no-untyped-def]
+    """The task scale ``s`` (bisection on feasibility), the guard scale (≤ 1: the whole
+    motion slowed down when even ``s = 0`` closes a pair in too fast) and the joint
+    velocity for ``s``, from the joint solution ``sol``, the
+    :class:`~reachwise.control.tick.joints.JointMotion` ``joints`` and the
+    :class:`~reachwise.control.tick.task.TaskParts` ``task``. Returns
+    ``(s, guard, q̇)``."""
+    n, r = sol.M.shape
+    active = pts.active
+    g, lo_rate, lo_static = _pair_rates(rows, pts, settings, n)
     moving = False
-    for i in range(m):
-        if active[i] and approach[i] > 0.0:
+    for i in range(active.shape[0]):
+        if active[i] and pts.approach[i] > 0.0:
             moving = True
+    xd = np.empty(r)
+    qs = np.empty(n)
     # feasibility of a task scale: every active pair's rate above its bound
+    s = 1.0
     lo_s = 0.0
     hi_s = 1.0
     for it in range(16):
         trial = 1.0 if it == 0 else (0.0 if it == 1 else 0.5 * (lo_s + hi_s))
-        task_velocity(trial, task, gains, xd)
-        for k in range(n):
-            acc = 0.0
-            for j in range(r):
-                acc += M[k, j] * (xd[j] - xrec[j])
-            qs[k] = w[k] * (acc + unull[k]) + rec[k]
-        ok = True
-        # a moving obstacle's pair is checked on the command actually sent, after
-        # the joint-speed scaling (scaling slows a retreat down as well)
-        a_s = limit_scale(qs, 1.0, q, limits, gains.k_limit) if moving else 1.0
-        for i in range(m):
-            if not active[i]:
-                continue
-            rate = 0.0
-            for k in range(n):
-                rate += g[i, k] * qs[k]
-            if rate < lo_rate[i] - 1e-12:
-                ok = False
-                break
-            if approach[i] > 0.0 and a_s * rate < lo_rate[i] - 1e-12:
-                ok = False
-                break
+        _scaled_joint_velocity(trial, sol, joints, task, gains, xd, qs)
+        ok = _feasible(qs, g, lo_rate, pts, joints.q, limits, gains, moving)
         if it == 0:
             if ok:
                 s = 1.0
@@ -133,16 +155,13 @@ def guard_scales(sol, joints, task, limits, rows, pts, gains, settings):  # type
             else:
                 hi_s = trial
         s = lo_s
-    task_velocity(s, task, gains, xd)
-    for k in range(n):
-        acc = 0.0
-        for j in range(r):
-            acc += M[k, j] * (xd[j] - xrec[j])
-        qd1[k] = w[k] * (acc + unull[k]) + rec[k]
+    qd1 = np.empty(n)
+    _scaled_joint_velocity(s, sol, joints, task, gains, xd, qd1)
     # still closing in too fast with no task left: slow the whole motion down. Only
     # the robot's own approach can be slowed (the static damper); a robot too slow
     # to outrun an approaching obstacle keeps retreating as fast as it can
-    for i in range(m):
+    guard = 1.0
+    for i in range(active.shape[0]):
         if not active[i]:
             continue
         rate = 0.0

@@ -37,28 +37,15 @@ class ActivePoints(NamedTuple):
 
 
 @njit(cache=True)
-def active_points(chain, passive, F, Jg, rows, recalled, m_now, gains, settings):  # type: ignore[no-untyped-def]
-    """The avoidance points of ``rows`` (this tick's ``m_now`` rows, then recalled ones)
-    at frames ``F`` with tool Jacobian ``Jg``; see :class:`ActivePoints`."""
-    kind = chain.kind
-    qidx = chain.qidx
-    classic = chain.classic
+def obstacle_motion(rows, reaction_time):  # type: ignore[no-untyped-def]
+    """Per row: a moving obstacle's ``approach`` speed along the collision line (0 if
+    it recedes; m/s), the feed-forward velocity ``ff`` (m, 3) ``min(2u/|v_B|, 1) v_B``
+    that carries the point along with it, and ``deff`` the distance left after the
+    obstacle's travel during the robot's ``reaction_time`` (s)."""
     normal = rows.normal
     vobs = rows.obstacle_velocity
     dist = rows.distance
-    rho0 = rows.margin
-    a_link = rows.a_link
-    a_pt = rows.a_point
-    b_link = rows.b_link
-    b_pt = rows.b_point
-    N = kind.shape[0]
-    n = Jg.shape[1]
-    T = F[N + 1]
     m = dist.shape[0]
-    active = np.zeros(m, dtype=np.bool_)
-    vrep = np.zeros(m)
-    # a moving obstacle's approach speed along the collision line (0 if it recedes),
-    # and the feed-forward velocity u/|v_B| v_B that carries the point along with it
     approach = np.zeros(m)
     ff = np.zeros((m, 3))
     deff = np.empty(m)
@@ -69,13 +56,72 @@ def active_points(chain, passive, F, Jg, rows, recalled, m_now, gains, settings)
             u += normal[i, j] * vobs[i, j]
             sp += vobs[i, j] * vobs[i, j]
         approach[i] = max(u, 0.0)
-        # the distance left after the obstacle's travel during the robot's reaction
-        deff[i] = dist[i] - approach[i] * settings.reaction_time
+        deff[i] = dist[i] - approach[i] * reaction_time
         if approach[i] > 0.0:
             sp = math.sqrt(sp)
             wgt = min(2.0 * approach[i] / sp, 1.0)
             for j in range(3):
                 ff[i, j] = wgt * vobs[i, j]
+    return approach, ff, deff
+
+
+@njit(cache=True)
+def row_jacobian(chain, passive, F, Jg, rows, i, Ja, Jb, JO):  # type: ignore[no-untyped-def]
+    """The point Jacobian ``JO[i]`` (3, n) of row ``i`` at frames ``F``: a tool part
+    moves with the tool — rigidly (its own point Jacobian), or, if it hangs on passive
+    joints, with the tool point plus the tool's rotation about the vertical (the
+    hanging part keeps only that rotation, tool Jacobian ``Jg``); a self-collision row
+    is relative (a's point Jacobian minus b's). ``Ja``, ``Jb`` (6, n) are scratch."""
+    kind = chain.kind
+    qidx = chain.qidx
+    classic = chain.classic
+    a_link = rows.a_link
+    a_pt = rows.a_point
+    b_link = rows.b_link
+    b_pt = rows.b_point
+    N = kind.shape[0]
+    n = Jg.shape[1]
+    if rows.task_space[i]:
+        hanging = False
+        for jj in range(N):
+            if qidx[jj] >= 0 and passive[qidx[jj]] and jj + 1 <= a_link[i]:
+                hanging = True
+        if hanging:
+            T = F[N + 1]
+            rx = a_pt[i, 0] - T[0, 3]
+            ry = a_pt[i, 1] - T[1, 3]
+            for k in range(n):
+                wz = Jg[5, k]
+                JO[i, 0, k] = Jg[0, k] - wz * ry
+                JO[i, 1, k] = Jg[1, k] + wz * rx
+                JO[i, 2, k] = Jg[2, k]
+            return
+    point_jacobian_rows(kind, qidx, classic, F, a_link[i], a_pt[i, 0], a_pt[i, 1], a_pt[i, 2], Ja)
+    if not rows.task_space[i] and b_link[i] >= 0:
+        point_jacobian_rows(
+            kind, qidx, classic, F, b_link[i], b_pt[i, 0], b_pt[i, 1], b_pt[i, 2], Jb
+        )
+        for j in range(3):
+            for k in range(n):
+                JO[i, j, k] = Ja[j, k] - Jb[j, k]
+        return
+    for j in range(3):
+        for k in range(n):
+            JO[i, j, k] = Ja[j, k]
+
+
+@njit(cache=True)
+def active_points(chain, passive, F, Jg, rows, recalled, m_now, gains, settings):  # type: ignore[no-untyped-def]
+    """The avoidance points of ``rows`` (this tick's ``m_now`` rows, then recalled ones)
+    at frames ``F`` with tool Jacobian ``Jg``; see :class:`ActivePoints`."""
+    normal = rows.normal
+    dist = rows.distance
+    rho0 = rows.margin
+    n = Jg.shape[1]
+    m = dist.shape[0]
+    approach, ff, deff = obstacle_motion(rows, settings.reaction_time)
+    active = np.zeros(m, dtype=np.bool_)
+    vrep = np.zeros(m)
     JO = np.zeros((m, 3, n))
     Ja = np.empty((6, n))
     Jb = np.empty((6, n))
@@ -93,45 +139,9 @@ def active_points(chain, passive, F, Jg, rows, recalled, m_now, gains, settings)
         if not recalled[i]:
             n_active += 1
             vrep[i] = khatib_speed(deff[i], rho0[i], gains.mu, gains.v_rep_max)
-        if rows.task_space[i]:
-            # a tool part moves with the tool: rigidly (its own point Jacobian), or, if
-            # it hangs on passive joints, with the tool point plus the tool's rotation
-            # about the vertical (the hanging part keeps only that rotation)
-            hanging = False
-            for jj in range(N):
-                if qidx[jj] >= 0 and passive[qidx[jj]] and jj + 1 <= a_link[i]:
-                    hanging = True
-            if hanging:
-                rx = a_pt[i, 0] - T[0, 3]
-                ry = a_pt[i, 1] - T[1, 3]
-                for k in range(n):
-                    wz = Jg[5, k]
-                    JO[i, 0, k] = Jg[0, k] - wz * ry
-                    JO[i, 1, k] = Jg[1, k] + wz * rx
-                    JO[i, 2, k] = Jg[2, k]
-            else:
-                point_jacobian_rows(
-                    kind, qidx, classic, F, a_link[i], a_pt[i, 0], a_pt[i, 1], a_pt[i, 2], Ja
-                )
-                for j in range(3):
-                    for k in range(n):
-                        JO[i, j, k] = Ja[j, k]
-            if settings.avoidance and not recalled[i]:
-                for j in range(3):
-                    pR[j] += vrep[i] * normal[i, j] + ff[i, j]
-        else:
-            point_jacobian_rows(
-                kind, qidx, classic, F, a_link[i], a_pt[i, 0], a_pt[i, 1], a_pt[i, 2], Ja
-            )
-            if b_link[i] >= 0:
-                point_jacobian_rows(
-                    kind, qidx, classic, F, b_link[i], b_pt[i, 0], b_pt[i, 1], b_pt[i, 2], Jb
-                )
-                for j in range(3):
-                    for k in range(n):
-                        JO[i, j, k] = Ja[j, k] - Jb[j, k]
-            else:
-                for j in range(3):
-                    for k in range(n):
-                        JO[i, j, k] = Ja[j, k]
+        row_jacobian(chain, passive, F, Jg, rows, i, Ja, Jb, JO)
+        if rows.task_space[i] and settings.avoidance and not recalled[i]:
+            # a tool part's repulsion is summed in task space (P-V Eq. 6)
+            for j in range(3):
+                pR[j] += vrep[i] * normal[i, j] + ff[i, j]
     return ActivePoints(active, vrep, approach, ff, deff, JO, pR, n_active, n_guard, dmin)
