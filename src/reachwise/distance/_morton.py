@@ -125,7 +125,8 @@ def _sorted_msd(points, bounds):  # type: ignore[no-untyped-def]
     (stably) into the 1024 cells of the code's top 10 bits — one sequential read, 1024
     write streams —, then each cell is sorted on its low 20 bits by a two-pass LSD
     radix sort and gathered, all within the cell's few kilobytes (insertion sort for a
-    cell of a few points)."""
+    cell of a few points). One compiled function on purpose: the passes share their
+    count tables and buffers, allocated once for the cloud."""
     n = points.shape[0]
     lo0 = bounds[0]
     lo1 = bounds[1]

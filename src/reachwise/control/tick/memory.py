@@ -90,17 +90,11 @@ def static_rows(rows, loc):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def recall(F, rows, velocity, loc, memory):  # type: ignore[no-untyped-def]
-    """The avoidance rows of this tick (with ``velocity`` as their obstacle velocity)
-    followed by the remembered collision lines, and which rows are recalled ones.
-
-    A remembered line aged 1 … ``depth`` ticks is measured again at the current joint
-    state (frames ``F``): both ends are points of the clouds, so the remembered pair is
-    again an exact point pair: distance ``|p_a − p_b|`` and direction
-    ``(p_a − p_b)/|p_a − p_b|``. Rows within their margin that do not repeat one of
-    this tick's pairs (``loc``, see :func:`local_lines`) or an earlier recalled one are
-    appended. Returns ``(AvoidanceRows, recalled)``.
-    """
+def _remeasure(F, rows, loc, memory):  # type: ignore[no-untyped-def]
+    """The remembered lines measured again at frames ``F``: per line its end points
+    ``pa``, ``pb`` (k, 3) and distance ``dd`` (k,), ``keep`` (k,) for those within
+    their margin that repeat neither a row of this tick nor an earlier kept line, and
+    how many are kept."""
     mem = memory.lines
     depth = memory.depth
     a_link = rows.a_link
@@ -144,6 +138,27 @@ def recall(F, rows, velocity, loc, memory):  # type: ignore[no-untyped-def]
         if not same:
             keep[r] = True
             extra += 1
+    return keep, pa, pb, dd, extra
+
+
+@njit(cache=True)
+def recall(F, rows, velocity, loc, memory):  # type: ignore[no-untyped-def]
+    """The avoidance rows of this tick (with ``velocity`` as their obstacle velocity)
+    followed by the remembered collision lines, and which rows are recalled ones.
+
+    A remembered line aged 1 … ``depth`` ticks is measured again at the current joint
+    state (frames ``F``): both ends are points of the clouds, so the remembered pair is
+    again an exact point pair: distance ``|p_a − p_b|`` and direction
+    ``(p_a − p_b)/|p_a − p_b|``. Rows within their margin that do not repeat one of
+    this tick's pairs (``loc``, see :func:`local_lines`) or an earlier recalled one are
+    appended. Returns ``(AvoidanceRows, recalled)``.
+    """
+    mem = memory.lines
+    a_link = rows.a_link
+    b_link = rows.b_link
+    m = rows.distance.shape[0]
+    k = mem.shape[0]
+    keep, pa, pb, dd, extra = _remeasure(F, rows, loc, memory)
     t = m + extra
     a_link2 = np.empty(t, dtype=np.int64)
     b_link2 = np.empty(t, dtype=np.int64)

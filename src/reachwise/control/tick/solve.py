@@ -27,6 +27,41 @@ class JointSolution(NamedTuple):
 
 
 @njit(cache=True)
+def _null_space_motion(P, w, rows, pts, recalled, gains, unull):  # type: ignore[no-untyped-def]
+    """``unull = (I − P) Σ_i J̃_Oi⁺ ẋ_Oi`` (the sum of Eq. 3.18) with the projector
+    ``P = J⁺J`` of the weighted Jacobian: every body point that acts (not a tool
+    part, not recalled) moves at its repulsive speed along its collision line, plus a
+    moving obstacle's feed-forward, through the damped pseudo-inverse of its weighted
+    point Jacobian."""
+    n = w.shape[0]
+    normal = rows.normal
+    task_space = rows.task_space
+    active = pts.active
+    JO = pts.JO
+    vrep = pts.vrep
+    ff = pts.ff
+    zsum = np.zeros(n)
+    for i in range(rows.distance.shape[0]):
+        if not active[i] or task_space[i] or recalled[i]:
+            continue
+        PhiO = np.empty((3, n))
+        for j in range(3):
+            for k in range(n):
+                PhiO[j, k] = JO[i, j, k] * w[k]
+        MO = damped_pinv(PhiO, gains.epsilon, gains.lambda_max, False).inverse
+        for k in range(n):
+            acc = 0.0
+            for j in range(3):
+                acc += MO[k, j] * (vrep[i] * normal[i, j] + ff[i, j])
+            zsum[k] += acc
+    for k in range(n):
+        acc = 0.0
+        for j in range(n):
+            acc += P[k, j] * zsum[j]
+        unull[k] = zsum[k] - acc
+
+
+@njit(cache=True)
 def solve_joints(J, joints, task, limits, rows, pts, recalled, gains, avoid):  # type: ignore[no-untyped-def]
     """``q̇ = W (J̃⁺ (ẋ − ẋ_rec) + Σ_i (I − J⁺J) J̃_Oi⁺ ẋ_Oi) + q̇_rec`` (Eq. 3.18) for
     the weighted Jacobian ``J W``, solved once more if a joint moving toward a limit
@@ -37,13 +72,6 @@ def solve_joints(J, joints, task, limits, rows, pts, recalled, gains, avoid):  #
     """
     q, w, rec, xrec = joints.q, joints.w, joints.rec, joints.xrec
     r, n = J.shape
-    m = rows.distance.shape[0]
-    normal = rows.normal
-    task_space = rows.task_space
-    active = pts.active
-    JO = pts.JO
-    vrep = pts.vrep
-    ff = pts.ff
     upper = limits.upper
     lower = limits.lower
     zone = limits.zone
@@ -64,25 +92,7 @@ def solve_joints(J, joints, task, limits, rows, pts, recalled, gains, avoid):  #
         # ---- secondary goal: Eq. 3.18, every body point through the null space
         unull[:] = 0.0
         if avoid:
-            zsum = np.zeros(n)
-            for i in range(m):
-                if not active[i] or task_space[i] or recalled[i]:
-                    continue
-                PhiO = np.empty((3, n))
-                for j in range(3):
-                    for k in range(n):
-                        PhiO[j, k] = JO[i, j, k] * w[k]
-                MO = damped_pinv(PhiO, gains.epsilon, gains.lambda_max, False).inverse
-                for k in range(n):
-                    acc = 0.0
-                    for j in range(3):
-                        acc += MO[k, j] * (vrep[i] * normal[i, j] + ff[i, j])
-                    zsum[k] += acc
-            for k in range(n):
-                acc = 0.0
-                for j in range(n):
-                    acc += P[k, j] * zsum[j]
-                unull[k] = zsum[k] - acc
+            _null_space_motion(P, w, rows, pts, recalled, gains, unull)
         task_velocity(1.0, task, gains, xd)
         for j in range(r):
             xs[j] = xd[j] - xrec[j]
