@@ -253,3 +253,14 @@ def test_every_benchmark_file_names_its_machine(site: Path) -> None:
         assert run["benchmark"] in page
         for name in run["targets"]:
             assert name in page
+
+
+def test_getting_started_lists_every_builtin(site: Path) -> None:
+    from importlib import resources
+
+    page = _text((site / "getting-started.html").read_text())
+    for kind in ("robots", "tasks", "scenarios"):
+        folder = resources.files("reachwise.data") / kind
+        names = sorted(f.name[:-5] for f in folder.iterdir() if f.name.endswith(".yaml"))
+        line = page[page.index(f"Built-in {kind}:") :].split(".", 1)[0]
+        assert [n for n in names if n not in line] == [], kind

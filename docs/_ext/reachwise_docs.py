@@ -8,6 +8,7 @@
   its usage line, help text and every argument and option.
 - ``reachwise-bench`` — the benchmark table from the ``reachwise bench … --json`` files in
   ``docs/benchmarks/``, each naming the machine it ran on.
+- ``reachwise-builtins`` — the built-in robots, tasks and scenarios, from the data folder.
 - ``reachwise-example`` — runs ``examples/NAME.py`` (its argument is an output folder) and
   embeds its printed output and the PNG figures it wrote; an example that fails fails
   the build.
@@ -466,7 +467,21 @@ class ExampleDirective(SphinxDirective):
         return out_nodes
 
 
+class BuiltinsDirective(_Generated):
+    """The built-in robots, tasks and scenarios, read from ``reachwise/data``."""
+
+    def lines(self) -> list[str]:
+        from reachwise.io._builtin import builtin_names
+
+        lines: list[str] = []
+        for kind in ("robots", "tasks", "scenarios"):
+            names = ", ".join(f"``{n}``" for n in builtin_names(kind))
+            lines.append(f"- Built-in {kind}: {names}.")
+        return [*lines, ""]
+
+
 def setup(app: Sphinx) -> dict[str, Any]:
+    app.add_directive("reachwise-builtins", BuiltinsDirective)
     app.add_directive("reachwise-model", ModelDirective)
     app.add_directive("reachwise-cli", CliDirective)
     app.add_directive("reachwise-bench", BenchDirective)

@@ -79,7 +79,7 @@ _LISTED = 30
 
 class UnknownName(InputError, KeyError):
     """A lookup of ``name`` among ``valid`` names failed; the message lists the valid ones
-    and, when one is close (:mod:`difflib`), the name meant (``did you mean 'sb60'?``).
+    and, when one is close (``difflib``), the name meant (``did you mean 'sb60'?``).
 
     ``kind`` says what was looked up (``"robot"``, ``"object"``, ``"strategy"``, …).
     It is a ``KeyError`` too, so code that looks names up in a mapping keeps working.
