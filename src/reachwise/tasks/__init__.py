@@ -14,6 +14,7 @@ from reachwise.tasks.drill_layout import (
     ContourLayout,
     CutLayout,
     DrillLayout,
+    LayoutKeywords,
     LifterLayout,
     StopingLayout,
 )
@@ -39,6 +40,7 @@ __all__ = [
     "ContourLayout",
     "CutLayout",
     "DrillLayout",
+    "LayoutKeywords",
     "LifterLayout",
     "StopingLayout",
     "Task",

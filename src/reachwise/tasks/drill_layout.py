@@ -5,8 +5,8 @@ group per zone (:class:`CutLayout`, :class:`StopingLayout`, :class:`ContourLayou
 :class:`LifterLayout`); :func:`reachwise.tasks.drilling_pattern` turns a layout and a
 :class:`~reachwise.tasks.TunnelProfile` into a task. Every group checks its own
 fields when built and names a bad one by its flat keyword (``contour_spacing``,
-``cut_type``, …), the names :class:`LayoutKeywords` lists and
-:func:`layout_with` accepts.
+``cut_type``, …), the names :class:`LayoutKeywords` lists and ``layout_with``
+accepts.
 """
 
 from __future__ import annotations
