@@ -26,10 +26,10 @@ from reachwise.report.replay import write_replay_outputs
 from reachwise.server.client.owned import ServerOptions, owned_scene
 from reachwise.sim.log import SimulationLog
 from reachwise.sim.plant import PlantName
+from reachwise.sim.resolve import ResolvedScenario, resolve_scenario
 from reachwise.sim.scenarios import EscapeSpec, Scenario
-from reachwise.sim.simulate import RunRecorder
-from reachwise.sim.simulate import simulate as run_simulation
-from reachwise.sim.world import SceneFactory
+from reachwise.sim.simulate import RunRecorder, run_world
+from reachwise.sim.world import SceneFactory, SimClock, build_world
 from reachwise.synthesis.synthesize import SynthesisResult
 from reachwise.synthesis.synthesize import synthesize as synthesize_objects
 from reachwise.tasks.task import Task
@@ -37,7 +37,7 @@ from reachwise.tasks.task import Task
 if TYPE_CHECKING:
     from reachwise.distance.scene import SceneResult
 
-__all__ = ["replay", "server_scene", "simulate", "synthesize"]
+__all__ = ["replay", "resolve_design", "server_scene", "simulate", "synthesize"]
 
 
 def synthesize(
@@ -61,9 +61,18 @@ def synthesize(
     ``locked``, ``workspace``, ``options``, ``on_run``, ``improve_options``) go to
     ``reachwise.synthesis.synthesize.synthesize``.
     """
+    t, robot = resolve_design(task, template)
+    return synthesize_objects(t, robot, runs=runs, seed=seed, objective=objective, **options)
+
+
+def resolve_design(task: Task | str | Path, template: Robot | str | Path) -> tuple[Task, Robot]:
+    """The resolve stage of a synthesis, as ``reachwise.sim.resolve.resolve_scenario``
+    is a simulation's: the task and the template robot read and checked once (a
+    built-in name or a file; objects pass through), so that the synthesis itself
+    reads no file."""
     t = task if isinstance(task, Task) else load_task(task)
     robot = template if isinstance(template, Robot) else load_robot(template)
-    return synthesize_objects(t, robot, runs=runs, seed=seed, objective=objective, **options)
+    return t, robot
 
 
 def replay(
@@ -117,7 +126,7 @@ def server_scene(server: str | ServerOptions) -> SceneFactory:
 
 
 def simulate(
-    scenario: Scenario | str | Path,
+    scenario: ResolvedScenario | Scenario | str | Path,
     avoidance: bool = True,
     *,
     duration: float | None = None,
@@ -129,13 +138,19 @@ def simulate(
     escape: bool | EscapeSpec | None = None,
     recorder: RunRecorder | None = None,
 ) -> SimulationLog:
-    """Run ``scenario`` (a built-in name, a file or a ``Scenario``) in simulated time:
-    ``reachwise.sim.simulate.simulate``, whose options these are. ``server`` (an
-    address or ``reachwise.server.client.ServerOptions``) runs the distance
-    queries on that collision server instead of in process (:func:`~reachwise.api.server_scene`)."""
+    """Run ``scenario`` (a built-in name, a file, a ``Scenario`` or a resolved one) in
+    simulated time, in three stages, each once: *resolve* (every file read and checked,
+    ``reachwise.sim.resolve.resolve_scenario``), *build* (the world from that object
+    alone, ``reachwise.sim.world.build_world``) and *run* (the loop,
+    ``reachwise.sim.simulate.run_world``). The options are those of
+    ``reachwise.sim.simulate.simulate``; ``server`` (an address or
+    ``reachwise.server.client.ServerOptions``) runs the distance queries on that
+    collision server instead of in process (:func:`~reachwise.api.server_scene`)."""
+    resolved = resolve_scenario(scenario)
+    clock = SimClock()
     make_scene = None if server is None else server_scene(server)
-    return run_simulation(
-        scenario, avoidance, duration=duration, progress=progress, on_tick=on_tick,
-        plant=plant, static_world=static_world, make_scene=make_scene, escape=escape,
-        recorder=recorder,
+    world = build_world(resolved, avoidance, plant=plant, make_scene=make_scene, clock=clock)
+    return run_world(
+        world, clock, duration=duration, progress=progress, on_tick=on_tick,
+        static_world=static_world, escape=escape, recorder=recorder,
     )  # fmt: skip

@@ -15,6 +15,7 @@ of its own meshes, automatic self-collision pairs.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from importlib import metadata
 from typing import TYPE_CHECKING
 
@@ -25,7 +26,7 @@ from reachwise.kinematics.robot import Robot
 from reachwise.sim.scenarios import RobotSpec, ScanSpec, Scenario, WatchSpec
 
 if TYPE_CHECKING:
-    from reachwise.distance.scene import SceneLike
+    from reachwise.geometry.cloud import PointCloud
     from reachwise.geometry.scan_scene import ScanScene
 
 __all__ = ["check_requirements", "scan_target", "watched_self_pairs"]
@@ -95,33 +96,29 @@ def scan_target(scanner: str | ScanSpec, sc: Scenario, name: str) -> ScanScene:
 
 
 def watched_self_pairs(
-    w: WatchSpec, robot: Robot, spec: RobotSpec, scene: SceneLike, sc: Scenario, where: str
+    w: WatchSpec,
+    robot: Robot,
+    spec: RobotSpec,
+    clouds: Mapping[str, PointCloud],
+    sc: Scenario,
+    where: str,
 ) -> list[tuple[str, str]] | None:
     """The link pairs a ``self`` watch lists, or picks with ``pairs: auto`` among the
-    robot's clouds in ``scene`` (restricted to ``links``); ``None`` when the watch
-    lists none (every non-adjacent pair)."""
+    robot's link ``clouds`` (link → cloud in the link frame; restricted to ``links``);
+    ``None`` when the watch lists none (every non-adjacent pair)."""
     if w.pairs is None:
         return None
     if w.pairs != "auto":
         return [(a, b) for a, b in w.pairs]
-    from reachwise.distance.scene import OnLink
     from reachwise.sim.self_pairs import auto_self_pairs
 
     keep = set(w.links) if w.links is not None else None
-    clouds = {}
-    for o in scene.robot_objects(spec.name):
-        src = o.source
-        if isinstance(src, OnLink) and (keep is None or src.link in keep):
-            if not np.array_equal(src.offset, np.eye(4)):
-                raise InputError(
-                    sc.source, where, f"pairs: auto needs clouds in link frames ({o.name})"
-                )
-            clouds[src.link] = o.cloud
-    if len(clouds) < 2:
+    mine = {k: c for k, c in clouds.items() if keep is None or k in keep}
+    if len(mine) < 2:
         raise InputError(sc.source, where, "pairs: auto needs at least two link clouds")
     try:
         pairs = auto_self_pairs(
-            robot, clouds, w.margin, home=np.asarray(spec.q0, dtype=float), samples=w.samples,
+            robot, mine, w.margin, home=np.asarray(spec.q0, dtype=float), samples=w.samples,
             seed=w.seed, cache_dir=sc.cache_dir, label=spec.name,
         )  # fmt: skip
     except InputError as exc:

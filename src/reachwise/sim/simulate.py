@@ -40,6 +40,7 @@ from reachwise.distance.scene import SceneLike, SceneResult
 from reachwise.sim.contact import true_clearance
 from reachwise.sim.log import Event, GoalRecord, SimulationLog
 from reachwise.sim.plant import PlantName
+from reachwise.sim.resolve import ResolvedScenario, resolve_scenario
 from reachwise.sim.scenarios import EscapeSpec, Scenario
 from reachwise.sim.world import (
     Agent,
@@ -56,7 +57,7 @@ from reachwise.sim.world import (
 if TYPE_CHECKING:
     from reachwise.sim.escape import Escape
 
-__all__ = ["RunRecorder", "simulate"]
+__all__ = ["RunRecorder", "run_world", "simulate"]
 
 
 class RunRecorder(Protocol):
@@ -71,7 +72,7 @@ class RunRecorder(Protocol):
 
 
 def simulate(
-    scenario: Scenario | str | Path,
+    scenario: ResolvedScenario | Scenario | str | Path,
     avoidance: bool = True,
     *,
     duration: float | None = None,
@@ -83,8 +84,13 @@ def simulate(
     escape: bool | EscapeSpec | None = None,
     recorder: RunRecorder | None = None,
 ) -> SimulationLog:
-    """Run ``scenario`` (a built-in name, a file or a ``Scenario``) in simulated
-    time; ``avoidance=False`` runs the conventional controller (the baseline).
+    """Run ``scenario`` (a built-in name, a file, a ``Scenario`` or a
+    :class:`~reachwise.sim.resolve.ResolvedScenario`) in simulated time, in three
+    stages: resolve (every file read once,
+    :func:`~reachwise.sim.resolve.resolve_scenario`), build
+    (:func:`~reachwise.sim.world.build_world`, no file read) and run
+    (:func:`run_world`). ``avoidance=False`` runs the conventional controller (the
+    baseline).
     ``duration`` overrides the scenario's; ``progress(t, duration)`` is called each
     tick; ``on_tick(t, {robot: q}, distances)`` too, after the distance query (a live
     viewer attaches here). ``plant="mujoco"`` runs every robot on its MuJoCo model
@@ -103,14 +109,37 @@ def simulate(
     stalls plans a path out with OMPL and follows it (``reachwise.sim.escape``);
     the plans are in ``extras["escape"]``.
     ``recorder`` (e.g. a ``reachwise.sim.bag_recorder.BagRecorder``) is started
-    with the built world, told each tick after the distance query and closed at the end.
+    with the built world, told each tick after the distance query and closed at the end."""
+    clock = SimClock()
+    world = build_world(
+        resolve_scenario(scenario), avoidance, plant=plant, make_scene=make_scene, clock=clock
+    )
+    return run_world(
+        world, clock, duration=duration, progress=progress, on_tick=on_tick,
+        static_world=static_world, escape=escape, recorder=recorder,
+    )  # fmt: skip
+
+
+def run_world(
+    world: World,
+    clock: SimClock,
+    *,
+    duration: float | None = None,
+    progress: Callable[[float, float], None] | None = None,
+    on_tick: Callable[[float, dict[str, NDArray[np.float64]], SceneResult], None] | None = None,
+    static_world: bool = False,
+    escape: bool | EscapeSpec | None = None,
+    recorder: RunRecorder | None = None,
+) -> SimulationLog:
+    """The third stage of a run: the loop over a built ``world`` (whose scene is
+    stamped by ``clock``) until every goal is done or ``duration`` (default: the
+    scenario's) has passed; the options are :func:`simulate`'s. It reads no file.
 
     Each tick is three named steps: ``_sense`` (joint states and moving objects
     into the scene, the distance query, the controllers' view), ``_check_contact``
     (distances and the first overlap into the ``_Recorder``) and ``_act``
     (each robot's goal bookkeeping in ``_Goals``, controller and plant)."""
-    clock = SimClock()
-    world = build_world(scenario, avoidance, plant=plant, make_scene=make_scene, clock=clock)
+    avoidance, plant = world.avoidance, world.plant
     spec = world.scenario.spec
     dt = spec.dt
     T_end = spec.duration if duration is None else float(duration)

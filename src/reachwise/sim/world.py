@@ -8,7 +8,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,18 +20,16 @@ from reachwise.distance.scene import OnLink, Scene, SceneLike, WatchedPair
 from reachwise.errors import InputError, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.kinematics.robot import Robot
-from reachwise.sim.contact import Solid, solid_of_link, solid_of_mesh
+from reachwise.sim.contact import Solid
 from reachwise.sim.motion import Trajectory
 from reachwise.sim.plant import PLANT_NAMES, Plant, PlantConfig, PlantName
-from reachwise.sim.robots import robot_of
-from reachwise.sim.scenario_inputs import check_requirements, scan_target, watched_self_pairs
+from reachwise.sim.resolve import ResolvedScenario, box_solid, cloud_key, resolve_scenario
 from reachwise.sim.scenarios import (
     GoalSpec,
     ObjectSpec,
     RobotSpec,
     Scenario,
     WatchSpec,
-    load_scenario,
 )
 from reachwise.sim.sensors import BodySurface, DepthSensor, ObjectSurface, Sight
 
@@ -89,6 +87,9 @@ class World:
     sensors: list[DepthSensor] = field(default_factory=list)
     sight: Sight | None = None  # what the sensors see (None: no sensors, no hidden objects)
     truth: tuple[tuple[str, str], ...] = ()  # (robot link, object outside the scene) pairs
+    resolved: ResolvedScenario | None = None  # what the world was built from
+    avoidance: bool = True  # the controllers avoid collisions (False: the baseline)
+    plant: PlantName = "scenario"  # every robot's own plant, or "mujoco" for all
 
 
 def _controller_config(spec: RobotSpec, dt: float, avoidance: bool) -> ControllerConfig:
@@ -98,14 +99,18 @@ def _controller_config(spec: RobotSpec, dt: float, avoidance: bool) -> Controlle
 
 
 def build_world(
-    scenario: Scenario | str | Path,
+    scenario: ResolvedScenario | Scenario | str | Path,
     avoidance: bool = True,
     *,
     plant: PlantName = "scenario",
     make_scene: SceneFactory | None = None,
     clock: Callable[[], float] | None = None,
 ) -> World:
-    """Robots, clouds (links, meshes, files, the scanner), scene, controllers, plants
+    """The second stage of a run: the world of a resolved scenario
+    (:func:`reachwise.sim.resolve.resolve_scenario`, called here on a name, a file or
+    a ``Scenario``), built from that object alone: no file is read here.
+
+    Robots, clouds (links, meshes, files, the scanner), scene, controllers, plants
     (``plant``: ``"scenario"`` — each robot's own — or ``"mujoco"``, see
     :mod:`reachwise.sim.mujoco_plant`). The distance scene is ``make_scene(clock)``
     (:data:`SceneFactory`; default: in process); ``clock`` stamps its inputs and answers.
@@ -115,18 +120,18 @@ def build_world(
     what they see (:func:`_add_sensors`), the watched pairs (:func:`_watch_pairs`), one
     agent per robot (:func:`_make_agent`) and the shared jobs (:func:`_shared_jobs`)."""
     plant = check_choice(plant, PLANT_NAMES, source="simulate", kind="plant")
-    sc = load_scenario(scenario)
-    check_requirements(sc)
+    res = resolve_scenario(scenario)
     scene = Scene(clock=clock) if make_scene is None else make_scene(clock)
-    return _assemble(scene, sc, avoidance, plant)
+    return _assemble(scene, res, avoidance, plant)
 
 
-def _assemble(scene: SceneLike, sc: Scenario, avoidance: bool, plant: PlantName) -> World:
+def _assemble(scene: SceneLike, res: ResolvedScenario, avoidance: bool, plant: PlantName) -> World:
     """Fill ``scene`` with the scenario and make the agents (see :func:`build_world`)."""
-    robots, solids = _add_robots(scene, sc)
-    movers = _add_objects(scene, sc, solids)
-    sight, sensors = _add_sensors(scene, sc, robots, movers)
-    control = _watch_pairs(scene, sc, robots)
+    sc = res.scenario
+    robots, solids = _add_robots(scene, res)
+    movers = _add_objects(scene, res, solids)
+    sight, sensors = _add_sensors(scene, res, movers)
+    control = _watch_pairs(scene, res)
     job_robots = set(sc.spec.jobs.robots) if sc.spec.jobs is not None else set()
     agents = [
         _make_agent(scene, sc, rs, robots[rs.name], control, avoidance, plant, job_robots)
@@ -138,143 +143,80 @@ def _assemble(scene: SceneLike, sc: Scenario, avoidance: bool, plant: PlantName)
     hidden = [o.name for o in sc.spec.objects if not o.scene]
     truth = tuple((b, o) for b in (sight.bodies if sight else {}) for o in hidden)
     return World(
-        sc, scene, robots, agents, pairs, margins, solids, jobs, movers, sensors, sight, truth
-    )
+        sc, scene, robots, agents, pairs, margins, solids, jobs, movers, sensors, sight, truth,
+        res, avoidance, plant,
+    )  # fmt: skip
 
 
 def _add_robots(
-    scene: SceneLike, sc: Scenario
+    scene: SceneLike, res: ResolvedScenario
 ) -> tuple[dict[str, Robot], dict[str, tuple[Solid, str, str]]]:
     """Every robot of the scenario with its joint state and one cloud per link (named
     ``robot/link``), and the solid of each link cloud for the contact check."""
     robots: dict[str, Robot] = {}
     solids: dict[str, tuple[Solid, str, str]] = {}
-    for rs in sc.spec.robots:
-        robot = robot_of(rs, sc)
-        if len(rs.q0) != robot.n:
-            raise InputError(sc.source, f"robots.{rs.name}.q0", f"expected {robot.n} values")
-        robots[rs.name] = robot
+    for rs in res.scenario.spec.robots:
+        robot = robots[rs.name] = res.robots[rs.name]
         scene.add_robot(robot, rs.q0)
-        links = rs.links if rs.links is not None else list(robot.geometry)
-        _check_link_clouds(sc, rs, robot, links)
-        for link in links:
-            if link not in robot.link_names:
-                raise InputError(sc.source, f"robots.{rs.name}.links", f"no link {link!r}")
-            obj = f"{rs.name}/{link}"
-            cloud, solid = _link_cloud(sc, rs, robot, link, obj)
-            scene.add_object(obj, cloud, robot=rs.name, link=link)
-            solids[obj] = (solid, rs.name, link)
+        prefix = f"{rs.name}/"
+        for obj, (cloud, solid) in res.link_clouds.items():
+            if obj.startswith(prefix):
+                link = obj[len(prefix) :]
+                scene.add_object(obj, cloud, robot=rs.name, link=link)
+                solids[obj] = (solid, rs.name, link)
     return robots, solids
 
 
-def _check_link_clouds(sc: Scenario, rs: RobotSpec, robot: Robot, links: list[str]) -> None:
-    """Each ``link_clouds`` entry names a link that is given a cloud: an entry that would
-    never be used (a misspelt link, one outside ``links``) is an error."""
-    for link in rs.link_clouds:
-        where = f"robots.{rs.name}.link_clouds.{link}"
-        if link not in robot.link_names:
-            valid = ", ".join(robot.link_names)
-            raise InputError(sc.source, where, f"no link {link!r}; valid: {valid}")
-        if link not in links:
-            raise InputError(
-                sc.source, where,
-                f"{link!r} is not among the links given clouds ({', '.join(links)}); "
-                "add it to links",
-            )  # fmt: skip
-
-
-def _link_mesh(sc: Scenario, rs: RobotSpec, link: str) -> Any:
-    """The scenario's ``link_clouds`` mesh of ``link``, placed in the link frame (a
-    trimesh.Trimesh); InputError naming the scenario field if it does not load."""
-    from reachwise.io.meshes import load_mesh
-
-    over = rs.link_clouds[link]
-    try:
-        mesh = load_mesh(sc.path(over.mesh))
-    except InputError as exc:
-        where = f"robots.{rs.name}.link_clouds.{link}.mesh"
-        raise InputError(sc.source, where, str(exc)) from None
-    mesh.apply_transform(over.pose.matrix())
-    return mesh
-
-
-def _link_cloud(
-    sc: Scenario, rs: RobotSpec, robot: Robot, link: str, obj: str
-) -> tuple[PointCloud, Solid]:
-    """The cloud of ``link`` (the scenario's ``link_clouds`` mesh, or the robot's own
-    geometry) and its solid."""
-    from reachwise.io.robot_clouds import link_cloud, shape_meshes
-
-    over = rs.link_clouds.get(link)
-    if over is not None:
-        from reachwise.geometry.cloud import sample_mesh_surface
-
-        mesh = _link_mesh(sc, rs, link)
-        rng = np.random.default_rng([rs.seed, robot.link_index(link)])
-        cloud = sample_mesh_surface(mesh, n=over.points, seed=rng, frame=link, name=obj)
-        return cloud, solid_of_mesh(mesh)
-    if link not in robot.geometry:
-        raise InputError(sc.source, f"robots.{rs.name}.links", f"link {link!r} has no geometry")
-    cloud = link_cloud(robot, link, rs.points, rs.seed, density=rs.density)
-    shapes = robot.geometry[link]
-    has_mesh = any(g.shape == "mesh" for g in shapes)
-    return cloud, solid_of_link(shapes, shape_meshes(robot, link) if has_mesh else None)
-
-
 def _add_objects(
-    scene: SceneLike, sc: Scenario, solids: dict[str, tuple[Solid, str, str]]
+    scene: SceneLike, res: ResolvedScenario, solids: dict[str, tuple[Solid, str, str]]
 ) -> list[_Mover]:
     """The clouds not on a robot (a box also gets its solid); returns the ones that
     move or change their cloud during the run."""
     movers: list[_Mover] = []
-    for os_ in sc.spec.objects:
-        mover = _mover(os_, sc)
+    for os_ in res.scenario.spec.objects:
+        mover = _mover(os_, res)
         if not os_.scene:  # only the sensors see it
             if mover is not None:
                 movers.append(mover)
             continue
         moving = mover is not None and mover.trajectory is not None
         pose = mover.trajectory.pose(0.0) if moving else os_.pose.matrix()  # type: ignore[union-attr]
-        scene.add_object(os_.name, _object_cloud(os_, sc), pose, dynamic=moving)
-        box_solid = _box_solid(os_.box)
-        if box_solid is not None:
-            solids[os_.name] = (box_solid, "", "")
+        scene.add_object(os_.name, _object_cloud(res, os_, os_.seed), pose, dynamic=moving)
+        solid = box_solid(os_.box)
+        if solid is not None:
+            solids[os_.name] = (solid, "", "")
         if mover is not None:
             movers.append(mover)
     return movers
 
 
 def _add_sensors(
-    scene: SceneLike, sc: Scenario, robots: dict[str, Robot], movers: list[_Mover]
+    scene: SceneLike, res: ResolvedScenario, movers: list[_Mover]
 ) -> tuple[Sight | None, list[DepthSensor]]:
     """What the sensors see (:class:`~reachwise.sim.sensors.Sight`: the surfaces of the
     objects and of the robots' links), and the sensors, each with its object in the
     scene holding frame 0. Nothing when the scenario has no sensors and no object
     outside the scene."""
+    sc = res.scenario
     spec = sc.spec
     if not spec.sensors and all(o.scene for o in spec.objects):
         return None, []
+    robots = dict(res.robots)
     trajectories = {m.spec.name: m.trajectory for m in movers}
     objects = {}
     for os_ in spec.objects:
-        shapes = [(0.0, os_)] + [(c.t, c) for c in os_.clouds]
-        found = [
-            (t, *_surface(item, sc, f"objects.{os_.name}"))
-            for t, item in shapes
-            if item.mesh is not None or item.box is not None
-        ]
+        found = tuple(
+            (t, mesh, solid) for t, (mesh, solid) in res.object_surfaces.get(os_.name, ())
+        )
         if found:
             objects[os_.name] = ObjectSurface(
-                os_.name, tuple(found), os_.pose.matrix(), trajectories.get(os_.name)
+                os_.name, found, os_.pose.matrix(), trajectories.get(os_.name)
             )
     bodies = {}
-    for rs in spec.robots:
-        robot = robots[rs.name]
-        for link in robot.link_names:
-            if link in rs.link_clouds or link in robot.geometry:
-                mesh, solid = _link_surface(sc, rs, robot, link)
-                name = f"{rs.name}/{link}"
-                bodies[name] = BodySurface(name, rs.name, link, robot.link_index(link), mesh, solid)
+    for name, (mesh, solid) in res.link_surfaces.items():
+        rname, link = name.split("/", 1)
+        index = robots[rname].link_index(link)
+        bodies[name] = BodySurface(name, rname, link, index, mesh, solid)
     sight = Sight(robots, objects, bodies)
     qs = {rs.name: np.asarray(rs.q0, dtype=float) for rs in spec.robots}
     sensors = []
@@ -308,76 +250,32 @@ def _check_outside(
             )
 
 
-def _surface(item: Any, sc: Scenario, where: str) -> tuple[Any, Solid]:
-    """The mesh ``(vertices, faces)`` and solid of a ``mesh`` or ``box`` spec, in the
-    object frame."""
-    import trimesh
-
-    from reachwise.io.meshes import load_mesh
-
-    if item.box is not None:
-        mesh = trimesh.creation.box(extents=item.box)
-        solid = _box_solid(item.box)
-    else:
-        try:
-            mesh = load_mesh(sc.path(item.mesh))
-        except InputError as exc:
-            raise InputError(sc.source, f"{where}.mesh", str(exc)) from None
-        solid = solid_of_mesh(mesh)
-    v = np.asarray(mesh.vertices, dtype=np.float64)
-    f = np.asarray(mesh.faces, dtype=np.int64)
-    return (v, f), solid  # type: ignore[return-value]
-
-
-def _link_surface(
-    sc: Scenario, rs: RobotSpec, robot: Robot, link: str
-) -> tuple[tuple[NDArray[np.float64], NDArray[np.int64]], Solid]:
-    """A link's collision surface in the link frame (the scenario's ``link_clouds``
-    mesh, or the union of the robot's shapes of that link) and its solid."""
-    import trimesh
-
-    from reachwise.io.robot_clouds import shape_meshes
-
-    if link in rs.link_clouds:
-        mesh = _link_mesh(sc, rs, link)
-        solid = solid_of_mesh(mesh)
-    else:
-        parts = shape_meshes(robot, link)
-        solid = solid_of_link(robot.geometry[link], parts)
-        joined = parts[0] if len(parts) == 1 else trimesh.util.concatenate(parts)
-        if not isinstance(joined, trimesh.Trimesh):  # pragma: no cover - meshes join
-            raise InputError(sc.source, f"robots.{rs.name}.links", f"{link}: shapes do not join")
-        mesh = joined
-    v = np.asarray(mesh.vertices, dtype=np.float64)
-    return (v, np.asarray(mesh.faces, dtype=np.int64)), solid
-
-
-def _watch_pairs(
-    scene: SceneLike, sc: Scenario, robots: dict[str, Robot]
-) -> dict[tuple[str, str], float]:
+def _watch_pairs(scene: SceneLike, res: ResolvedScenario) -> dict[tuple[str, str], float]:
     """Watch the scenario's pairs: the scene's margin is rho_O + the monitor range (the
     log sees the pairs approach); returns each pair's rho_O, the controller's margin."""
-    spec = sc.spec
+    spec = res.scenario.spec
     control: dict[tuple[str, str], float] = {}
     for i, w in enumerate(spec.watch):
-        made = _watch_rule(scene, sc, robots, w, w.margin + spec.monitor, f"watch[{i}]")
+        listed = res.self_pairs.get(i)
+        made = _watch_rule(scene, res.scenario, listed, w, w.margin + spec.monitor, f"watch[{i}]")
         for pair in made:
             control[(pair.a, pair.b)] = w.margin
     return control
 
 
 def _watch_rule(
-    scene: SceneLike, sc: Scenario, robots: dict[str, Robot], w: WatchSpec, qm: float, where: str
+    scene: SceneLike,
+    sc: Scenario,
+    listed: tuple[tuple[str, str], ...] | None,
+    w: WatchSpec,
+    qm: float,
+    where: str,
 ) -> list[WatchedPair]:
-    """The pairs one ``watch`` entry makes (self, robot-environment or robot-robot),
-    watched with margin ``qm``."""
+    """The pairs one ``watch`` entry makes (self: the resolved link pairs ``listed``,
+    or every non-adjacent pair; robot-environment or robot-robot), watched with
+    margin ``qm``."""
     made = []
     if w.self_ is not None:
-        r = robots[w.self_]
-        if w.links is not None:  # each a link with a cloud
-            _robot_objects(scene, w.self_, w.links, sc.source, where)
-        rspec = next(x for x in sc.spec.robots if x.name == w.self_)
-        listed = watched_self_pairs(w, r, rspec, scene, sc, where)
         if listed is not None:
             for la, lb in listed:
                 a, b = f"{w.self_}/{la}", f"{w.self_}/{lb}"
@@ -386,7 +284,7 @@ def _watch_rule(
                         raise InputError(sc.source, where, f"no cloud {o!r}")
                 made.append(scene.watch(a, b, qm, kind="self"))
         else:
-            keep = set(w.links) if w.links is not None else set(r.link_names)
+            keep = set(w.links) if w.links is not None else set(scene.robots[w.self_].link_names)
             excl = [
                 (o.name, p.name)
                 for o in scene.robot_objects(w.self_)
@@ -506,44 +404,26 @@ def _goal(g: GoalSpec, robot: Robot) -> Goal:
 
 
 def _object_cloud(
-    spec: Any, sc: Scenario, name: str | None = None, seed: int | None = None
+    res: ResolvedScenario, spec: ObjectSpec, seed: int, k: int | None = None
 ) -> PointCloud:
-    """The cloud of an object spec (or of a scheduled :class:`CloudAtSpec` of object
-    ``name``); ``seed`` overrides the spec's (a re-scan)."""
-    from reachwise.io.clouds import load_cloud, load_mesh_cloud
+    """The cloud of object ``spec`` (or of its ``k``-th scheduled cloud): resolved, or
+    for a scanned object its scan with ``seed`` (a re-scan takes the next seed)."""
+    if spec.scanner is None or k is not None:
+        return res.object_clouds[cloud_key(spec.name, k)]
+    from reachwise.geometry.occlusion import OcclusionFill
+    from reachwise.geometry.scan_scene import scan_scene
 
-    name = name or spec.name
-    seed = getattr(spec, "seed", 0) if seed is None else seed
-    where = f"objects.{name}"
-    if getattr(spec, "scanner", None) is not None:
-        from reachwise.geometry.occlusion import OcclusionFill
-        from reachwise.geometry.scan_scene import scan_scene
-
-        occ = spec.occlusion
-        fill = (
-            OcclusionFill(occ.depth, occ.spacing, occ.ground)
-            if occ is not None and occ.fill
-            else None
-        )
-        try:
-            target = scan_target(spec.scanner, sc, name)
-            _, cloud = scan_scene(target, rng=seed, noise=spec.noise, occlusion=fill)
-        except InputError as exc:
-            raise InputError(sc.source, f"{where}.scanner", str(exc)) from None
-        return PointCloud(cloud.points, name=name)
-    if spec.box is not None:
-        import trimesh
-
-        from reachwise.geometry.cloud import sample_mesh_surface
-
-        box = trimesh.creation.box(extents=spec.box)
-        return sample_mesh_surface(box, n=spec.points, seed=seed, name=name)
+    occ = spec.occlusion
+    fill = (
+        OcclusionFill(occ.depth, occ.spacing, occ.ground) if occ is not None and occ.fill else None
+    )
     try:
-        if spec.mesh is not None:
-            return load_mesh_cloud(sc.path(spec.mesh), spec.points, seed, name=name)
-        return load_cloud(sc.path(spec.file))
+        _, cloud = scan_scene(
+            res.scan_targets[spec.name], rng=seed, noise=spec.noise, occlusion=fill
+        )
     except InputError as exc:
-        raise InputError(sc.source, where, str(exc)) from None
+        raise InputError(res.scenario.source, f"objects.{spec.name}.scanner", str(exc)) from None
+    return PointCloud(cloud.points, name=spec.name)
 
 
 # --------------------------------------------------------------------------- moving objects
@@ -567,21 +447,16 @@ class _Mover:
         return self.spec.scene
 
 
-def _mover(spec: ObjectSpec, sc: Scenario) -> _Mover | None:
+def _mover(spec: ObjectSpec, res: ResolvedScenario) -> _Mover | None:
     if spec.motion is None and spec.rescan is None and not spec.clouds:
         return None
     traj = spec.motion.trajectory(spec.pose.matrix()) if spec.motion is not None else None
     clouds = [
-        (c.t, _object_cloud(c, sc, spec.name, spec.seed + k + 1), _box_solid(c.box))
+        (c.t, _object_cloud(res, spec, spec.seed + k + 1, k), box_solid(c.box))
         for k, c in enumerate(spec.clouds)
     ]
     every = spec.rescan.every if spec.rescan is not None else None
     return _Mover(spec, traj, clouds, every)
-
-
-def _box_solid(box: Any) -> Solid | None:
-    """The solid of a ``box`` object (centred on its frame), for the contact check."""
-    return None if box is None else Solid("box", np.eye(4), 0.5 * np.asarray(box, dtype=float))
 
 
 def move_objects(world: World, t: float) -> Twists:
@@ -609,7 +484,8 @@ def move_objects(world: World, t: float) -> Twists:
                 world.solids[name] = (solid, "", "")
         if m.rescan is not None and t >= (m.scans + 1) * m.rescan - 1e-9:
             m.scans += 1
-            due = _object_cloud(m.spec, world.scenario, seed=m.spec.seed + m.scans)
+            res = world.resolved if world.resolved is not None else resolve_scenario(world.scenario)
+            due = _object_cloud(res, m.spec, m.spec.seed + m.scans)
         if due is not None:
             scene.replace_cloud(name, due, block=True)
     return twists
