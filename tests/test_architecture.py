@@ -10,9 +10,12 @@ is itself tested on a small package that breaks each of them."""
 from __future__ import annotations
 
 import ast
+import importlib
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -250,3 +253,80 @@ def test_an_import_under_type_checking_makes_a_cycle(broken: Path) -> None:
         "    return write\n"
     )
     assert cycles(imports(broken, "pkg")) == [["pkg.geo.shape", "pkg.io.files"]]
+
+
+# ---- docs/architecture.md names only what exists ------------------------------------
+
+DOC = SRC.parent / "docs" / "architecture.md"
+_SPAN = re.compile(r"`([^`]+)`")
+_DOTTED = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)+(:[A-Za-z_]\w*(\.[A-Za-z_]\w*)*)?")
+_BARE = re.compile(r"[A-Za-z_]\w*")
+
+
+def resolve_name(name: str, mods: dict[str, tuple[Path, bool]], root: str) -> Any:
+    """The object ``name`` denotes: ``module.path:attr.attr`` or a dotted name whose
+    longest prefix that is a module of ``root`` is imported and the rest looked up on it
+    (``root.`` may be left out). Raises ``LookupError`` for what does not exist."""
+    path, _, attrs = name.partition(":")
+    if not path.startswith(root + ".") and path != root:
+        path = f"{root}.{path}"
+    parts = path.split(".")
+    k = next((k for k in range(len(parts), 0, -1) if ".".join(parts[:k]) in mods), 0)
+    if k == 0:
+        raise LookupError(f"{name}: no module of {root}")
+    if attrs and k != len(parts):
+        raise LookupError(f"{name}: {path} is not a module")
+    obj: Any = importlib.import_module(".".join(parts[:k]))
+    for a in parts[k:] + (attrs.split(".") if attrs else []):
+        if not hasattr(obj, a):
+            raise LookupError(f"{name}: {a!r} not found")
+        obj = getattr(obj, a)
+    return obj
+
+
+def missing_names(text: str, mods: dict[str, tuple[Path, bool]], root: str) -> list[str]:
+    """The names ``text`` (Markdown) cites in backticks that do not exist: every dotted
+    name whose first part is a package or module of ``root``; in a table row, also each
+    bare name after one, looked up in the module of the dotted name before it."""
+    tops = {m.split(".")[1] for m in mods if m.count(".") >= 1} | {root}
+    bad = []
+    for line in text.splitlines():
+        in_table = line.startswith("|")
+        module: Any = None
+        for span in _SPAN.findall(line):
+            span = span.strip()
+            if _DOTTED.fullmatch(span) and span.split(".")[0].split(":")[0] in tops:
+                try:
+                    obj = resolve_name(span, mods, root)
+                except LookupError as exc:
+                    bad.append(str(exc))
+                    module = None
+                    continue
+                module = obj if isinstance(obj, type(importlib)) else None
+                if module is None:
+                    module = importlib.import_module(getattr(obj, "__module__", root))
+            elif in_table and module is not None and _BARE.fullmatch(span):
+                if not hasattr(module, span):
+                    bad.append(f"{span}: not in {module.__name__}")
+    return bad
+
+
+def test_the_architecture_page_names_only_what_exists() -> None:
+    text = DOC.read_text()
+    assert len(_SPAN.findall(text)) > 100
+    assert missing_names(text, MODULES, ROOT) == []
+
+
+def test_the_page_check_finds_a_missing_module_function_and_bare_name() -> None:
+    text = (
+        "The loop is `sim.simulate.run_world`; `kinematics.fk:fk` too.\n"
+        "Gone: `sim.nowhere.build`, `kinematics.fk.no_such`, `control._kernel.control_step`.\n"
+        "| 3.1 | J | `kinematics.jacobian.jacobian`, `point_jacobian`, `no_jacobian` |\n"
+        "`Robot.fk` and `reachwise simulate` are not module paths: not checked.\n"
+    )
+    assert missing_names(text, MODULES, ROOT) == [
+        "sim.nowhere.build: 'nowhere' not found",
+        "kinematics.fk.no_such: 'no_such' not found",
+        "control._kernel.control_step: '_kernel' not found",
+        "no_jacobian: not in reachwise.kinematics.jacobian",
+    ]
