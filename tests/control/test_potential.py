@@ -11,7 +11,12 @@ from hypothesis import strategies as st
 
 import reachwise
 from reachwise.control import limits, potential
-from reachwise.control.limits import joint_velocity_interval, velocity_bounds
+from reachwise.control.limits import (
+    joint_velocity_interval,
+    limit_scale,
+    scale_into,
+    velocity_bounds,
+)
 from reachwise.control.potential import (
     approach_bound,
     damper_bound,
@@ -34,6 +39,7 @@ def test_the_tick_calls_the_documented_functions() -> None:
     assert guard.damper_bound is potential.damper_bound
     assert guard.moving_damper_bound is potential.moving_damper_bound
     assert joints.joint_velocity_interval is limits.joint_velocity_interval
+    assert joints.scale_into is limits.scale_into
 
 
 @settings(max_examples=60, deadline=None)
@@ -102,6 +108,20 @@ def test_joint_velocity_interval() -> None:
     np.testing.assert_allclose(hi, [0.5, 0.1, 0.5, 0.0])
     np.testing.assert_allclose(lo, [-0.5, -0.5, 0.0, -0.5])
     assert joint_velocity_interval(-0.98, -1.0, 1.0, 0.5, 2.0) == pytest.approx((-0.04, 0.5))
+
+
+def test_scale_into_brings_the_scaled_velocity_onto_the_bound() -> None:
+    lo, hi = -0.5, 0.1
+    for top in (1.0, 0.6):
+        for qd in (0.4, -2.0, 0.05, 0.0):
+            a = scale_into(top * qd, lo, hi, top)
+            assert 0.0 <= a <= top
+            assert lo - 1e-12 <= a * qd <= hi + 1e-12
+            if not lo <= top * qd <= hi:  # the largest factor: on the bound it crossed
+                assert a * qd == pytest.approx(hi if qd > 0 else lo)
+            else:
+                assert a == top
+    assert limit_scale([1.0, 0.05, 0.0], [-0.5, -0.5, 0.0], [0.5, 0.1, 0.5]) == pytest.approx(0.5)
 
 
 @pytest.fixture(scope="module")

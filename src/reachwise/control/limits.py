@@ -24,7 +24,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["joint_velocity_interval", "limit_scale", "velocity_bounds"]
+__all__ = ["joint_velocity_interval", "limit_scale", "scale_into", "velocity_bounds"]
 
 
 @njit(cache=True)
@@ -38,6 +38,27 @@ def joint_velocity_interval(q, lower, upper, vmax, k):  # type: ignore[no-untype
     if q > upper:
         return -vmax, 0.0
     return max(-vmax, min(k * (lower - q), 0.0)), min(vmax, max(k * (upper - q), 0.0))
+
+
+@njit(cache=True)
+def scale_into(v, lo, hi, top):  # type: ignore[no-untyped-def]
+    """The factor ``α ≤ top`` (``top ≥ 0``) that brings one joint's velocity into
+    ``[lo, hi]`` when ``v`` is its velocity already scaled by ``top``: ``top · hi / v``
+    above the interval, ``top · lo / v`` below it (0 if the sign is wrong), ``top``
+    inside."""
+    if v > hi:
+        return top * hi / v if v > 0.0 else 0.0
+    if v < lo:
+        return top * lo / v if v < 0.0 else 0.0
+    return top
+
+
+@njit(cache=True)
+def _limit_scale(qdot, lo, hi):  # type: ignore[no-untyped-def]
+    alpha = 1.0
+    for k in range(qdot.shape[0]):
+        alpha = min(alpha, scale_into(qdot[k], lo[k], hi[k], 1.0))
+    return max(alpha, 0.0)
 
 
 @njit(cache=True)
@@ -62,14 +83,8 @@ def velocity_bounds(
 
 
 def limit_scale(qdot: ArrayLike, lo: ArrayLike, hi: ArrayLike) -> float:
-    """Largest ``α ∈ [0, 1]`` with ``lo ≤ α q̇ ≤ hi`` for every joint (``lo ≤ 0 ≤ hi``)."""
-    v = np.asarray(qdot, dtype=float)
-    lo_a = np.asarray(lo, dtype=float)
-    hi_a = np.asarray(hi, dtype=float)
-    alpha = 1.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        up = np.where(v > hi_a, hi_a / v, 1.0)
-        dn = np.where(v < lo_a, lo_a / v, 1.0)
-    if v.size:
-        alpha = float(min(alpha, np.min(up), np.min(dn)))
-    return max(alpha, 0.0)
+    """Largest ``α ∈ [0, 1]`` with ``lo ≤ α q̇ ≤ hi`` for every joint (``lo ≤ 0 ≤ hi``;
+    :func:`scale_into` per joint, as the controller's tick)."""
+    arrays = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (qdot, lo, hi)))
+    v, lo_a, hi_a = (np.ascontiguousarray(a).ravel() for a in arrays)
+    return float(_limit_scale(v, lo_a, hi_a))

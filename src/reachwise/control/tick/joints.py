@@ -9,7 +9,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from reachwise.control.limits import joint_velocity_interval
+from reachwise.control.limits import joint_velocity_interval, scale_into
 
 
 class JointMotion(NamedTuple):
@@ -60,8 +60,5 @@ def limit_scale(qd, guard, q, limits, k_limit):  # type: ignore[no-untyped-def]
     for k in range(qd.shape[0]):
         v = qd[k] * guard
         lo, hi = joint_velocity_interval(q[k], lower[k], upper[k], vmax[k], k_limit)
-        if v > hi:
-            alpha = min(alpha, guard * hi / v if v > 0.0 else 0.0)
-        elif v < lo:
-            alpha = min(alpha, guard * lo / v if v < 0.0 else 0.0)
+        alpha = min(alpha, scale_into(v, lo, hi, guard))
     return max(alpha, 0.0)
