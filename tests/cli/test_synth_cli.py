@@ -156,3 +156,33 @@ def test_bad_objectives_are_input_errors(tmp_path: Path) -> None:
         text = res.output + str(res.exception or "")
         assert res.exit_code == 2 or isinstance(res.exception, InputError), (args, text)
         assert words in text, (args, text)
+
+
+def test_clearance_reports_left_out_poses_and_each_pose_clearance(tmp_path: Path) -> None:
+    """--clearance: the poses no design can serve are named in the summary and left out
+    of the count; summary.json and points.csv give each pose's smallest clearance and
+    its pair, each at least the clearance when every pose is reached."""
+    task = load_task("tunnel-87")
+    idx = [i for i, n in enumerate(task.names) if n.startswith(("P01/", "P02/"))]
+    from reachwise.io.task_file import save_task
+
+    path = tmp_path / "t.yaml"
+    save_task(task.subset(idx, name="tunnel-p12"), path)
+    out = tmp_path / "out"
+    res = runner.invoke(
+        app,
+        ["synth", "--task", str(path), "--robot", "sb60", "--runs", "1", "--clearance", "0.1",
+         "--out", str(out), "--json", "--no-figures"],
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.output)
+    c = data["clearance"]
+    left = {u["name"] for u in c["unservable"]}
+    assert {"P01/lifter01", "P02/lifter01"} <= left
+    assert data["task_points"] == len(idx) - len(left)
+    assert data["best"]["all_reached"]
+    assert c["smallest_m"] >= 0.1 and len(c["per_pose"]) == data["task_points"]
+    with (out / "points.csv").open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert all(float(r["clearance_m"]) >= 0.1 and " ~ " in r["clearance_pair"] for r in rows)
+    assert {r["name"] for r in rows}.isdisjoint(left)

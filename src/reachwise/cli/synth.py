@@ -52,6 +52,13 @@ def synth(
         min=0.0,
         help="Every free a, d at least this long (m); overrides design.min_length.",
     ),
+    clearance: float | None = typer.Option(
+        None,
+        "--clearance",
+        min=0.0,
+        help="Keep the robot file's design bodies at least this far apart and from the "
+        "tunnel at every pose (m; 0: off); overrides design.clearance.",
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print the summary as JSON."),
     tip: str | None = TIP,
     package_dir: list[Path] = PACKAGE_DIRS,
@@ -73,18 +80,21 @@ def synth(
         if pareto is not None and objective is not None:
             raise typer.BadParameter("give --objective or --pareto, not both")
         names = _pareto_names(pareto) if pareto is not None else None
-        problem, weights, workspace = _problem(
-            task, robot, tip, package_dir, lenient, min_length, objective, lock, tunnel
-        )
+        problem, weights, workspace, bodies = _problem(
+            task, robot, tip, package_dir, lenient, min_length, objective, lock, tunnel,
+            clearance,
+        )  # fmt: skip
         if names is not None:
             weights = {}  # the sweep starts from the reach-only design
-        done = _runs(problem, runs, seed, solver_name, workspace, weights, interrupts, json_out)
+        done = _runs(
+            problem, runs, seed, solver_name, workspace, weights, interrupts, json_out, bodies[0]
+        )
         if not done:
             Console(stderr=True).print("interrupted before the first run finished: nothing written")
             raise typer.Exit(130)
         data = _write(
             problem, done, solver_name, weights, names, points, workspace, out, figures,
-            json_out, interrupts,
+            json_out, interrupts, bodies,
         )  # fmt: skip
     result = data.pop("_result")
     if json_out:
@@ -98,14 +108,18 @@ def synth(
 def _problem(
     task: str, robot: str, tip: str | None, package_dir: list[Path], lenient: bool,
     min_length: float | None, objective: str | None, lock: list[int], tunnel: bool,
-) -> tuple[Any, dict[str, float], Any]:  # fmt: skip
-    """The synthesis problem of the task and template files, the objective's weights
-    and the workspace (the task's tunnel envelope, or ``None``)."""
+    clearance: float | None = None,
+) -> tuple[Any, dict[str, float], Any, tuple[Any, tuple[Any, ...]]]:  # fmt: skip
+    """The synthesis problem of the task and template files, the objective's weights,
+    the workspace (the task's tunnel envelope, or ``None``) and the bodies' clearance
+    model with the poses it leaves out (``clearance_setup``; the problem's task is
+    without them)."""
     from dataclasses import replace
 
     from reachwise.io.task_file import load_task
     from reachwise.synthesis.objectives import check_objective, parse_objective
     from reachwise.synthesis.problem import SynthesisProblem, locked_from_spec
+    from reachwise.synthesis.synthesize import clearance_setup
 
     t = load_task(task)
     template = load_with_options(robot, tip, package_dir, lenient)
@@ -116,13 +130,15 @@ def _problem(
         if objective is None
         else parse_objective(objective)
     )
+    workspace = t.envelope if tunnel else None
+    model, t, unservable = clearance_setup(template, t, workspace, clearance)
     problem = SynthesisProblem(template, t, locked_from_spec(template, lock or None))
-    return problem, weights, (t.envelope if tunnel else None)
+    return problem, weights, workspace, (model, unservable)
 
 
 def _runs(
     problem: Any, runs: int, seed: int, solver: Any, workspace: Any,
-    weights: dict[str, float], interrupts: Interrupts, quiet: bool,
+    weights: dict[str, float], interrupts: Interrupts, quiet: bool, clearance: Any = None,
 ) -> list[Any]:  # fmt: skip
     """The multi-start runs ``seed, seed + 1, ...`` until ``runs`` are done or Ctrl-C:
     asked between the runs, as the compiled code inside one must not be interrupted."""
@@ -138,7 +154,10 @@ def _runs(
             for i in range(runs):
                 if interrupts.requested:
                     break
-                r = run_once(problem, seed + i, solver, workspace=workspace, objective=weights)
+                r = run_once(
+                    problem, seed + i, solver, workspace=workspace, objective=weights,
+                    clearance=clearance,
+                )  # fmt: skip
                 done.append(r)
                 bar.update(job, advance=1, description=f"run {i}: {r.n_reached}/{problem.K}")
         except KeyboardInterrupt:  # raised by Python code, not by the handler
@@ -149,7 +168,7 @@ def _runs(
 def _write(
     problem: Any, done: list[Any], solver: Any, weights: dict[str, float],
     names: tuple[str, str] | None, points: int, workspace: Any, out: Path, figures: bool,
-    quiet: bool, interrupts: Interrupts,
+    quiet: bool, interrupts: Interrupts, bodies: tuple[Any, tuple[Any, ...]] = (None, ()),
 ) -> dict[str, Any]:  # fmt: skip
     """Write the finished runs (and, if not interrupted, the Pareto sweep) into ``out``;
     the summary data (with the result under ``_result``)."""
@@ -157,7 +176,7 @@ def _write(
     from reachwise.results.synthesis_out import summary, write_synthesis
     from reachwise.synthesis.synthesize import result_of
 
-    result = result_of(problem, done, solver, weights)
+    result = result_of(problem, done, solver, weights, bodies[1], bodies[0])
     folder = write_synthesis(result, out)
     pngs = save_synthesis_figures(result, folder) if figures else False
     extra = []
@@ -243,6 +262,15 @@ def _print(result: object, data: dict) -> None:  # type: ignore[type-arg]
             + ", ".join(f"{n} {ro[n]:.4g} → {ov[n]:.4g}" for n in ("gci", "kci", "size",
                                                                     "limits", "bounds"))
         )  # fmt: skip
+    if "clearance" in data:
+        c = data["clearance"]
+        small = c["smallest_m"]
+        console.print(
+            f"bodies kept {c['required_m']:g} m clear; smallest clearance "
+            + (f"{small:.3f} m" if small is not None else "–")
+        )
+        for u in c["unservable"]:
+            console.print(f"[yellow]left out {u['name']}: {u['reason']}")
     hits = data["bound_hits"]
     if hits:
         console.print(

@@ -17,7 +17,7 @@ Schema (lengths in m; every body in the frame of its link)::
           box: {size: [0.5, 0.6, 0.7], xyz: [-0.35, 0, 0], rpy: [0, 0, 0]}
 
 ``link`` defaults to the body's name. See
-:class:`~reachwise.kinematics.design_bodies.DesignBody` for what each field means.
+``reachwise.kinematics.design_bodies.DesignBody`` for what each field means.
 """
 
 from __future__ import annotations

@@ -60,6 +60,7 @@ def summary(result: SynthesisResult) -> dict[str, Any]:
             **_design_objectives(result),
         },
         "objective": dict(result.objective),
+        **_clearance(result),
         "bound_hits": [h.as_dict() for h in result.bound_hits()],
         "table3": result.table3(),
         "table4": result.table4(),
@@ -73,6 +74,32 @@ def summary(result: SynthesisResult) -> dict[str, Any]:
             }
             for r in runs
         ],
+    }
+
+
+def _clearance(result: SynthesisResult) -> dict[str, Any]:
+    """The bodies' clearance (m), the poses left out before the solve, and the best
+    run's smallest clearance per pose with its pair; empty without a clearance."""
+    if not result.clearance:
+        return {}
+    best = result.best
+    per_pose: list[dict[str, Any]] = []
+    smallest = None
+    if best.clearance is not None:
+        smallest = float(np.min(best.clearance))
+        per_pose = [
+            {"name": n, "clearance_m": float(c), "pair": list(p)}
+            for n, c, p in zip(
+                result.problem.task.names, best.clearance, best.clearance_pairs, strict=True
+            )
+        ]
+    return {
+        "clearance": {
+            "required_m": result.clearance,
+            "smallest_m": smallest,
+            "unservable": [{"name": u.name, "reason": u.reason} for u in result.unservable],
+            "per_pose": per_pose,
+        }
     }
 
 
@@ -109,14 +136,22 @@ def write_synthesis(result: SynthesisResult, out: str | Path) -> Path:
         qcols = [f"q{i}" for i in range(best.q.shape[1])]
         header = ["index", "name", "group", "dims", "x", "y", "z", "position_error_m",
                   "orientation_error_rad", "status", "lci_initial", "lci_final"]  # fmt: skip
-        w.writerow([*header, *qcols])
+        clear = best.clearance
+        # with the bodies' clearance: each pose's smallest clearance (m) and its pair
+        extra = ["clearance_m", "clearance_pair"] if clear is not None else []
+        w.writerow([*header, *qcols, *extra])
         for k in range(prob.K):
+            more = (
+                [repr(float(clear[k])), " ~ ".join(best.clearance_pairs[k])]
+                if clear is not None
+                else []
+            )
             p = task.positions[k]
             w.writerow([k, task.names[k], task.groups[k], int(task.dims[k]),
                         *map(repr, map(float, p)), repr(float(best.position_error[k])),
                         repr(float(best.orientation_error[k])), best.status[k],
                         repr(float(best.lci_initial[k])), repr(float(best.lci_final[k])),
-                        *map(repr, map(float, best.q[k]))])  # fmt: skip
+                        *map(repr, map(float, best.q[k])), *more])  # fmt: skip
     return folder
 
 

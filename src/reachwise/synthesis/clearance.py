@@ -1,11 +1,11 @@
 """Exact clearance of the design bodies at every task pose, with analytic gradients.
 
-A template's bodies (:class:`~reachwise.kinematics.design_bodies.DesignBody`) are cut
+A template's bodies (``reachwise.kinematics.design_bodies.DesignBody``) are cut
 into convex *parts*: segments (a capsule's axis, with its radius) and boxes. The
 *terms* of the clearance, per task pose, are:
 
 * **body vs environment** — the tunnel envelope's free space is convex
-  (:class:`~reachwise.tasks.workspace.TunnelEnvelope`), so its signed distance ``s`` is
+  (``reachwise.tasks.workspace.TunnelEnvelope``), so its signed distance ``s`` is
   concave and its minimum over a segment or a box is reached at an end point or a
   corner: a capsule part gives the two terms ``s(A) − r`` and ``s(B) − r``, a box its
   eight corners ``s(c)`` — exact, and each term smooth where ``s`` is. A capsule's
@@ -435,3 +435,87 @@ def _golden_min(f: Callable[[Array], Array], shape: tuple[int, ...]) -> Array:
     ends = np.stack([np.zeros(shape), t, np.ones(shape)])
     vals = np.stack([f(e) for e in ends])
     return np.asarray(np.take_along_axis(ends, np.argmin(vals, axis=0)[None], 0)[0])
+
+
+@dataclass(frozen=True)
+class Unservable:
+    """A task pose that no design can serve: its ``index`` and ``name`` in the task and
+    the ``reason`` (which body the pose itself places too close to what)."""
+
+    index: int
+    name: str
+    reason: str
+
+
+def task_fixed_frames(robot: Robot) -> list[int]:
+    """Rows of ``fk_all`` whose pose relative to the tool no joint value and no design
+    parameter changes (every DH row from the frame to the tool is a fixed joint without
+    a free parameter): a 6-D task pose places them completely."""
+    N = len(robot.joints)
+    designed = {j for kind, j, _ in robot.design.free if kind == "joint"}
+    out = [N + 1]
+    for f in range(N, -1, -1):
+        if robot.joints[f].movable if f < N else False:
+            break
+        if f < N and f in designed:
+            break
+        out.append(f)
+    return sorted(out)
+
+
+def unservable_poses(
+    model: ClearanceModel, task_poses: Array, dims: NDArray[np.int64], names: tuple[str, ...]
+) -> list[Unservable]:
+    """Poses at which a body fixed to the tool (``task_fixed_frames``) keeps less than the
+    clearance from the environment whatever the design: 6-D poses place such a body
+    exactly; 5-D poses leave the roll about the tool axis free, checked on 720 rolls
+    with the Lipschitz bound of the roll added (a pose is reported only when no roll
+    can serve it). 3-D poses fix no orientation and are never reported."""
+    env = model.envelope
+    if env is None:
+        return []
+    robot = model.robot
+    fixed = set(task_fixed_frames(robot))
+    F0 = np.asarray(fk_all(robot, np.zeros(robot.n)))
+    tool_in = {f: np.linalg.inv(F0[f]) @ F0[-1] for f in fixed}
+    names_b = [b.name for b in robot.design.bodies]
+    items: list[tuple[int, Array, float]] = []  # (body, point in tool frame, radius)
+    for part in model.parts:
+        for e in part.env_ends:
+            a = model.anchors[e]
+            if a.frame not in fixed or a.elbow >= 0:
+                continue
+            local = np.array([*a.local, 1.0])
+            in_tool = np.linalg.solve(tool_in[a.frame], local)[:3]
+            items.append((part.body, in_tool, part.radius))
+    if not items:
+        return []
+    P = np.stack([p for _, p, _ in items])  # (n, 3) in the tool frame
+    rad = np.array([r for _, _, r in items])
+    n_roll = 720
+    rho = float(np.hypot(P[:, 0], P[:, 1]).max())
+    slack = rho * np.pi / n_roll  # largest change between neighbouring rolls
+    out = []
+    for k in np.flatnonzero(dims >= 5):
+        rolls = np.array([0.0]) if dims[k] == 6 else 2 * np.pi * np.arange(n_roll) / n_roll
+        c, s = np.cos(rolls), np.sin(rolls)
+        Rz = np.zeros((rolls.size, 3, 3))
+        Rz[:, 0, 0], Rz[:, 0, 1], Rz[:, 1, 0], Rz[:, 1, 1], Rz[:, 2, 2] = c, -s, s, c, 1.0
+        T = task_poses[k]
+        W = np.einsum("ij,rjl,nl->rni", T[:3, :3], Rz, P) + T[:3, 3]
+        d = env.signed_distance(W.reshape(-1, 3)).reshape(rolls.size, -1) - rad
+        worst = d.min(axis=1)
+        best = int(np.argmax(worst))
+        bound = float(worst[best]) + (slack if dims[k] == 5 else 0.0)
+        if bound < model.clearance:
+            body = names_b[items[int(np.argmin(d[best]))][0]]
+            how = "at this pose" if dims[k] == 6 else "at any roll about the tool axis"
+            out.append(
+                Unservable(
+                    int(k),
+                    names[k],
+                    f"{body} keeps at most {float(worst[best]):.3f} m from the tunnel {how}"
+                    f" (< clearance {model.clearance:g} m); the pose alone places it",
+                )
+            )
+    return out

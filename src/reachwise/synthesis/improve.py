@@ -35,6 +35,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from reachwise.synthesis.active_set import bounded_step
+from reachwise.synthesis.clearance import ClearanceModel
+from reachwise.synthesis.clearance_rows import clearance_barrier
 from reachwise.synthesis.linalg import BlockSystem, null_space_project, weighted
 from reachwise.synthesis.objectives import Objective, Terms, size_columns
 from reachwise.synthesis.problem import Evaluation, SynthesisProblem
@@ -110,6 +112,21 @@ def _wall(
     np.add.at(gq, owner.reshape(-1)[near], np.einsum("kia,ki->ka", Jq.reshape(-1, 3, nf)[near], c))
     g[p:] = gq.ravel()
     return value, g, inside
+
+
+def _walls(
+    problem: SynthesisProblem,
+    z: Array,
+    ws: Workspace | None,
+    opt: ImproveOptions,
+    clearance: ClearanceModel | None,
+) -> tuple[float, Array, bool]:
+    """The tunnel wall's barrier (``_wall``) plus, with ``clearance``, the bodies'."""
+    value, g, ok = _wall(problem, z, ws, opt)
+    if clearance is None:
+        return value, g, ok
+    v2, g2, ok2 = clearance_barrier(problem, z, clearance)
+    return value + opt.workspace_weight * v2, g + opt.workspace_weight * g2, ok and ok2
 
 
 def _reached(problem: SynthesisProblem, ev: Evaluation, fraction: float = 1.0) -> bool:
@@ -248,10 +265,13 @@ def improve(
     objective: Objective,
     workspace: Workspace | None = None,
     options: ImproveOptions | None = None,
+    clearance: ClearanceModel | None = None,
 ) -> ImproveOutcome:
     """Lower ``objective`` from the reaching vector ``z0`` while every pose stays reached
     (module docstring). ``objective`` without reference magnitudes is referenced to
-    ``z0``. If ``z0`` does not reach every pose it is returned unchanged."""
+    ``z0``. If ``z0`` does not reach every pose it is returned unchanged. With
+    ``clearance`` every accepted iterate keeps every clearance term, and a barrier on
+    the terms near it joins the tunnel wall's."""
     opt = options or ImproveOptions()
     lo, hi = problem.bounds
     p, K, nf = problem.p, problem.K, problem.n_free_joints
@@ -269,7 +289,7 @@ def improve(
     start = objective.terms(problem, z)
     obj = objective if objective.reference else objective.referenced(start)
     terms = start
-    wall, gwall, inside = _wall(problem, z, workspace, opt)
+    wall, gwall, inside = _walls(problem, z, workspace, opt, clearance)
     if not (converged(problem, ev) and inside):
         return ImproveOutcome(z, ev, start, start, obj, 0, 0, [])
     cost = obj.cost(terms) + wall
@@ -352,7 +372,7 @@ def improve(
             )  # fmt: skip
             if converged(problem, ev_try):
                 t_try = obj.terms(problem, z_try)
-                w_try, gw_try, in_try = _wall(problem, z_try, workspace, opt)
+                w_try, gw_try, in_try = _walls(problem, z_try, workspace, opt, clearance)
                 c_try = obj.cost(t_try) + w_try
                 if in_try and c_try < cost:
                     ok = True

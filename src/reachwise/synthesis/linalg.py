@@ -8,7 +8,8 @@ The stacked Jacobian ``Φ`` has one row block per task point: shared design colu
 
 is a block-diagonal matrix plus a rank-``p`` update, so the Woodbury identity solves it
 in ``O(K (6³ + 6² p) + p³)``: linear in the number of task points ``K`` instead of cubic
-in the ``6K`` rows. Inactive (padding) rows get a unit diagonal and zero residual.
+in the ``6K`` rows. Inactive (padding) rows get a unit diagonal and zero residual. A
+block may carry more than six rows (the clearance rows of ``clearance_rows``).
 """
 
 from __future__ import annotations
@@ -35,7 +36,8 @@ class BlockSystem:
     def build(cls, D: Array, J: Array, active: NDArray[np.bool_], lam2: float) -> BlockSystem:
         B = np.einsum("kia,kja->kij", J, J)
         pad = (~active).astype(np.float64) + max(lam2, 1e-10)
-        B[:, np.arange(6), np.arange(6)] += pad
+        rows = np.arange(B.shape[1])  # 6 task rows, plus any clearance rows
+        B[:, rows, rows] += pad
         Binv = np.linalg.inv(B)
         BinvD = Binv @ D
         S = np.eye(D.shape[2]) + np.einsum("kia,kib->ab", D, BinvD)

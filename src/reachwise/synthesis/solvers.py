@@ -47,6 +47,8 @@ from numpy.typing import NDArray
 
 from reachwise.kinematics.dls import EPSILON_SOLVER, LAMBDA_MAX, damping_squared
 from reachwise.synthesis.active_set import bounded_step
+from reachwise.synthesis.clearance import ClearanceModel
+from reachwise.synthesis.clearance_rows import Rows, clearance_motion, stacked_rows
 from reachwise.synthesis.linalg import (
     BlockSystem,
     null_space_project,
@@ -127,11 +129,14 @@ def solve_dls(
     options: SolverOptions | None = None,
     workspace: Workspace | None = None,
     rng: np.random.Generator | None = None,
+    clearance: ClearanceModel | None = None,
 ) -> SolveOutcome:
     """Iterate the weighted, damped, bounded least-squares update from ``z0``.
 
     Every ``reseed_every`` iterations the joints of unreached points are re-solved by
-    IK on the current design (``reseed_points``), drawing restarts from ``rng``.
+    IK on the current design (``reseed_points``), drawing restarts from ``rng``. With
+    ``clearance`` its terms near the clearance join the rows (``clearance_rows``) and a
+    run converges only when every term keeps the clearance.
     """
     opt = options or SolverOptions()
     rng = rng if rng is not None else np.random.default_rng(0)
@@ -141,10 +146,11 @@ def solve_dls(
     cap_d = np.where(angle_d, opt.max_step_angle, opt.max_step_length)
     cap_q = np.where(pris_q, opt.max_step_length, opt.max_step_angle)
     wx = row_weights(problem)
-    active = problem.active_rows
     z = np.clip(z0, lo, hi)
     ev = problem.evaluate(z)
-    cost = _weighted_cost(ev, wx)
+    rows = stacked_rows(problem, ev, wx, z, clearance)
+    cost = rows.cost
+    c_min = clearance.clearance if clearance is not None else 0.0
     history = [cost]
     boost = 0.0
     best_cost, since_best = cost, 0
@@ -152,11 +158,9 @@ def solve_dls(
     window_start = cost  # merit when the current re-seeding window began
     it = 0
     for it in range(1, opt.max_iter + 1):
-        if converged(problem, ev) and _workspace_clear(problem, z, workspace, opt):
+        if _done(problem, ev, rows, c_min, z, workspace, opt):
             return SolveOutcome(z, ev, it - 1, True, history)
-        e = ev.e * wx
-        D = ev.D * wx[:, :, None]
-        J = ev.J * wx[:, :, None]
+        e, D, J, active = rows.e, rows.D, rows.J, rows.active
         zd, zq = z[:p], z[p:].reshape(K, nf)
         lod, hid = lo[:p], hi[:p]
         loq, hiq = lo[p:].reshape(K, nf), hi[p:].reshape(K, nf)
@@ -183,14 +187,20 @@ def solve_dls(
         sd, sq, wd, wq = bs.design, bs.joints, bs.weight_design, bs.weight_joints
         task_step = np.concatenate([sd, sq.ravel()])
         steps = [task_step]
-        if workspace is not None:
-            nd, nq = _workspace_motion(problem, z, workspace, opt)
-            if nd is not None and nq is not None:
-                Dw, Jw = weighted(D, J, wd, wq)
-                sysn = BlockSystem.build(Dw, Jw, active, 1e-12)
-                pd, pq = null_space_project(sysn, wd * nd, wq * nq, active)
-                # the wall motion first together with the task step, alone the task step
-                steps.insert(0, task_step + np.concatenate([wd * pd, (wq * pq).ravel()]))
+        nd, nq = (
+            (None, None) if workspace is None else _workspace_motion(problem, z, workspace, opt)
+        )
+        if rows.terms is not None:
+            push = clearance_motion(rows.terms, c_min, opt.workspace_gain)
+            if push is not None:
+                nd = push[0] if nd is None else nd + push[0]
+                nq = push[1] if nq is None else nq + push[1]
+        if nd is not None and nq is not None:
+            Dw, Jw = weighted(D, J, wd, wq)
+            sysn = BlockSystem.build(Dw, Jw, active, 1e-12)
+            pd, pq = null_space_project(sysn, wd * nd, wq * nq, active)
+            # the wall motion first together with the task step, alone the task step
+            steps.insert(0, task_step + np.concatenate([wd * pd, (wq * pq).ravel()]))
         caps = np.concatenate([cap_d, np.tile(cap_q, K)])
         accepted = False
         alpha = 1.0
@@ -201,7 +211,8 @@ def solve_dls(
             for _ in range(5):
                 z_try = np.clip(z + alpha * step, lo, hi)
                 ev_try = problem.evaluate(z_try)
-                c_try = _weighted_cost(ev_try, wx)
+                rows_try = stacked_rows(problem, ev_try, wx, z_try, clearance)
+                c_try = rows_try.cost
                 if c_try < cost or (step is not task_step and c_try <= cost * 1.000001 + 1e-12):
                     accepted = True
                     break
@@ -210,7 +221,7 @@ def solve_dls(
                 break
         release = not accepted or c_try > cost * (1 - opt.stall_decrease)
         if accepted:
-            z, ev, cost = z_try, ev_try, c_try
+            z, ev, cost, rows = z_try, ev_try, c_try, rows_try
             boost = boost / 4.0 if alpha == 1.0 else boost
         else:
             boost = min(max(4.0 * boost, 1e-6), opt.max_boost)
@@ -228,13 +239,31 @@ def solve_dls(
             z2 = reseed_points(problem, z, ev, rng, opt.reseed_restarts) if slow else None
             if z2 is not None:
                 ev2 = problem.evaluate(z2)
-                c2 = _weighted_cost(ev2, wx)
+                rows2 = stacked_rows(problem, ev2, wx, z2, clearance)
+                c2 = rows2.cost
                 if c2 < cost * (1 - 1e-4):  # a real improvement restarts the stall count
                     best_cost, since_best = c2, 0
-                z, ev, cost = z2, ev2, c2
+                z, ev, cost, rows = z2, ev2, c2, rows2
             window_start = cost
-    done = converged(problem, ev) and _workspace_clear(problem, z, workspace, opt)
+    done = _done(problem, ev, rows, c_min, z, workspace, opt)
     return SolveOutcome(z, ev, it, done, history)
+
+
+def _done(
+    problem: SynthesisProblem,
+    ev: Evaluation,
+    rows: Rows,
+    clearance: float,
+    z: Array,
+    workspace: Workspace | None,
+    opt: SolverOptions,
+) -> bool:
+    """Every pose reached, every clearance term kept, every link point inside."""
+    return (
+        converged(problem, ev)
+        and rows.clear(clearance)
+        and _workspace_clear(problem, z, workspace, opt)
+    )
 
 
 def _capped(step: Array, caps: Array, p: int, K: int, nf: int) -> tuple[Array, float]:
@@ -287,11 +316,6 @@ def reseed_points(
             Q[k] = res.q
             improved = True
     return problem.pack(design, Q) if improved else None
-
-
-def _weighted_cost(ev: Evaluation, wx: Array) -> float:
-    r = ev.e * wx
-    return 0.5 * float(np.sum(r * r))
 
 
 def _workspace_clear(

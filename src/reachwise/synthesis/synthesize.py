@@ -25,6 +25,7 @@ from reachwise.errors import InputError, check_choice
 from reachwise.kinematics.indices import lci
 from reachwise.kinematics.robot import Robot
 from reachwise.synthesis.bound_hits import BoundHit, bound_hits
+from reachwise.synthesis.clearance import ClearanceModel, Unservable, unservable_poses
 from reachwise.synthesis.improve import ImproveOptions, improve
 from reachwise.synthesis.init import initial_guess
 from reachwise.synthesis.objectives import (
@@ -69,6 +70,8 @@ class RunResult:
     objective_start: dict[str, float] = field(default_factory=dict)
     objective_final: dict[str, float] = field(default_factory=dict)
     improve_iterations: int = 0
+    clearance: Array | None = None
+    clearance_pairs: tuple[tuple[str, str], ...] = ()
 
     @property
     def n_reached(self) -> int:
@@ -90,6 +93,8 @@ class SynthesisResult:
     solver: SolverName = "dls"
     notes: tuple[str, ...] = field(default_factory=tuple)
     objective: dict[str, float] = field(default_factory=dict)
+    unservable: tuple[Unservable, ...] = ()
+    clearance: float = 0.0
 
     @property
     def best(self) -> RunResult:
@@ -161,22 +166,28 @@ def run_once(
     workspace: Workspace | None = None,
     objective: dict[str, float] | None = None,
     improve_options: ImproveOptions | None = None,
+    clearance: ClearanceModel | None = None,
 ) -> RunResult:
     """One run: Beta/IK initialization from ``seed``, one solve and, with an
-    ``objective`` (weights) and every pose reached, the null-space improvement."""
+    ``objective`` (weights) and every pose reached, the null-space improvement. With
+    ``clearance`` (``clearance_setup``) the solve and the improvement keep every watched
+    pair of bodies at least its clearance apart at every pose, and a pose counts as
+    reached only when it is within tolerance *and* clear."""
     rng = np.random.default_rng(seed)
     guess = initial_guess(problem, rng, init_sets)
     d0, Q0 = problem.split(guess.z)
     if solver == "dls":
-        out = solve_dls(problem, guess.z, options, workspace, rng)
+        out = solve_dls(problem, guess.z, options, workspace, rng, clearance)
     else:
+        if clearance is not None:
+            raise InputError("synthesize", "solver", "the clearance needs the dls solver")
         out = solve_trf(problem, guess.z, workspace, options)
     z, ev, iterations = out.z, out.evaluation, out.iterations
     weights = check_objective(objective)
     extra: dict[str, object] = {}
     if weights and out.converged:
         obj = Objective(weights, margin=problem.template.design.margin)
-        better = improve(problem, out.z, obj, workspace, improve_options)
+        better = improve(problem, out.z, obj, workspace, improve_options, clearance)
         reach_d, reach_q = problem.split(out.z)
         z, ev = better.z, better.evaluation
         lci_reach = _lci_at(problem, problem.robot_at(reach_d), reach_q)
@@ -195,12 +206,18 @@ def run_once(
     robot = problem.robot_at(design, name=f"{problem.template.name}-synth")
     pos_ok, ori_ok, status = problem.point_status(ev)
     e_obj = float(np.sum(np.hypot(ev.position_error, ev.orientation_error)))
+    clear_ok = np.ones(problem.K, dtype=np.bool_)
+    if clearance is not None:
+        smallest, pairs = clearance.terms(problem, z).smallest()
+        clear_ok = smallest >= clearance.clearance
+        extra["clearance"] = smallest
+        extra["clearance_pairs"] = tuple(pairs)
     return RunResult(
         seed=seed,
         robot=robot,
         design=design.copy(),
         q=Q,
-        reached=pos_ok & ori_ok,
+        reached=pos_ok & ori_ok & clear_ok,
         status=tuple(status),
         position_error=ev.position_error,
         orientation_error=ev.orientation_error,
@@ -228,6 +245,7 @@ def synthesize(
     on_run: Callable[[RunResult], None] | None = None,
     objective: Mapping[str, float] | None = None,
     improve_options: ImproveOptions | None = None,
+    clearance: float | None = None,
 ) -> SynthesisResult:
     """Find design parameters, base frame and joint values that reach every task pose.
 
@@ -240,27 +258,63 @@ def synthesize(
     ``signed_distance`` and ``gradient``. ``objective`` maps objective names
     (``objectives.OBJECTIVES``: ``gci``, ``kci``, ``size``, ``limits``, ``bounds``) to
     weights; ``None`` takes the template's ``design.objective``, ``{}`` none.
+    ``clearance`` (m; ``None``: the template's ``design.clearance``, 0: none) keeps the
+    template's bodies that far apart and from the workspace at every pose
+    (``clearance_setup``); poses no design can serve are left out before the solve and
+    listed in ``SynthesisResult.unservable``.
     """
     solver = check_choice(solver, SOLVERS, source="synthesize", kind="solver")
     if runs < 1:
         raise InputError("synthesize", "runs", "at least one run")
-    problem = SynthesisProblem(template, task, locked_from_spec(template, locked))
     if isinstance(workspace, str):
         if workspace != "task":
             raise InputError("synthesize", "workspace", "'task', None or a workspace object")
         workspace = task.envelope
+    model, task, unservable = clearance_setup(template, task, workspace, clearance)
+    problem = SynthesisProblem(template, task, locked_from_spec(template, locked))
     weights = check_objective(
         template.design.objective if objective is None else objective, "synthesize"
     )
     results = []
     for i in range(runs):
         r = run_once(
-            problem, seed + i, solver, init_sets, options, workspace, weights, improve_options
-        )
+            problem, seed + i, solver, init_sets, options, workspace, weights, improve_options,
+            model,
+        )  # fmt: skip
         results.append(r)
         if on_run is not None:
             on_run(r)
-    return result_of(problem, results, solver, weights)
+    return result_of(problem, results, solver, weights, unservable, model)
+
+
+def clearance_setup(
+    template: Robot, task: Task, workspace: Workspace | None, clearance: float | None
+) -> tuple[ClearanceModel | None, Task, tuple[Unservable, ...]]:
+    """The clearance model of ``template``'s bodies (``None`` when the clearance is 0),
+    the task without the poses no design can serve, and those poses with the reason.
+
+    ``clearance`` ``None`` takes ``design.clearance``. A workspace that is not a tunnel
+    envelope (no ``signed_distance_and_gradient``) adds no environment terms.
+    """
+    c = template.design.clearance if clearance is None else float(clearance)
+    if not (np.isfinite(c) and c >= 0):
+        raise InputError("synthesize", "clearance", f"must be >= 0, got {c}")
+    if c == 0:
+        return None, task, ()
+    if not template.design.bodies:
+        raise InputError(
+            template.name, "design.bodies", f"a clearance of {c} m needs bodies to keep apart"
+        )
+    env = workspace if hasattr(workspace, "signed_distance_and_gradient") else None
+    model = ClearanceModel(template, env, c)  # type: ignore[arg-type]
+    bad = tuple(unservable_poses(model, task.poses, task.dims, task.names))
+    if not bad:
+        return model, task, ()
+    drop = {u.index for u in bad}
+    keep = [i for i in range(len(task)) if i not in drop]
+    if not keep:
+        raise InputError(task.name, "points", "no pose can be served with the clearance")
+    return model, task.subset(keep), bad
 
 
 def objective_costs(runs: Sequence[RunResult], weights: Mapping[str, float]) -> list[float]:
@@ -290,6 +344,8 @@ def result_of(
     runs: Sequence[RunResult],
     solver: SolverName = "dls",
     objective: Mapping[str, float] | None = None,
+    unservable: Sequence[Unservable] = (),
+    clearance: ClearanceModel | None = None,
 ) -> SynthesisResult:
     """Assemble a result from finished runs (also used for interrupted syntheses)."""
     if not runs:
@@ -297,4 +353,8 @@ def result_of(
     weights = check_objective(objective, "synthesize")
     costs = objective_costs(runs, weights) if weights else None
     best = best_run_index([r.n_reached for r in runs], [r.e_obj for r in runs], costs)
-    return SynthesisResult(problem, tuple(runs), best, solver, objective=weights)
+    notes = tuple(f"left out {u.name}: {u.reason}" for u in unservable)
+    return SynthesisResult(
+        problem, tuple(runs), best, solver, notes, weights, tuple(unservable),
+        clearance.clearance if clearance is not None else 0.0,
+    )  # fmt: skip
