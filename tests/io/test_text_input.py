@@ -96,3 +96,15 @@ def test_file_larger_than_the_bound(tmp_path: Path) -> None:
     assert read_text(path, "big") == "a: 1\n" * 100
     with pytest.raises(InputError, match="larger than 100 bytes"):
         read_text(path, "big", max_bytes=100)
+
+
+def test_yaml_alias_bomb_is_refused(tmp_path: Path) -> None:
+    """Nine levels of ten aliases each: a few hundred bytes that expand to 10⁹ values."""
+    text = "a: &a [1, 1, 1, 1, 1, 1, 1, 1, 1, 1]\n" + "".join(
+        f"{chr(98 + i)}: &{chr(98 + i)} [{', '.join([f'*{chr(97 + i)}'] * 10)}]\n" for i in range(8)
+    )
+    path = tmp_path / "bomb.yaml"
+    path.write_text(text)
+    with pytest.raises(RobotFileError, match="aliases expanded") as info:
+        load_robot(str(path))
+    assert info.value.source == str(path)

@@ -39,6 +39,8 @@ MAX_CLOUD_POINTS = 50_000_000
 #: Longest header read (bytes): PLY and PCD headers are a few hundred bytes.
 _MAX_HEADER = 64 * 1024
 _XYZ = ("x", "y", "z")
+#: Largest point record accepted (bytes): x, y, z and a few hundred more values.
+_MAX_ROW_BYTES = 4096
 
 _PLY_SIZES = {
     "char": 1, "int8": 1, "uchar": 1, "uint8": 1, "short": 2, "int16": 2, "ushort": 2,
@@ -185,6 +187,8 @@ def check_pcd(path: Path, source: str, max_points: int) -> None:
         if name in _XYZ and int(size) < 2:
             raise CloudError(source, name, f"a coordinate cannot be {size} byte")
         row += int(size) * int(count)
+    if row > _MAX_ROW_BYTES:
+        raise CloudError(source, "COUNT", f"{row} bytes per point, more than {_MAX_ROW_BYTES}")
     numbers = {}
     for key in ("WIDTH", "HEIGHT", "POINTS"):
         value = head.get(key, [])
@@ -242,7 +246,7 @@ def _npy_header(fh: Any, source: str) -> tuple[tuple[int, ...], np.dtype[Any]]:
             shape, _, dtype = fmt.read_array_header_2_0(fh)
         else:
             raise ValueError(f"NPY version {version[0]}.{version[1]} is not read")
-    except (ValueError, OSError, SyntaxError, TypeError) as exc:
+    except Exception as exc:  # numpy parses the header dict with ast/tokenize: any error
         raise CloudError(source, "header", f"not a valid NPY file: {exc}") from None
     return tuple(int(d) for d in shape), dtype
 
