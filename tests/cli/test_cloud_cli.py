@@ -150,3 +150,14 @@ def test_main_prints_one_line_and_exits_2(
     assert err.startswith("error: ") and "cut.ply: header: not a valid PLY file" in err
     assert len(err.splitlines()) == 1 and "Traceback" not in err
     assert issubclass(CloudError, ReachwiseError)
+
+
+def test_max_points_bounds_the_cloud_read(tmp_path: Path) -> None:
+    path = tmp_path / "c.xyz"
+    np.savetxt(path, np.random.default_rng(0).uniform(size=(20, 3)))
+    res = CliRunner().invoke(app, ["cloud", "info", str(path), "--max-points", "19"])
+    assert res.exit_code != 0
+    assert isinstance(res.exception, CloudError) and "more than the bound 19" in str(res.exception)
+    assert str(path) in str(res.exception)
+    ok = CliRunner().invoke(app, ["cloud", "info", str(path), "--max-points", "20", "--json"])
+    assert ok.exit_code == 0, ok.output

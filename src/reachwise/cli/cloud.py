@@ -23,6 +23,10 @@ app = typer.Typer(
 
 _OUT = typer.Option(..., "--out", "-o", help="Output cloud file (.ply .pcd .xyz .txt .csv .npy).")
 _ASCII = typer.Option(False, "--ascii", help="Write PLY/PCD as text instead of binary.")
+_MAX_POINTS = typer.Option(
+    50_000_000, "--max-points", min=1,
+    help="Refuse a cloud file declaring or holding more points than this.",
+)  # fmt: skip
 
 
 def _summary(cloud: PointCloud) -> dict[str, Any]:
@@ -54,6 +58,7 @@ def info(
     drop_non_finite: bool = typer.Option(
         False, "--drop-non-finite", help="Skip rows with NaN/inf coordinates instead of failing."
     ),
+    max_points: int = _MAX_POINTS,
 ) -> None:
     """Show point count, bounds, extent, centroid and nearest-neighbour spacing."""
     import numpy as np
@@ -61,7 +66,7 @@ def info(
 
     from reachwise.io.clouds import cloud_format, load_cloud
 
-    cloud = load_cloud(file, drop_non_finite=drop_non_finite)
+    cloud = load_cloud(file, drop_non_finite=drop_non_finite, max_points=max_points)
     out: dict[str, Any] = {"file": str(file), "format": cloud_format(file)}
     out.update(_summary(cloud))
     if len(cloud) > 1:
@@ -112,12 +117,13 @@ def downsample(
     voxel: float = typer.Option(0.03, "--voxel", help="Voxel edge in metres (P-V: 0.03)."),
     out: Path = _OUT,
     ascii: bool = _ASCII,
+    max_points: int = _MAX_POINTS,
 ) -> None:
     """Keep one point per occupied voxel (the point nearest the voxel's centroid)."""
     from reachwise.geometry.cloud import voxel_downsample
     from reachwise.io.clouds import load_cloud, save_cloud
 
-    cloud = load_cloud(file)
+    cloud = load_cloud(file, max_points=max_points)
     thin = voxel_downsample(cloud, voxel)
     _wrote(save_cloud(thin, out, ascii=ascii), thin, f"from {len(cloud)}, voxel {voxel} m")
 
@@ -133,12 +139,13 @@ def crop(
     ),
     out: Path = _OUT,
     ascii: bool = _ASCII,
+    max_points: int = _MAX_POINTS,
 ) -> None:
     """Keep the points inside an axis-aligned box (bounds included)."""
     from reachwise.geometry.cloud import crop as crop_cloud
     from reachwise.io.clouds import load_cloud, save_cloud
 
-    cloud = load_cloud(file)
+    cloud = load_cloud(file, max_points=max_points)
     kept = crop_cloud(cloud, lo, hi)
     _wrote(save_cloud(kept, out, ascii=ascii), kept, f"of {len(cloud)} inside the box")
 
