@@ -81,11 +81,15 @@ class UnknownName(InputError, KeyError):
     """A lookup of ``name`` among ``valid`` names failed; the message lists the valid ones
     and, when one is close (``difflib``), the name meant (``did you mean 'sb60'?``).
 
-    ``kind`` says what was looked up (``"robot"``, ``"object"``, ``"strategy"``, …).
-    It is a ``KeyError`` too, so code that looks names up in a mapping keeps working.
+    ``kind`` says what was looked up (``"robot"``, ``"object"``, ``"strategy"``, …);
+    ``field`` where the name was written (default: ``kind``). The closest valid name
+    (:func:`difflib.get_close_matches`), if any is close, is offered. It is a
+    ``KeyError`` too, so code that looks names up in a mapping keeps working.
     """
 
-    def __init__(self, source: str, kind: str, name: str, valid: Iterable[str]) -> None:
+    def __init__(
+        self, source: str, kind: str, name: str, valid: Iterable[str], *, field: str | None = None
+    ) -> None:
         self.kind = kind
         self.name = name
         self.valid = tuple(sorted(str(v) for v in valid))
@@ -102,7 +106,7 @@ class UnknownName(InputError, KeyError):
         self.suggestion = close[0] if close else None
         if self.suggestion is not None:
             reason += f"; did you mean {self.suggestion!r}?"
-        super().__init__(source, kind, reason)
+        super().__init__(source, kind if field is None else field, reason)
 
 
 _S = TypeVar("_S", bound=str)

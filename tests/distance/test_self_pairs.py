@@ -121,8 +121,13 @@ def test_panda_pairs_recall_on_a_separate_set(tmp_path: Path) -> None:
     clouds = reachwise.link_clouds(robot)
     found = self_collision_pairs(robot, clouds, MARGIN, samples=10_000, seed=0)
     adjacent = [(p.a, p.b) for p in found.pairs if p.rule == "adjacent"]
-    # 8 neighbours along link_0 … link_7, tool; and link_6 - tool (joint 7 between them)
-    assert len(adjacent) == 9 and ("link_6", "tool") in adjacent
+    # MoveIt's rule: the 7 pairs one joint joins, and the 6 pairs of link 7, the hand and
+    # its fingers (rigidly joined); the hand is checked against link 6, beyond joint 7
+    joined = [(f"panda_link{i}", f"panda_link{i + 1}") for i in range(7)]
+    rigid = {"panda_link7", "panda_hand", "panda_leftfinger", "panda_rightfinger"}
+    assert set(joined) <= set(adjacent) and len(adjacent) == 13
+    assert all({a, b} <= rigid for a, b in set(adjacent) - set(joined))
+    assert ("panda_link6", "panda_hand") not in adjacent
     assert not set(adjacent) & set(found.watched)
     others = [(p.a, p.b) for p in found.pairs if p.rule != "adjacent"]
     hits = pair_hits(robot, clouds, others, MARGIN, random_configurations(robot, 10_000, 777))

@@ -162,13 +162,13 @@ def test_the_placement_check_sees_a_shifted_and_a_missing_shape(rng: np.random.G
     robot = reachwise.load_robot(path, tip="tool0")
     model = _model(path)
     q = rng.uniform(robot.lower, robot.upper)
-    (g,) = robot.geometry["link_2"]
+    (g,) = robot.geometry["upper_arm_link"]
     O = g.origin_matrix
     O[:3, 3] += (0.005, 0.0, 0.0)
-    shifted = dict(robot.geometry, link_2=(replace(g, origin=tuple(map(tuple, O))),))
+    shifted = dict(robot.geometry, upper_arm_link=(replace(g, origin=tuple(map(tuple, O))),))
     off, _ = _placement_errors(replace(robot, geometry=shifted), model, q)
     assert off > 2e-3
-    missing = {k: v for k, v in robot.geometry.items() if k != "link_3"}
+    missing = {k: v for k, v in robot.geometry.items() if k != "forearm_link"}
     _, covered = _placement_errors(replace(robot, geometry=missing), model, q)
     assert min(covered.values()) < 0.5
 
@@ -210,8 +210,8 @@ def test_missing_mesh_unknown_package_and_broken_dae_name_file_and_uri(tmp_path:
     with pytest.raises(RobotFileError) as info:
         reachwise.link_clouds(robot)
     msg = str(info.value)
-    assert str(path) in msg and "package://my_arm/meshes/base.dae" in msg and "link_0" in msg
-    assert "j2s6s200_link_base" in msg  # the URDF link the shape came from
+    assert str(path) in msg and "package://my_arm/meshes/base.dae" in msg
+    assert "link 'j2s6s200_link_base'" in msg  # the URDF link the shape belongs to
 
 
 def test_a_branched_urdf_needs_a_tip_and_yaml_takes_none(tmp_path: Path) -> None:

@@ -385,7 +385,7 @@ def test_the_validity_check_sees_a_changed_limit_a_lost_shape_and_a_moved_joint(
     faster[i] = replace(faster[i], vmax=math.inf)  # velocity read as unbounded
     with pytest.raises(AssertionError):
         _check_valid(replace(robot, joints=tuple(faster)), path, "tool0", rng)
-    lost = {k: v for k, v in robot.geometry.items() if k != "link_2"}
+    lost = {k: v for k, v in robot.geometry.items() if k != "upper_arm_link"}
     with pytest.raises(AssertionError):
         _check_valid(replace(robot, geometry=lost), path, "tool0", rng)
     moved = list(robot.joints)

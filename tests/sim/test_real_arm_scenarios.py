@@ -48,7 +48,7 @@ def test_panda_shelf_baseline_hits_the_shelf(shelf: tuple[SimulationLog, ...]) -
 
 def test_panda_self_collision_baseline_folds_the_wrist_avoidance_does_not() -> None:
     base = reachwise.simulate("panda-self-collision", avoidance=False)
-    _collides(base, "arm/link_5|arm/link_7")
+    _collides(base, "arm/panda_link5|arm/panda_link7")
     assert 1.0 < base.first_collision < 4.0
     avoid = reachwise.simulate("panda-self-collision")
     _avoids(avoid)

@@ -66,7 +66,7 @@ def run(quick: bool = False) -> BenchReport:
     Q = random_configurations(robot, samples, 0)
     t0 = time.perf_counter()
     F = robot.fk_all(Q)
-    index = {n: i for i, n in enumerate(robot.link_names)}
+    index = {n: robot.link_index(n) for n in clouds}
     for a, b in others:
         query = PairQuery(clouds[a], clouds[b], margin=MARGIN)
         for s in range(len(Q)):

@@ -4,9 +4,11 @@ The method of MoveIt's Setup Assistant ("allowed collision matrix",
 ``compute_default_collisions.cpp``), with reachwise's exact cloud distances and a
 margin instead of a contact test:
 
-1. **adjacent** — two links directly joined by one moving joint, rigidly joined (no
-   moving joint between them), or with no link with shapes between them along the
-   chain: excluded (they touch by design, or their distance cannot change).
+1. **adjacent** — MoveIt's rule on the robot's bodies
+   (:func:`reachwise.kinematics.bodies.adjacent_bodies`): two links one joint joins, or
+   joined only through links without shapes; and links rigidly joined (no moving joint
+   between their frames: their distance cannot change): excluded. A hand fixed to a
+   flange is thus checked against the wrist links beyond the joint that moves it.
 2. **home** — every other pair is measured at the home (start) configuration; a pair
    within the margin there is reported for review (MoveIt disables such pairs as
    "default" collisions; a collision tool keeps them watched and lets the user
@@ -41,6 +43,7 @@ from numpy.typing import ArrayLike, NDArray
 from reachwise.distance.engine import PairQuery
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
+from reachwise.kinematics.bodies import Body, adjacent_bodies
 
 __all__ = [
     "Capsule",
@@ -77,6 +80,14 @@ class ChainLike(Protocol):
 
     @property
     def upper(self) -> NDArray[np.float64]: ...
+
+    @property
+    def body_tree(self) -> Mapping[str, Body]: ...
+
+    @property
+    def body_names(self) -> tuple[str, ...]: ...
+
+    def link_index(self, link: str) -> int: ...
 
     def fk_all(self, q: ArrayLike) -> NDArray[np.float64]: ...
 
@@ -195,17 +206,18 @@ def capsule_distances(
 def adjacent_reason(robot: ChainLike, links: list[str], la: str, lb: str) -> str | None:
     """Why links ``la`` and ``lb`` count as adjacent (see the module docstring), or
     ``None``; ``links`` are the robot's links with clouds."""
-    idx = {n: i for i, n in enumerate(robot.link_names)}
-    ia, ib = sorted((idx[la], idx[lb]))
+    ia, ib = sorted((robot.link_index(la), robot.link_index(lb)))
     movable = set(robot.movable_joints)
     between = sum(1 for j in range(ia, ib) if j in movable)
     if between == 0:
         return "rigidly connected (no moving joint between them)"
-    if between == 1:
-        return "joined by one joint"
-    order = sorted(links, key=idx.__getitem__)
-    if abs(order.index(la) - order.index(lb)) == 1:
-        return f"no link with shapes between them ({between} joints apart)"
+    tree = robot.body_tree
+    for x, y in ((la, lb), (lb, la)):
+        body = tree.get(x)
+        if body is not None and body.parent == y:
+            return f"joined by one joint{f' ({body.joint})' if body.joint else ''}"
+    if adjacent_bodies(tree, links, la, lb):
+        return "no link with shapes between them (MoveIt: joined through links without shapes)"
     return None
 
 
@@ -225,7 +237,7 @@ class _Placer:
     def __init__(self, robot: ChainLike, clouds: Mapping[str, PointCloud]) -> None:
         self.robot = robot
         self.clouds = dict(clouds)
-        self.index = {n: i for i, n in enumerate(robot.link_names)}
+        self.index = {n: robot.link_index(n) for n in self.clouds}
         self.caps = {n: bounding_capsule(c.points) for n, c in self.clouds.items()}
 
     def segments(
@@ -353,11 +365,12 @@ def self_collision_pairs(
         raise InputError(robot.name, "margin", f"must be finite and > 0, got {margin!r}")
     if int(samples) < 1:
         raise InputError(robot.name, "samples", f"must be ≥ 1, got {samples!r}")
+    rank = {n: i for i, n in enumerate(robot.body_names)}
     for link in clouds:
-        if link not in robot.link_names:
+        if link not in rank:
             raise InputError(robot.name, "clouds", f"no link {link!r}")
-    idx = {n: i for i, n in enumerate(robot.link_names)}
-    links = sorted(clouds, key=idx.__getitem__)
+    idx = {n: robot.link_index(n) for n in clouds}
+    links = sorted(clouds, key=rank.__getitem__)
     lo, hi = np.asarray(robot.lower, float), np.asarray(robot.upper, float)
     q_home = np.clip(np.zeros(robot.n), lo, hi) if home is None else np.asarray(home, float)
     if q_home.shape != (robot.n,) or not np.isfinite(q_home).all():

@@ -11,19 +11,22 @@ union uniformly over its surface, so each shape gets points in proportion to its
 given, else the link's own count (the largest ``points`` among its shapes: 1000 by
 default).
 
-Clouds are expressed in the link's own frame (``frame="link_k"``), so a
-:class:`~reachwise.distance.scene.Scene` attaches them with ``robot=..., link=...``.
+Clouds are keyed by body (:attr:`Robot.body_names <reachwise.kinematics.robot.Robot.
+body_names>`: a URDF link, or a frame of a DH robot) and expressed in the frame the body
+rides on (``frame=robot.frame_of(body)``), so a :class:`~reachwise.distance.scene.Scene`
+attaches them with ``robot=..., link=cloud.frame``.
 Mesh files are read by the one mesh reader, :func:`reachwise.io.meshes.load_mesh`:
 a robot loaded from a URDF carries each mesh's resolved file; otherwise a mesh name is
 resolved like a URDF's (:func:`reachwise.io.mesh_uri.resolve_uri`), relative to the
 robot file's folder (built-in robots: the package's ``data/robots`` folder). A mesh
 that cannot be read is a :class:`~reachwise.errors.RobotFileError` naming the robot
 file, the link, the shape and the URI. Sampling is reproducible: link ``k`` draws from
-``numpy.random.default_rng([seed, k])``.
+``numpy.random.default_rng([seed, k])``, ``k`` the body's place in ``body_names``.
 """
 
 from __future__ import annotations
 
+import difflib
 import math
 from importlib import resources
 from pathlib import Path
@@ -166,9 +169,10 @@ def link_cloud(
         n = max(g.points for g in shapes) if points is None else int(points)
     if n <= 0:
         raise InputError(robot.name, f"{where}.points", f"must be > 0, got {n}")
-    k = robot.link_index(link)
+    k = robot.body_names.index(link)
     rng = np.random.default_rng([int(seed), k])
-    return sample_mesh_surface(mesh, n=n, seed=rng, frame=link, name=f"{robot.name}/{link}")
+    frame = robot.frame_of(link)
+    return sample_mesh_surface(mesh, n=n, seed=rng, frame=frame, name=f"{robot.name}/{link}")
 
 
 def link_clouds(
@@ -179,9 +183,10 @@ def link_clouds(
     *,
     density: float | None = None,
 ) -> dict[str, PointCloud]:
-    """A cloud for every link that has collision shapes, base to tool, keyed by link
-    name (``link_0`` … ``tool``), each in its link's frame (see ``link_cloud``)."""
-    order = [name for name in robot.link_names if name in robot.geometry]
+    """A cloud for every body that has collision shapes, base to tool, keyed by body
+    (``link_0`` … ``tool``, or a URDF robot's link names), each in the frame its body
+    rides on (see ``link_cloud``)."""
+    order = [name for name in robot.body_names if name in robot.geometry]
     return {
         name: link_cloud(robot, name, points, seed, base_dir, density=density) for name in order
     }
@@ -190,7 +195,11 @@ def link_clouds(
 def _shapes(robot: Robot, link: str) -> tuple[LinkGeometry, ...]:
     g = robot.geometry.get(link)
     if not g:
+        close = difflib.get_close_matches(link, list(robot.geometry), n=1)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
         raise InputError(
-            robot.name, f"geometry.{link}", f"no geometry; links with one: {list(robot.geometry)}"
+            robot.source or robot.name,
+            f"geometry.{link}",
+            f"no geometry; links with one: {list(robot.geometry)}{hint}",
         )
     return g

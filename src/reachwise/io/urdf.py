@@ -222,15 +222,18 @@ def _shape_element(parent: ET.Element, tag: str, g: LinkGeometry) -> None:
         ET.SubElement(geo, "mesh", attrs)
 
 
-def _geometry_elements(link: ET.Element, robot: Robot, name: str) -> None:
-    """A link's ``<collision>`` elements and its ``<visual>`` ones (the collision shapes
-    again when the robot has no visual shapes for the link)."""
-    collisions = robot.geometry.get(name, ())
-    visuals = robot.visual.get(name) or collisions
-    for g in visuals:
-        _shape_element(link, "visual", g)
-    for g in collisions:
-        _shape_element(link, "collision", g)
+def _geometry_elements(link: ET.Element, robot: Robot, frame: str) -> None:
+    """The ``<collision>`` and ``<visual>`` elements of every body riding on ``frame``
+    (its collision shapes again when a body has no visual shapes)."""
+    for body in robot.body_names:
+        if robot.frame_of(body) != frame:
+            continue
+        collisions = robot.geometry.get(body, ())
+        visuals = robot.visual.get(body) or collisions
+        for g in visuals:
+            _shape_element(link, "visual", g)
+        for g in collisions:
+            _shape_element(link, "collision", g)
 
 
 def export_urdf(robot: Robot, path: str | Path | None = None) -> str:
@@ -238,7 +241,9 @@ def export_urdf(robot: Robot, path: str | Path | None = None) -> str:
 
     yourdfpy's forward kinematics of link ``link_i`` / ``tool`` relative to ``world``
     equals ``robot.fk_all(q)`` / ``robot.fk(q)`` to rounding for every ``q`` (the joint
-    values are keyed by the URDF joint names, in ``robot.movable_joints`` order).
+    values are keyed by the URDF joint names, in ``robot.movable_joints`` order). The
+    URDF links are the robot's frames in order, so the shapes of bodies riding on one
+    frame (a robot read from a URDF) go into that frame's link.
     See the module docstring for the construction.
     """
     root = ET.Element("robot", name=robot.name)
@@ -305,8 +310,9 @@ def export_urdf(robot: Robot, path: str | Path | None = None) -> str:
     add_joint(
         tool_name, "fixed", f"link_{len(robot.joints)}", "tool", np.asarray(robot.tool, dtype=float)
     )
-    for link in robot.link_names:
-        _geometry_elements(links[link], robot, link)
+    rows = [*(f"link_{i}" for i in range(len(robot.joints) + 1)), "tool"]
+    for row, frame in zip(rows, robot.link_names, strict=True):
+        _geometry_elements(links[row], robot, frame)
     ET.indent(root, space="  ")
     xml = '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
     if path is not None:
@@ -410,6 +416,7 @@ def load_urdf(
     template = {uj.name: j for uj, j in rows_in}
 
     rows: list[dict[str, Any]] = []  # DH rows: joint template + a, alpha, d, theta
+    after: list[str] = []  # the URDF link or joint each row's frame is named after
     base = np.eye(4)
     acc = np.eye(4)  # constant transform from the last reachwise frame (or the root)
     first = True
@@ -436,8 +443,10 @@ def load_urdf(
                 rows[-1]["d"] += pz
                 fixed = Joint("fixed", name=f"{uj.name}_offset")
                 rows.append({"joint": fixed, "a": rho, "alpha": 0.0, "d": 0.0, "theta": ta})
+                after.append(fixed.name)
                 row.update(alpha=al, a=0.0, theta=tb, d=0.0)
         rows.append(row)
+        after.append(uj.child)
         acc = A.T.copy()
 
     def clean(v: float) -> float:  # drop rounding dust (|v| < 1e-15) for readable tables
@@ -453,11 +462,34 @@ def load_urdf(
         )
         for r in rows
     )
-    robot = Robot(model.name, joints, base=base, tool=acc, source=source)
-    geometry, visual = place_shapes(
+    tip_link = chain[-1].child if chain else model.root
+    first_moving = next(uj for uj in chain if uj.type != "fixed")
+    frames = _frame_names(model, chain, [first_moving.parent, *after], tip_link)
+    robot = Robot(model.name, joints, base=base, tool=acc, source=source, frame_names=frames)
+    geometry, visual, bodies = place_shapes(
         model, chain, robot, package_dirs=package_dirs or (), lenient=lenient
     )
-    return replace(robot, geometry=geometry, visual=visual)
+    return replace(robot, geometry=geometry, visual=visual, bodies=bodies)
+
+
+def _frame_names(
+    model: UrdfModel, chain: Sequence[UrdfJoint], after: list[str], tip: str
+) -> tuple[str, ...]:
+    """The names of a URDF robot's frames: the base frame after the link the first
+    moving joint hangs from, each
+    moving joint's frame after the link it moves, the tool frame after the tip link. A
+    frame no link rides on of its own (the last joint's, when the tip is the link that
+    joint moves; the extra fixed row of a fallback decomposition) is named after its
+    URDF joint (``_frame`` appended if a link has that name)."""
+    joint_of = {j.child: j.name for j in chain}
+    used = set(model.links) | {tip}
+    out = []
+    for name in after:
+        if name == tip or name not in model.links:
+            base = joint_of.get(name, name)
+            name = _unique(base if base not in used else f"{base}_frame", used)
+        out.append(name)
+    return (*out, tip)
 
 
 __all__ = [

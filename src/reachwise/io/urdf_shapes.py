@@ -1,7 +1,9 @@
 """Every collision and visual shape of a URDF, placed on the reachwise link frames.
 
 A reachwise robot built from a URDF chain (:func:`reachwise.io.urdf.load_urdf`) has one
-frame per moving joint; every URDF link rides rigidly on one of them:
+frame per moving joint; every URDF link is a body of its own
+(:class:`~reachwise.kinematics.bodies.Body`, keyed by its URDF name, with its parent link
+and joint) that rides rigidly on one of them:
 
 - a link **on the chain** rides on the frame right after the last moving joint above
   it (the root and links fixed to it on ``link_0``, the tip on ``tool``);
@@ -13,7 +15,8 @@ frame per moving joint; every URDF link rides rigidly on one of them:
   off the chain cannot be held anywhere: the shapes below it are an error (left out,
   and logged, with ``lenient=True``).
 
-Each ``<collision>`` element becomes one :class:`~reachwise.kinematics.link_geometry.
+A link's shapes are given in the frame it rides on and stay the link's own. Each
+``<collision>`` element becomes one :class:`~reachwise.kinematics.link_geometry.
 LinkGeometry` with its own origin; a link with no ``<collision>`` element lends its
 ``<visual>`` shapes for collision, and the log says so. Every ``<visual>`` element also
 goes into ``Robot.visual`` for the viewer. Mesh URIs are resolved now
@@ -35,6 +38,7 @@ from numpy.typing import NDArray
 from reachwise.errors import RobotFileError
 from reachwise.io.mesh_uri import resolve_uri
 from reachwise.io.urdf_model import UrdfJoint, UrdfModel, UrdfShape, log
+from reachwise.kinematics.bodies import Body
 from reachwise.kinematics.link_geometry import LinkGeometry
 
 if TYPE_CHECKING:
@@ -85,9 +89,10 @@ def place_shapes(
     *,
     package_dirs: Sequence[str | os.PathLike[str]] = (),
     lenient: bool = False,
-) -> tuple[Shapes, Shapes]:
-    """``(geometry, visual)`` of ``robot`` (built from ``chain`` of ``model``): every
-    shape of every link in the reachwise frame it rides on (see the module docstring)."""
+) -> tuple[Shapes, Shapes, dict[str, Body]]:
+    """``(geometry, visual, bodies)`` of ``robot`` (built from ``chain`` of ``model``):
+    every shape of every link, keyed by the link, in the reachwise frame it rides on,
+    and every link's body (see the module docstring)."""
     source = model.source
     on_chain = {j.name for j in chain}
     frame_of = {model.root: 0}
@@ -127,10 +132,15 @@ def place_shapes(
     F = robot.fk_all(np.zeros(robot.n))
     geometry: dict[str, list[LinkGeometry]] = {}
     visual: dict[str, list[LinkGeometry]] = {}
+    parent_joint = {j.child: j for j in model.joints.values()}
+    bodies: dict[str, Body] = {}
     for name, link in model.links.items():
         r = ride[name]
-        target = "tool" if r == tip else f"link_{frame_of[r]}"
-        C = _inv(F[robot.link_index(target)]) @ P[name]
+        row = len(robot.link_names) - 1 if r == tip else frame_of[r]
+        target = robot.link_names[row]
+        pj = parent_joint.get(name)
+        bodies[name] = Body(target, pj.parent if pj else "", pj.name if pj else "")
+        C = _inv(F[row]) @ P[name]
         collisions = link.collisions
         if not collisions and link.visuals:
             log.warning(
@@ -166,14 +176,15 @@ def place_shapes(
         for s in collisions:
             g = _geometry(model, s, C, package_dirs, lenient)
             if g is not None:
-                geometry.setdefault(target, []).append(g)
+                geometry.setdefault(name, []).append(g)
         for s in link.visuals:
             g = _geometry(model, s, C, package_dirs, lenient)
             if g is not None:
-                visual.setdefault(target, []).append(g)
+                visual.setdefault(name, []).append(g)
     return (
         {k: tuple(v) for k, v in geometry.items()},
         {k: tuple(v) for k, v in visual.items()},
+        bodies,
     )
 
 

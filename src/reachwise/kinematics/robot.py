@@ -10,7 +10,10 @@ For a revolute joint ``theta`` is an offset added to ``q``; for a prismatic join
 is. ``q`` holds one value per non-fixed joint (passive ones included), base to tool.
 
 Frames are numbered ``link_0`` (the base frame, ``world <- base``), ``link_1`` …
-``link_N`` (after joint ``1`` … ``N``, fixed joints included) and ``tool``.
+``link_N`` (after joint ``1`` … ``N``, fixed joints included) and ``tool``, unless the
+robot names them (``frame_names``: a robot read from a URDF names each frame after the
+URDF link riding on it). Shapes belong to bodies (:mod:`reachwise.kinematics.bodies`):
+one per frame by default, one per URDF link for a robot read from a URDF.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from reachwise.errors import InputError, RobotFileError, UnknownName
+from reachwise.kinematics.bodies import Body, chain_bodies
 from reachwise.kinematics.chain import Chain
 from reachwise.kinematics.design_bodies import DesignBody
 from reachwise.kinematics.fk import fk as _fk
@@ -167,10 +171,14 @@ class Robot:
     ``(n,)`` or a batch ``(m, n)`` and return poses ``(4, 4)`` / ``(m, 4, 4)`` and
     geometric Jacobians in the world frame, linear rows first.
 
-    ``geometry`` maps a link name (``link_names``) to its collision shapes, ``visual``
-    to the shapes a viewer draws (a URDF's ``<visual>`` elements); each value is a
-    tuple of :class:`~reachwise.kinematics.link_geometry.LinkGeometry` in the link
-    frame (one shape alone is accepted and stored as a one-shape tuple).
+    ``geometry`` maps a body (``body_names``; by default the frames ``link_names``) to
+    its collision shapes, ``visual`` to the shapes a viewer draws (a URDF's
+    ``<visual>`` elements); each value is a tuple of
+    :class:`~reachwise.kinematics.link_geometry.LinkGeometry` in the frame the body
+    rides on (one shape alone is accepted and stored as a one-shape tuple).
+    ``frame_names`` names the rows of ``fk_all`` (default ``link_0`` … ``tool``);
+    ``bodies`` maps each body to its :class:`~reachwise.kinematics.bodies.Body` (default:
+    one per frame, a chain).
     """
 
     name: str
@@ -182,6 +190,8 @@ class Robot:
     design: DesignSpace = field(default_factory=DesignSpace)
     source: str | None = None
     visual: Mapping[str, tuple[LinkGeometry, ...]] = field(default_factory=dict)
+    frame_names: tuple[str, ...] = ()
+    bodies: Mapping[str, Body] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not self.joints:
@@ -194,7 +204,8 @@ class Robot:
             M = M.copy()
             M.setflags(write=False)
             object.__setattr__(self, f, M)
-        names = set(self.link_names)
+        self._check_names()
+        names = set(self.body_names)
         for f in ("geometry", "visual"):
             shapes = shapes_by_link(self.source or self.name, getattr(self, f), f)
             for link in shapes:
@@ -215,6 +226,24 @@ class Robot:
                     self.source or self.name, where, "the base and tool follow no DH row"
                 )
 
+    def _check_names(self) -> None:
+        src = self.source or self.name
+        object.__setattr__(self, "frame_names", tuple(str(f) for f in self.frame_names))
+        if self.frame_names:
+            if len(self.frame_names) != len(self.joints) + 2:
+                raise RobotFileError(
+                    src, "frame_names", f"expected {len(self.joints) + 2} names (one per frame)"
+                )
+            if len(set(self.frame_names)) != len(self.frame_names) or not all(self.frame_names):
+                raise RobotFileError(src, "frame_names", "names must be unique and non-empty")
+        object.__setattr__(self, "bodies", dict(self.bodies))
+        frames = set(self.link_names)
+        for name, body in self.bodies.items():
+            if body.frame not in frames:
+                raise RobotFileError(src, f"bodies.{name}", f"no frame {body.frame!r}")
+            if body.parent and body.parent not in self.bodies:
+                raise RobotFileError(src, f"bodies.{name}", f"no body {body.parent!r}")
+
     # ---- sizes and per-joint arrays -------------------------------------------------
     @cached_property
     def n(self) -> int:
@@ -228,8 +257,36 @@ class Robot:
 
     @cached_property
     def link_names(self) -> tuple[str, ...]:
-        """``link_0`` (base), ``link_1`` … ``link_N`` and ``tool``: the rows of ``fk_all``."""
+        """The frames, the rows of ``fk_all``: ``frame_names``, or ``link_0`` (base),
+        ``link_1`` … ``link_N`` and ``tool``."""
+        if self.frame_names:
+            return self.frame_names
         return (*(f"link_{i}" for i in range(len(self.joints) + 1)), "tool")
+
+    @cached_property
+    def body_tree(self) -> Mapping[str, Body]:
+        """Every body with its frame and parent (``bodies``, or one body per frame)."""
+        return self.bodies if self.bodies else chain_bodies(self.link_names)
+
+    @cached_property
+    def body_names(self) -> tuple[str, ...]:
+        """The bodies (the names ``geometry`` and clouds use), base to tool: each
+        frame's bodies in the order given."""
+        row = {f: i for i, f in enumerate(self.link_names)}
+        return tuple(sorted(self.body_tree, key=lambda b: row[self.body_tree[b].frame]))
+
+    def frame_of(self, name: str) -> str:
+        """The frame (``link_names`` entry) that body or frame ``name`` rides on;
+        ``"tool"`` always names the tool frame."""
+        body = self.body_tree.get(name)
+        if body is not None:
+            return body.frame
+        if name in self.link_names:
+            return name
+        if name == "tool":
+            return self.link_names[-1]
+        valid = sorted({*self.link_names, *self.body_names})
+        raise UnknownName(self.source or self.name, "link", name, valid)
 
     @cached_property
     def lower(self) -> NDArray[np.float64]:
@@ -287,12 +344,10 @@ class Robot:
         return tuple(name(kind, j, p) for kind, j, p in self.design.free)
 
     def link_index(self, link: int | str) -> int:
-        """Row of ``fk_all`` for a link given by index or by name."""
+        """Row of ``fk_all`` for a link given by index or by name (a frame, or a body:
+        the frame it rides on)."""
         if isinstance(link, str):
-            try:
-                return self.link_names.index(link)
-            except ValueError:
-                raise UnknownName(self.name, "link", link, self.link_names) from None
+            return self.link_names.index(self.frame_of(link))
         k = int(link)
         if not 0 <= k < len(self.link_names):
             raise InputError(self.name, "link", f"link index {k} outside 0..{len(self.joints) + 1}")

@@ -112,11 +112,18 @@ def _quat(mujoco: Any, T: Pose) -> NDArray[np.float64]:
     return q
 
 
-def _mesh_inertia(robot: Robot, link: str, density: float, base_dir: str | Path | None) -> Any:
-    """Mass, centre and inertia (at the centre, link frame) of a mesh link's convex hull."""
+def _mesh_inertia(
+    robot: Robot, links: list[str], density: float, base_dir: str | Path | None
+) -> Any:
+    """Mass, centre and inertia (at the centre, frame coordinates) of the convex hull of
+    the shapes of ``links`` (the bodies riding on one frame)."""
+    import trimesh
+
     from reachwise.io.robot_clouds import link_mesh
 
-    hull = link_mesh(robot, link, base_dir).convex_hull
+    parts = [link_mesh(robot, link, base_dir) for link in links]
+    joined = parts[0] if len(parts) == 1 else trimesh.util.concatenate(parts)
+    hull = joined.convex_hull  # type: ignore[attr-defined]
     hull.density = density
     return float(hull.mass), np.asarray(hull.center_mass), np.asarray(hull.moment_inertia)
 
@@ -213,15 +220,22 @@ def mujoco_model(
     T_tool = np.asarray(robot.tool)
     bodies[-1].add_site(name="tool", pos=T_tool[:3, 3], quat=_quat(mujoco, T_tool))
 
-    for link, shapes in robot.geometry.items():
-        idx = robot.link_index(link)
+    on_frame: dict[str, list[str]] = {}
+    for link in robot.geometry:
+        on_frame.setdefault(robot.frame_of(link), []).append(link)
+    tool_row = len(robot.link_names) - 1
+    for frame, links in on_frame.items():
+        idx = robot.link_index(frame)
         body = bodies[min(idx, len(bodies) - 1)]
+        shapes = tuple(g for link in links for g in robot.geometry[link])
+        link = frame
         if any(g.shape == "mesh" for g in shapes):
             # a mesh among the shapes: the convex hull of all of them gives the mass
             # properties, as the body's explicit inertia
-            if link == "tool":
-                raise InputError(src, "geometry.tool", "a mesh on the tool frame is not supported")
-            mass, com, inertia = _mesh_inertia(robot, link, density, base_dir)
+            if idx == tool_row:
+                raise InputError(src, f"geometry.{links[0]}",
+                                 "a mesh on the tool frame is not supported")  # fmt: skip
+            mass, com, inertia = _mesh_inertia(robot, links, density, base_dir)
             body.explicitinertial = True
             body.mass = max(mass, min_mass)
             body.ipos = com
@@ -235,7 +249,7 @@ def mujoco_model(
             ]
             continue
         for i, g in enumerate(shapes):
-            G = (T_tool if link == "tool" else np.eye(4)) @ g.origin_matrix
+            G = (T_tool if idx == tool_row else np.eye(4)) @ g.origin_matrix
             if g.shape == "box":
                 gtype, size = mujoco.mjtGeom.mjGEOM_BOX, [s / 2 for s in (g.size or (0, 0, 0))]
             elif g.shape == "sphere":

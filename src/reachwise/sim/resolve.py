@@ -17,7 +17,8 @@ resolves (:mod:`reachwise.sim.scenarios`) is a ``sim`` module and ``io`` sits be
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import difflib
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
@@ -105,8 +106,9 @@ def resolve_scenario(scenario: Scenario | str | Path | ResolvedScenario) -> Reso
         chosen = rs.links if rs.links is not None else list(robot.geometry)
         _check_link_clouds(sc, rs, robot, chosen)
         for link in chosen:
-            if link not in robot.link_names:
-                raise InputError(sc.source, f"robots.{rs.name}.links", f"no link {link!r}")
+            if link not in robot.body_names and link not in robot.link_names:
+                where = f"robots.{rs.name}.links"
+                raise unknown(sc.source, where, f"no link {link!r}", link, robot.body_names)
             links[f"{rs.name}/{link}"] = _link_cloud(sc, rs, robot, link, f"{rs.name}/{link}")
     clouds: dict[str, PointCloud] = {}
     targets: dict[str, ScanScene] = {}
@@ -133,14 +135,20 @@ def resolve_scenario(scenario: Scenario | str | Path | ResolvedScenario) -> Reso
     )
 
 
+def unknown(source: str, field: str, what: str, name: str, valid: Sequence[str]) -> InputError:
+    """``what``, the valid names and the closest of them (an unknown link or cloud)."""
+    close = difflib.get_close_matches(name, list(valid), n=1)
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    return InputError(source, field, f"{what}; valid: {', '.join(valid)}{hint}")
+
+
 def _check_link_clouds(sc: Scenario, rs: RobotSpec, robot: Robot, links: list[str]) -> None:
     """Each ``link_clouds`` entry names a link that is given a cloud: an entry that would
     never be used (a misspelt link, one outside ``links``) is an error."""
     for link in rs.link_clouds:
         where = f"robots.{rs.name}.link_clouds.{link}"
-        if link not in robot.link_names:
-            valid = ", ".join(robot.link_names)
-            raise InputError(sc.source, where, f"no link {link!r}; valid: {valid}")
+        if link not in robot.body_names and link not in robot.link_names:
+            raise unknown(sc.source, where, f"no link {link!r}", link, robot.body_names)
         if link not in links:
             raise InputError(
                 sc.source, where,
@@ -171,7 +179,8 @@ def _link_cloud(
     if over is not None:
         mesh = _link_mesh(sc, rs, link)
         rng = np.random.default_rng([rs.seed, robot.link_index(link)])
-        cloud = sample_mesh_surface(mesh, n=over.points, seed=rng, frame=link, name=obj)
+        frame = robot.frame_of(link)
+        cloud = sample_mesh_surface(mesh, n=over.points, seed=rng, frame=frame, name=obj)
         return cloud, solid_of_mesh(mesh)
     if link not in robot.geometry:
         raise InputError(sc.source, f"robots.{rs.name}.links", f"link {link!r} has no geometry")
@@ -240,7 +249,7 @@ def _link_surfaces(sc: Scenario, robots: Mapping[str, Robot]) -> dict[str, Surfa
     out = {}
     for rs in sc.spec.robots:
         robot = robots[rs.name]
-        for link in robot.link_names:
+        for link in robot.body_names:
             if link in rs.link_clouds:
                 mesh = _link_mesh(sc, rs, link)
                 solid = solid_of_mesh(mesh)
@@ -272,9 +281,8 @@ def _self_pairs(
         clouds = {k[len(prefix) :]: c for k, (c, _) in links.items() if k.startswith(prefix)}
         for link in w.links or ():  # each a link with a cloud
             if link not in clouds:
-                raise InputError(
-                    sc.source, f"watch[{i}].links", f"robot {w.self_!r} has no cloud on {link!r}"
-                )
+                what = f"robot {w.self_!r} has no cloud on {link!r}"
+                raise unknown(sc.source, f"watch[{i}].links", what, link, list(clouds))
         listed = watched_self_pairs(w, robots[w.self_], rspec, clouds, sc, f"watch[{i}]")
         out[i] = None if listed is None else tuple((a, b) for a, b in listed)
     return out

@@ -23,7 +23,13 @@ from reachwise.kinematics.robot import Robot
 from reachwise.sim.contact import Solid
 from reachwise.sim.motion import Trajectory
 from reachwise.sim.plant import PLANT_NAMES, Plant, PlantConfig, PlantName
-from reachwise.sim.resolve import ResolvedScenario, box_solid, cloud_key, resolve_scenario
+from reachwise.sim.resolve import (
+    ResolvedScenario,
+    box_solid,
+    cloud_key,
+    resolve_scenario,
+    unknown,
+)
 from reachwise.sim.scenarios import (
     GoalSpec,
     ObjectSpec,
@@ -162,7 +168,7 @@ def _add_robots(
         for obj, (cloud, solid) in res.link_clouds.items():
             if obj.startswith(prefix):
                 link = obj[len(prefix) :]
-                scene.add_object(obj, cloud, robot=rs.name, link=link)
+                scene.add_object(obj, cloud, robot=rs.name, link=robot.frame_of(link))
                 solids[obj] = (solid, rs.name, link)
     return robots, solids
 
@@ -221,13 +227,12 @@ def _add_sensors(
     qs = {rs.name: np.asarray(rs.q0, dtype=float) for rs in spec.robots}
     sensors = []
     for i, ss in enumerate(spec.sensors):
-        if ss.link is not None and ss.link.link not in robots[ss.link.robot].link_names:
-            raise InputError(
-                sc.source,
-                f"sensors[{i}].link.link",
-                f"robot {ss.link.robot!r} has no link {ss.link.link!r}; "
-                f"links: {list(robots[ss.link.robot].link_names)}",
-            )
+        mount = robots[ss.link.robot] if ss.link is not None else None
+        if ss.link is not None and mount is not None:
+            if ss.link.link not in {*mount.body_names, *mount.link_names}:
+                what = f"robot {ss.link.robot!r} has no link {ss.link.link!r}"
+                where = f"sensors[{i}].link.link"
+                raise unknown(sc.source, where, what, ss.link.link, mount.body_names)
         sensor = DepthSensor(ss, spec.dt, robots)
         _check_outside(sc, i, sensor, sight, qs)
         sensor.start(scene, sight, qs)
@@ -284,13 +289,11 @@ def _watch_rule(
                         raise InputError(sc.source, where, f"no cloud {o!r}")
                 made.append(scene.watch(a, b, qm, kind="self"))
         else:
-            keep = set(w.links) if w.links is not None else set(scene.robots[w.self_].link_names)
-            excl = [
-                (o.name, p.name)
-                for o in scene.robot_objects(w.self_)
-                for p in scene.robot_objects(w.self_)
-                if o.source.link not in keep or p.source.link not in keep  # type: ignore[union-attr]
-            ]
+            own = scene.robot_objects(w.self_)
+            keep = {o.name for o in own}
+            if w.links is not None:
+                keep = {f"{w.self_}/{link}" for link in w.links}
+            excl = [(o.name, p.name) for o in own for p in own if not {o.name, p.name} <= keep]
             made.extend(scene.watch_self(w.self_, qm, exclude=excl))
     elif w.environment is not None and w.robot is not None:
         mine = _robot_objects(scene, w.robot, w.links, sc.source, where)
@@ -385,11 +388,12 @@ def _robot_objects(
     objs = [o for o in scene.robot_objects(robot)]
     if links is None:
         return [o.name for o in objs]
-    have = {o.source.link: o.name for o in objs}  # type: ignore[union-attr]
+    have = {o.name.removeprefix(f"{robot}/"): o.name for o in objs}  # link (body) -> object
     out = []
     for link in links:
         if link not in have:
-            raise InputError(source, f"{where}.links", f"robot {robot!r} has no cloud on {link!r}")
+            what = f"robot {robot!r} has no cloud on {link!r}"
+            raise unknown(source, f"{where}.links", what, link, list(have))
         out.append(have[link])
     return out
 

@@ -74,11 +74,15 @@ class RobotView:
         self.links: list[tuple[int, str]] = []
         self.frames: dict[str, object] = {}
         self.mesh_notes: list[str] = []
+        last = len(robot.link_names) - 1
         for k, link in enumerate(robot.link_names):
-            if link not in clouds and link not in visuals and link != "tool":
+            on = [
+                b for b in robot.body_names if robot.frame_of(b) == link
+            ]  # the bodies riding on frame k
+            if k != last and not any(b in clouds or b in visuals for b in on):
                 continue
             path = f"{self.root}/{link}"
-            is_tool = link == "tool"
+            is_tool = k == last
             frame = scene.add_frame(
                 path,
                 show_axes=is_tool,
@@ -88,22 +92,9 @@ class RobotView:
             viewer.add_node(path, frame, "frames" if is_tool else None)
             self.frames[link] = frame
             self.links.append((k, link))
-            if link in clouds:
-                rgb = WATCHED_RGB if link in watched else CLOUD_RGB
-                pts = np.asarray(clouds[link].points, dtype=np.float32)
-                viewer.add_node(
-                    f"{path}/cloud",
-                    scene.add_point_cloud(
-                        f"{path}/cloud",
-                        pts,
-                        np.array(rgb, dtype=np.uint8),
-                        point_size=0.0035 * scale,
-                        precision="float32",
-                    ),
-                    "robot clouds",
-                )
-            for i, g in enumerate(visuals.get(link, ())):
-                self._add_mesh(f"{path}/mesh_{i}", link, i, g)
+            for body in on:
+                self._add_body(path if body == link else f"{path}/{body}", body, clouds,
+                               visuals, body in watched, scale)  # fmt: skip
         self.skeleton = viewer.add_node(
             f"{self.root}/skeleton",
             scene.add_line_segments(
@@ -117,6 +108,33 @@ class RobotView:
         )
         self.q = q0.copy()
         self.set_q(q0)
+
+    def _add_body(
+        self,
+        path: str,
+        body: str,
+        clouds: dict[str, Any],
+        visuals: dict[str, Any],
+        watched: bool,
+        scale: float,
+    ) -> None:
+        """One body's cloud and visual meshes under ``path`` (in its frame)."""
+        if body in clouds:
+            rgb = WATCHED_RGB if watched else CLOUD_RGB
+            pts = np.asarray(clouds[body].points, dtype=np.float32)
+            self.viewer.add_node(
+                f"{path}/cloud",
+                self.viewer.server.scene.add_point_cloud(
+                    f"{path}/cloud",
+                    pts,
+                    np.array(rgb, dtype=np.uint8),
+                    point_size=0.0035 * scale,
+                    precision="float32",
+                ),
+                "robot clouds",
+            )
+        for i, g in enumerate(visuals.get(body, ())):
+            self._add_mesh(f"{path}/mesh_{i}", body, i, g)
 
     def _add_mesh(self, name: str, link: str, i: int, g: object) -> None:
         """One visual shape as a mesh under its link frame; a shape that cannot be read

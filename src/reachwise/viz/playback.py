@@ -127,8 +127,8 @@ class SimScene:
         for p in scene.pairs:
             for o in (p.a, p.b):
                 src = objs[o].source
-                if isinstance(src, OnLink):
-                    watched[src.robot].add(src.link)
+                if isinstance(src, OnLink):  # the link (body) is the name after "robot/"
+                    watched[src.robot].add(o.removeprefix(f"{src.robot}/"))
         self.env = [o for o in objs.values() if not isinstance(o.source, OnLink)]
         self.dynamic = {o.name for o in self.env if isinstance(o.source, Runtime)}
         world_env = {o.name: _place(o.cloud.points, poses[o.name]) for o in self.env}
@@ -144,7 +144,9 @@ class SimScene:
             for part in scene.robot_objects(name):
                 on = part.source
                 if isinstance(on, OnLink):
-                    clouds[on.link] = _place(part.cloud.points, on.offset)
+                    clouds[part.name.removeprefix(f"{name}/")] = _place(
+                        part.cloud.points, on.offset
+                    )
             for link in robot.geometry:
                 if link not in clouds:
                     try:
