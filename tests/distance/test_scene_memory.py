@@ -61,7 +61,7 @@ def reference_update(mem: SceneMemory, depth, body, K, T, t) -> None:
     pc = centres @ cw[:3, :3].T + cw[:3, 3]
     z = pc[:, 2]
     h, w = depth.shape
-    reach = np.nanmax(np.where(body, np.nan, depth)) + cfg.shadow_depth
+    reach = np.nanmax(depth) + cfg.shadow_depth
     with np.errstate(divide="ignore", invalid="ignore"):
         u = np.floor(K.fx * pc[:, 0] / z + K.cx + 0.5)
         v = np.floor(K.fy * pc[:, 1] / z + K.cy + 0.5)
@@ -71,11 +71,16 @@ def reference_update(mem: SceneMemory, depth, body, K, T, t) -> None:
     for n in np.flatnonzero(ok):
         r, c = int(v[n]), int(u[n])
         d = depth[r, c]
-        if body[r, c] or not np.isfinite(d):
+        if not np.isfinite(d):
             continue
         if z[n] < d - cfg.surface_band:
             state[n], freed[n] = FREE, t
-        elif z[n] <= d + cfg.shadow_depth and state[n] != OCC and t - freed[n] > cfg.free_hold_s:
+        elif (
+            z[n] <= d + cfg.shadow_depth
+            and not body[r, c]
+            and state[n] != OCC
+            and t - freed[n] > cfg.free_hold_s
+        ):
             state[n] = SHADOW
     for r, c in zip(*np.nonzero(np.isfinite(depth) & ~body), strict=True):
         p = T[:3, :3] @ (np.array([(c - K.cx) / K.fx, (r - K.cy) / K.fy, 1.0]) * depth[r, c])
@@ -171,11 +176,16 @@ def test_occupied_fades_to_shadow_never_to_free_and_a_person_who_leaves_is_forgo
     mem.integrate(np.full((60, 80), np.nan), T, K, t=2.0)
     mem.obstacles()
     assert mem.state[front] == SHADOW and mem.state[behind] == SHADOW
-    # the robot hides the person from the camera: its pixels change nothing
+    # the robot (1 m from the camera) hides the person: its pixels free only the space
+    # in front of it and never enter the map
     body = np.zeros((60, 80), dtype=bool)
     body[15:45, 25:55] = True
-    mem.integrate(wall, T, K, t=2.1, body=body)
+    hidden = wall.copy()
+    hidden[body] = 1.0
+    mem.integrate(hidden, T, K, t=2.1, body=body)
     assert mem.state[front] == SHADOW and mem.state[behind] == SHADOW
+    assert mem.state[mem.voxel_of([0.0, 0.0, 0.7])] == FREE
+    assert mem.state[mem.voxel_of([0.0, 0.0, 1.0])] != OCC
     # the person is seen gone: one frame forgets them
     mem.integrate(wall, T, K, t=2.2)
     assert mem.state[front] == FREE and mem.state[behind] == FREE

@@ -7,8 +7,9 @@ Two passes per depth frame and one per hand-over, each over flat arrays:
   through its centre; against the depth ``d`` measured at that pixel, a centre at depth
   ``z`` (along the optical axis) is *free* when ``z < d − band`` and *at or behind the
   surface* when ``d − band ≤ z ≤ d + shadow`` (occupied shadow, unless another frame saw
-  it free within ``hold`` s); pixels without a return or that see the robot (``body``)
-  change nothing.
+  it free within ``hold`` s); pixels without a return change nothing, and a pixel that
+  sees the robot (``body``, its depth the robot's) only frees what lies in front of the
+  robot: the robot's own shadow keeps what was seen there before.
 - :func:`mark_points` — every returned pixel back-projected to its point, whose voxel
   is marked occupied at time ``t``: a voxel that holds an observed point is occupied,
   whatever its centre's pixel saw (depth edges).
@@ -72,14 +73,14 @@ def project_frame(state, freed_at, depth, body, camera, pose_cw, grid, rules):  
             d = depth[r, c]
             ty = r // TILE
             tx = c // TILE
-            if d == d and not body[r, c]:
+            if d == d:
                 if d > dmax:
                     dmax = d
                 if d < tmin[ty, tx]:
                     tmin[ty, tx] = d
                 if d > tmax[ty, tx]:
                     tmax[ty, tx] = d
-            else:
+            if d != d or body[r, c]:
                 tbad[ty, tx] = True
     if dmax <= 0.0:
         return 0
@@ -194,14 +195,14 @@ def project_frame(state, freed_at, depth, body, camera, pose_cw, grid, rules):  
                                 inv = 1.0 / pz
                                 u = math.floor(fx * px * inv + cx + 0.5)
                                 v = math.floor(fy * py * inv + cy + 0.5)
-                                if 0 <= u < W and 0 <= v < H and not body[v, u]:
+                                if 0 <= u < W and 0 <= v < H:
                                     d = depth[v, u]
                                     if d == d:
                                         seen += 1
                                         if pz < d - band:
                                             state[i, j, k] = FREE
                                             freed_at[i, j, k] = t
-                                        elif pz <= d + shadow:
+                                        elif pz <= d + shadow and not body[v, u]:
                                             s = state[i, j, k]
                                             if s != OCCUPIED and t - freed_at[i, j, k] > hold:
                                                 state[i, j, k] = SHADOW

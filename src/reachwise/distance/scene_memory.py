@@ -16,9 +16,10 @@ occlusion gap, live). The memory keeps four states per voxel of a box-shaped gri
   monitoring practice treat the volume behind a depth pixel as possibly occupied).
   Occupied voxels not re-observed for ``memory_s`` fade to shadow, never to free.
 
-Pixels that see the robot (a camera's self-filter) and pixels without a return change
-nothing: the space the robot hides from a camera keeps what that camera saw there
-before, and the robot never enters its own map.
+Pixels without a return change nothing. Pixels that see the robot (a camera's
+self-filter) only free the space in front of the robot, when their depth is given: the
+space the robot hides from a camera keeps what that camera saw there before, and the
+robot never enters its own map.
 
 **The distance answer.** The occupied and shadow voxels enter the distance scene as
 their centres; every observed point lies in an occupied voxel, within ``inflation`` =
@@ -191,7 +192,9 @@ class SceneMemory:
         """Fuse one ``depth`` image (``(height, width)``, m along the optical axis, NaN or
         0 where there is no return) taken at time ``t`` (s) by a camera at ``pose``
         (4 × 4, optical frame → world) with ``intrinsics``; ``body`` marks the pixels
-        that saw the robot (filtered: they change nothing)."""
+        that saw the robot: their depth, when given, is the robot's, and frees only the
+        space in front of it; they never mark anything occupied or shadow (the robot
+        never enters its own map, and what it hides keeps what was seen before)."""
         z = np.array(depth, dtype=np.float64)
         if z.ndim != 2 or z.size == 0:
             raise InputError(_SRC, "depth", f"expected a (height, width) image, got {z.shape}")

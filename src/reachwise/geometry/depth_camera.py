@@ -109,12 +109,15 @@ class DepthFrame:
     axis, NaN where no return), the returned ``points`` in world (``(k, 3)``, row-major
     pixel order), the camera ``pose`` (4 × 4, camera → world) it was taken from and
     ``body``, the pixels that saw a ``body`` mesh first and were filtered out
-    (``(height, width)`` bool)."""
+    (``(height, width)`` bool), and ``body_depth``, those pixels' depth of the body
+    (m, NaN elsewhere and outside ``[near, far]``; without noise or dropout): a
+    self-filter knows how far the robot is, which frees the space in front of it."""
 
     depth: NDArray[np.float64]
     points: NDArray[np.float64]
     pose: NDArray[np.float64]
     body: NDArray[np.bool_] | None = None
+    body_depth: NDArray[np.float64] | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -172,7 +175,7 @@ class DepthCamera:
         ``meshes`` seen from the camera at ``pose`` (4 × 4, camera → world); pixels that
         see a ``body`` mesh first return nothing (the robot-body filter). Noise and
         dropout need ``rng`` when they are on."""
-        z, _ = self._render(meshes, body, _pose(pose), engine)
+        z, _, _ = self._render(meshes, body, _pose(pose), engine)
         return self.measure(z, rng)
 
     def _render(
@@ -181,9 +184,9 @@ class DepthCamera:
         body: Sequence[MeshLike],
         T: NDArray[np.float64],
         engine: Engine,
-    ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-        """The true depth image (NaN: no surface, or a ``body`` pixel) and the mask of
-        the pixels that saw a ``body`` mesh first."""
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64]]:
+        """The true depth image (NaN: no surface, or a ``body`` pixel), the mask of
+        the pixels that saw a ``body`` mesh first and their depth (NaN elsewhere)."""
         rays, norm = self._rays
         directions = rays @ T[:3, :3].T
         origins = np.broadcast_to(T[:3, 3], directions.shape)
@@ -193,7 +196,11 @@ class DepthCamera:
         seen = hit & ~on_body
         z = np.full(hit.shape, np.nan)
         z[seen] = t[seen] / norm[seen]
-        return z.reshape(self.shape), on_body.reshape(self.shape)
+        zb = np.full(hit.shape, np.nan)
+        zb[on_body] = t[on_body] / norm[on_body]
+        with np.errstate(invalid="ignore"):
+            zb[~((zb >= self.near) & (zb <= self.far))] = np.nan
+        return z.reshape(self.shape), on_body.reshape(self.shape), zb.reshape(self.shape)
 
     def measure(
         self, depth: ArrayLike, rng: np.random.Generator | None = None
@@ -240,12 +247,12 @@ class DepthCamera:
         """One frame of the world ``meshes`` from ``pose``: depth image and world points,
         with the pixels that saw a ``body`` mesh filtered out (see :meth:`depth`)."""
         T = _pose(pose)
-        true, on_body = self._render(meshes, body, T, engine)
+        true, on_body, body_z = self._render(meshes, body, T, engine)
         z = self.measure(true, rng)
         pts = self.points(z, T)
-        for a in (z, pts, T, on_body):
+        for a in (z, pts, T, on_body, body_z):
             a.setflags(write=False)
-        return DepthFrame(z, pts, T, on_body)
+        return DepthFrame(z, pts, T, on_body, body_z)
 
     def pixel_spacing(self, depth: float) -> float:
         """The diagonal distance (m) between the points of two diagonally neighbouring

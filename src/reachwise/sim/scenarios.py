@@ -107,11 +107,13 @@ from reachwise.sim.motion import ConstantVelocity, Trajectory, WaypointTrajector
 from reachwise.sim.plant import PlantKind
 
 __all__ = [
+    "BoxSpec",
     "CloudAtSpec",
     "ControllerSpec",
     "EscapeSpec",
     "GoalSpec",
     "JobsSpec",
+    "MemorySpec",
     "MotionSpec",
     "MountSpec",
     "ObjectSpec",
@@ -620,6 +622,39 @@ class SensorSpec(StrictModel):
         return T
 
 
+class BoxSpec(StrictModel):
+    """An axis-aligned box, ``lower`` … ``upper`` corners (m, world)."""
+
+    model_config = _STRICT
+    lower: V3
+    upper: V3
+
+    @model_validator(mode="after")
+    def _check(self) -> BoxSpec:
+        if not all(h > lo for lo, h in zip(self.lower, self.upper, strict=True)):
+            raise ValueError(f"upper {list(self.upper)} must exceed lower {list(self.lower)}")
+        return self
+
+
+class MemorySpec(StrictModel):
+    """A scene memory (:mod:`reachwise.sim.memory_feed`): the depth cameras named in
+    ``sensors`` fuse their frames into one voxel map of ``box`` (``voxel`` edge, m)
+    instead of each replacing a cloud; its occupied and shadow voxels are the scene
+    object ``name``, watched like any object. ``shadow_depth`` (m) behind every observed
+    surface counts as occupied until a camera sees it free; occupied voxels not seen
+    again for ``memory_s`` (s) fade to shadow, never to free; a voxel seen free is not
+    shadowed again for ``free_hold_s`` (s)."""
+
+    model_config = _STRICT
+    name: str = Field(min_length=1)
+    box: BoxSpec
+    sensors: list[str] = Field(min_length=1)
+    voxel: float = Field(default=0.03, gt=0.0)
+    shadow_depth: float = Field(default=0.5, ge=0.0)
+    memory_s: float = Field(default=3.0, ge=0.0)
+    free_hold_s: float = Field(default=0.1, ge=0.0)
+
+
 class JobsSpec(StrictModel):
     model_config = _STRICT
     robots: list[str] = Field(min_length=1)
@@ -642,6 +677,7 @@ class ScenarioSpec(StrictModel):
     escape: EscapeSpec | None = None
     requires: dict[str, str] = {}
     sensors: list[SensorSpec] = []
+    memory: list[MemorySpec] = []
 
     @field_validator("escape", mode="before")
     @classmethod
@@ -657,8 +693,13 @@ class ScenarioSpec(StrictModel):
         if len(set(objects)) != len(objects):
             raise ValueError(f"object names must be unique, got {objects}")
         sensors = self._sensor_names(robots, objects)
+        fed = self._memory_names(sensors, objects)
         hidden = {o.name for o in self.objects if not o.scene}
-        clouds = [o for o in objects if o not in hidden] + sensors
+        clouds = (
+            [o for o in objects if o not in hidden]
+            + [s for s in sensors if s not in fed]
+            + [m.name for m in self.memory]
+        )
         for w in self.watch:
             for r in (w.self_, w.robot, *(w.robots or ())):
                 if r is not None and r not in robots:
@@ -669,15 +710,39 @@ class ScenarioSpec(StrictModel):
                         f"watch names {o!r}, which is not in the scene (scene: false); "
                         "watch the sensor that sees it"
                     )
+                if o in fed:
+                    raise ValueError(
+                        f"watch names sensor {o!r}, which feeds memory {fed[o]!r}: watch the memory"
+                    )
                 if o not in clouds:
                     raise ValueError(
-                        f"watch names unknown object {o!r}; objects and sensors: {clouds}"
+                        f"watch names unknown object {o!r}; objects, sensors and memories: {clouds}"
                     )
         if self.jobs is not None:
             for r in self.jobs.robots:
                 if r not in robots:
                     raise ValueError(f"jobs name unknown robot {r!r}; robots: {robots}")
         return self
+
+    def _memory_names(self, sensors: list[str], objects: list[str]) -> dict[str, str]:
+        """The memories checked (unique names, none an object's or a sensor's, each
+        sensor known and feeding one memory); returns ``{sensor: memory}``."""
+        fed: dict[str, str] = {}
+        names = [m.name for m in self.memory]
+        if len(set(names)) != len(names):
+            raise ValueError(f"memory names must be unique, got {names}")
+        for m in self.memory:
+            if m.name in objects or m.name in sensors:
+                raise ValueError(f"memory {m.name!r} has the name of an object or a sensor")
+            for s in m.sensors:
+                if s not in sensors:
+                    raise ValueError(
+                        f"memory {m.name!r} names unknown sensor {s!r}; sensors: {sensors}"
+                    )
+                if s in fed:
+                    raise ValueError(f"sensor {s!r} feeds two memories: {fed[s]!r}, {m.name!r}")
+                fed[s] = m.name
+        return fed
 
     def _sensor_names(self, robots: list[str], objects: list[str]) -> list[str]:
         """The sensors' names (the scene objects they feed), checked: unique, no

@@ -52,6 +52,7 @@ if TYPE_CHECKING:
     from reachwise.distance.scene import SceneLike
     from reachwise.kinematics.robot import Robot
     from reachwise.sim.contact import Solid
+    from reachwise.sim.memory_feed import MemoryFeed
     from reachwise.sim.motion import Trajectory
     from reachwise.sim.scenarios import SensorSpec
 
@@ -142,7 +143,9 @@ class DepthSensor:
             robot = robots[spec.link.robot]
             self.mount = (spec.link.robot, robot.link_index(spec.link.link))
         self.offset = spec.matrix()  # world pose, or the pose in the mount's link frame
-        self._pending: deque[tuple[int, int, float, PointCloud]] = deque()
+        #: The scene memory this camera feeds (None: its own object in the scene).
+        self.feed: MemoryFeed | None = None
+        self._pending: deque[tuple[int, int, float, DepthFrame]] = deque()
         self._next = 1  # the next frame to capture (frame 0 starts the run)
         self.in_use = 0  # the frame in the scene now
 
@@ -206,10 +209,20 @@ class DepthSensor:
 
     def start(self, scene: SceneLike, sight: Sight, qs: dict[str, F64]) -> None:
         """Add the sensor's object to ``scene`` with frame 0 (the robots at ``qs``),
-        stamped t = 0."""
-        cloud = self.cloud(self.render(0, sight, qs))
+        stamped t = 0; a camera that feeds a memory fuses frame 0 into it instead."""
+        frame = self.render(0, sight, qs)
+        if self.feed is not None:
+            self.feed.fuse(self.camera, frame, 0.0)
+            return
+        cloud = self.cloud(frame)
         scene.add_object(self.name, cloud)
         scene.replace_cloud(self.name, cloud, block=True, stamp=0.0)
+
+    def _deliver(self, scene: SceneLike, frame: DepthFrame, stamp: float) -> None:
+        if self.feed is not None:
+            self.feed.fuse(self.camera, frame, stamp)
+        else:
+            scene.replace_cloud(self.name, self.cloud(frame), block=True, stamp=stamp)
 
     def step(self, scene: SceneLike, tick: int, sight: Sight, qs: dict[str, F64]) -> None:
         """Per tick, before the distance query: capture the frame due at ``tick`` (the
@@ -217,11 +230,11 @@ class DepthSensor:
         while self.capture_tick(self._next) <= tick:
             k = self._next
             self._next += 1
-            cloud = self.cloud(self.render(k, sight, qs))
-            self._pending.append((self.delivery_tick(k), k, self.capture_tick(k) * self.dt, cloud))
+            frame = self.render(k, sight, qs)
+            self._pending.append((self.delivery_tick(k), k, self.capture_tick(k) * self.dt, frame))
         while self._pending and self._pending[0][0] <= tick:
-            _, k, stamp, cloud = self._pending.popleft()
-            scene.replace_cloud(self.name, cloud, block=True, stamp=stamp)
+            _, k, stamp, frame = self._pending.popleft()
+            self._deliver(scene, frame, stamp)
             self.in_use = k
 
     def frame_in_use(self, tick: int) -> int:

@@ -340,6 +340,8 @@ def _sense(world: World, seen: SceneLike, t: float) -> tuple[SceneResult, SceneR
         qs = {a.name: a.plant.q for a in world.agents}
         for sensor in world.sensors:
             sensor.step(scene, tick, world.sight, qs)
+        for feed in world.memories:
+            feed.flush(scene)
     res = scene.query_all()
     if seen is scene:
         return res, res, twists

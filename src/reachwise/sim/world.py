@@ -21,6 +21,7 @@ from reachwise.errors import InputError, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.kinematics.robot import Robot
 from reachwise.sim.contact import Solid
+from reachwise.sim.memory_feed import MemoryFeed
 from reachwise.sim.motion import Trajectory
 from reachwise.sim.plant import PLANT_NAMES, Plant, PlantConfig, PlantName
 from reachwise.sim.resolve import (
@@ -91,6 +92,7 @@ class World:
     jobs: list[tuple[Goal, GoalSpec]]
     movers: list[_Mover] = field(default_factory=list)
     sensors: list[DepthSensor] = field(default_factory=list)
+    memories: list[MemoryFeed] = field(default_factory=list)  # fed by the sensors
     sight: Sight | None = None  # what the sensors see (None: no sensors, no hidden objects)
     truth: tuple[tuple[str, str], ...] = ()  # (robot link, object outside the scene) pairs
     resolved: ResolvedScenario | None = None  # what the world was built from
@@ -136,8 +138,9 @@ def _assemble(scene: SceneLike, res: ResolvedScenario, avoidance: bool, plant: P
     sc = res.scenario
     robots, solids = _add_robots(scene, res)
     movers = _add_objects(scene, res, solids)
-    sight, sensors = _add_sensors(scene, res, movers)
-    control = _watch_pairs(scene, res)
+    sight, sensors, memories = _add_sensors(scene, res, movers)
+    inflation = {m.name: m.inflation for m in memories}
+    control = _watch_pairs(scene, res, inflation)
     job_robots = set(sc.spec.jobs.robots) if sc.spec.jobs is not None else set()
     agents = [
         _make_agent(scene, sc, rs, robots[rs.name], control, avoidance, plant, job_robots)
@@ -149,8 +152,8 @@ def _assemble(scene: SceneLike, res: ResolvedScenario, avoidance: bool, plant: P
     hidden = [o.name for o in sc.spec.objects if not o.scene]
     truth = tuple((b, o) for b in (sight.bodies if sight else {}) for o in hidden)
     return World(
-        sc, scene, robots, agents, pairs, margins, solids, jobs, movers, sensors, sight, truth,
-        res, avoidance, plant,
+        sc, scene, robots, agents, pairs, margins, solids, jobs, movers, sensors, memories,
+        sight, truth, res, avoidance, plant,
     )  # fmt: skip
 
 
@@ -198,7 +201,7 @@ def _add_objects(
 
 def _add_sensors(
     scene: SceneLike, res: ResolvedScenario, movers: list[_Mover]
-) -> tuple[Sight | None, list[DepthSensor]]:
+) -> tuple[Sight | None, list[DepthSensor], list[MemoryFeed]]:
     """What the sensors see (:class:`~reachwise.sim.sensors.Sight`: the surfaces of the
     objects and of the robots' links), and the sensors, each with its object in the
     scene holding frame 0. Nothing when the scenario has no sensors and no object
@@ -206,7 +209,7 @@ def _add_sensors(
     sc = res.scenario
     spec = sc.spec
     if not spec.sensors and all(o.scene for o in spec.objects):
-        return None, []
+        return None, [], []
     robots = dict(res.robots)
     trajectories = {m.spec.name: m.trajectory for m in movers}
     objects = {}
@@ -225,6 +228,8 @@ def _add_sensors(
         bodies[name] = BodySurface(name, rname, link, index, mesh, solid)
     sight = Sight(robots, objects, bodies)
     qs = {rs.name: np.asarray(rs.q0, dtype=float) for rs in spec.robots}
+    feeds = {m.name: MemoryFeed(m) for m in spec.memory}
+    feed_of = {s: feeds[m.name] for m in spec.memory for s in m.sensors}
     sensors = []
     for i, ss in enumerate(spec.sensors):
         mount = robots[ss.link.robot] if ss.link is not None else None
@@ -234,10 +239,13 @@ def _add_sensors(
                 where = f"sensors[{i}].link.link"
                 raise unknown(sc.source, where, what, ss.link.link, mount.body_names)
         sensor = DepthSensor(ss, spec.dt, robots)
+        sensor.feed = feed_of.get(ss.name)
         _check_outside(sc, i, sensor, sight, qs)
         sensor.start(scene, sight, qs)
         sensors.append(sensor)
-    return sight, sensors
+    for feed in feeds.values():
+        feed.flush(scene)
+    return sight, sensors, list(feeds.values())
 
 
 def _check_outside(
@@ -255,16 +263,22 @@ def _check_outside(
             )
 
 
-def _watch_pairs(scene: SceneLike, res: ResolvedScenario) -> dict[tuple[str, str], float]:
+def _watch_pairs(
+    scene: SceneLike, res: ResolvedScenario, inflation: dict[str, float]
+) -> dict[tuple[str, str], float]:
     """Watch the scenario's pairs: the scene's margin is rho_O + the monitor range (the
-    log sees the pairs approach); returns each pair's rho_O, the controller's margin."""
+    log sees the pairs approach); returns each pair's rho_O, the controller's margin. A
+    pair against a scene memory adds the memory's ``inflation`` to both."""
     spec = res.scenario.spec
     control: dict[tuple[str, str], float] = {}
     for i, w in enumerate(spec.watch):
         listed = res.self_pairs.get(i)
         made = _watch_rule(scene, res.scenario, listed, w, w.margin + spec.monitor, f"watch[{i}]")
         for pair in made:
-            control[(pair.a, pair.b)] = w.margin
+            extra = inflation.get(pair.b, 0.0) + inflation.get(pair.a, 0.0)
+            if extra > 0.0:
+                scene.watch(pair.a, pair.b, w.margin + spec.monitor + extra, kind=pair.kind)
+            control[(pair.a, pair.b)] = w.margin + extra
     return control
 
 

@@ -1,0 +1,98 @@
+"""Scene memories in scenarios: the schema's rules, and a camera's frames fused into the
+memory object of the scene (against the memory fed directly)."""
+
+from __future__ import annotations
+
+import copy
+from importlib.resources import files
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+import yaml
+
+from reachwise.distance.scene import Scene
+from reachwise.distance.scene_memory import ViewIntrinsics
+from reachwise.errors import InputError
+from reachwise.geometry.depth_camera import DepthCamera, Intrinsics
+from reachwise.sim.memory_feed import MemoryFeed
+from reachwise.sim.scenarios import MemorySpec, scenario_from_dict
+
+FIXTURE = Path(__file__).parent / "data" / "panda-memory-far-side.yaml"
+
+
+FOLDER = Path(str(files("reachwise.data") / "scenarios"))  # the fixture's meshes
+
+
+def spec_dict() -> dict:
+    return yaml.safe_load(FIXTURE.read_text(encoding="utf-8"))
+
+
+def test_the_memory_scenario_watches_the_memory_not_its_camera() -> None:
+    sc = scenario_from_dict(spec_dict(), source=FIXTURE.name, folder=FOLDER)
+    assert [m.name for m in sc.spec.memory] == ["cell"]
+    assert sc.spec.memory[0].sensors == ["camera"]
+    assert all(w.environment == ["cell"] for w in sc.spec.watch)
+
+
+@pytest.mark.parametrize(
+    ("edit", "reason"),
+    [
+        (lambda d: d["memory"][0].update(sensors=["nope"]), "unknown sensor 'nope'"),
+        (lambda d: d["memory"].append({**d["memory"][0], "name": "second"}), "feeds two"),
+        (lambda d: d["memory"][0].update(name="camera"), "name of an object or a sensor"),
+        (lambda d: d["watch"][0].update(environment=["camera"]), "watch the memory"),
+        (lambda d: d["memory"][0]["box"].update(upper=[1.0, 1.0, 0.0]), "must exceed"),
+        (lambda d: d["memory"][0].update(voxel=0.0), "voxel"),
+        (lambda d: d["memory"][0].update(shadow=0.3), "shadow"),
+    ],
+)
+def test_a_wrong_memory_entry_is_an_input_error(edit, reason: str) -> None:
+    data = copy.deepcopy(spec_dict())
+    edit(data)
+    with pytest.raises(InputError, match=reason):
+        scenario_from_dict(data, source="cell.yaml", folder=FOLDER)
+
+
+def test_frames_reach_the_scene_as_the_memorys_obstacles() -> None:
+    cam = DepthCamera(Intrinsics.from_fov(64, 48, 1.0), near=0.2, far=6.0)
+    T = np.eye(4)  # looking along world +z
+    wall = trimesh.creation.box(
+        [4.0, 4.0, 0.02], trimesh.transformations.translation_matrix([0, 0, 3])
+    )
+    person = trimesh.creation.box(
+        [0.4, 0.4, 0.3], trimesh.transformations.translation_matrix([0, 0, 1.5])
+    )
+    robot = trimesh.creation.box(
+        [0.3, 0.3, 0.1], trimesh.transformations.translation_matrix([0.5, 0, 1.0])
+    )
+    spec = MemorySpec(
+        name="cell", box={"lower": [-1.5, -1.5, 0.5], "upper": [1.5, 1.5, 3.5]}, sensors=["cam"],
+        voxel=0.05,
+    )  # fmt: skip
+    feed, direct = MemoryFeed(spec), MemoryFeed(spec)
+    scene = Scene()
+    feed.flush(scene)  # nothing seen yet: one point far above the box
+    scene.query_all()
+    assert scene.objects["cell"].cloud.points[:, 2].min() > 100.0
+    frame = cam.frame([wall, person], T, body=[robot])
+    assert frame.body is not None and frame.body.any()
+    # the self-filter's depth: the robot's box, 0.95 to 1.05 m from the camera
+    zb = frame.body_depth[frame.body]
+    assert np.all((zb >= 0.95 - 1e-9) & (zb <= 1.05 + 1e-9)) and np.isclose(np.median(zb), 0.95)
+    assert np.isnan(frame.body_depth[~frame.body]).all()
+    feed.fuse(cam, frame, 0.5)
+    feed.flush(scene)
+    scene.query_all()
+    got = scene.objects["cell"].cloud.points
+    depth = np.where(frame.body, frame.body_depth, frame.depth)
+    i = cam.intrinsics
+    direct.memory.integrate(
+        depth, T, ViewIntrinsics(i.fx, i.fy, i.cx, i.cy, 0.2, 6.0), 0.5, frame.body
+    )
+    assert np.array_equal(np.sort(got, axis=0), np.sort(direct.memory.obstacles(), axis=0))
+    # the person's front face is occupied, the robot is not in the map
+    centre = frame.points[np.argmin(np.linalg.norm(frame.points[:, :2], axis=1))]
+    assert direct.memory.state[direct.memory.voxel_of(centre)] == 2
+    assert all(np.linalg.norm(got - [0.5, 0.0, 1.0], axis=1) > 0.1)
