@@ -150,6 +150,9 @@ def pairs(
         None, "--points", min=1, help="Points per link cloud (default: the link's, 1000)."
     ),
     seed: int = typer.Option(0, "--seed", help="Seed of the random configurations."),
+    srdf: Path | None = typer.Option(
+        None, "--srdf", help="Also write the excluded pairs as MoveIt SRDF disable_collisions."
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print JSON."),
     tip: str | None = TIP,
     package_dir: list[Path] = PACKAGE_DIRS,
@@ -176,6 +179,10 @@ def pairs(
     found = self_collision_pairs(r, clouds, margin, samples=samples, seed=seed)
     took = time.perf_counter() - t0
     save_pairs(found, out, source=r.source or robot)
+    if srdf is not None:
+        from reachwise.io.srdf import write_srdf
+
+        write_srdf(found, srdf)
     rules: dict[str, int] = {}
     for p in found.excluded:
         rules[p.rule] = rules.get(p.rule, 0) + 1
@@ -189,6 +196,7 @@ def pairs(
         "review": [[p.a, p.b, p.home_distance] for p in found.review],
         "samples": found.samples,
         "seconds": round(took, 3),
+        "srdf": None if srdf is None else str(srdf),
     }
     if json_out:
         typer.echo(json.dumps(data, indent=2))
