@@ -56,6 +56,7 @@ nitpick_ignore_regex = [
     ("py:.*", r"(NDArray|ArrayLike|DTypeLike|Array|FloatArray|IntArray|BoolArray)"),
     ("py:.*", r"(pathlib\.)?Path|os\.PathLike|collections\.abc\..*|typing\..*|concurrent\..*"),
     ("py:.*", r"threading\..*|sqlite3\..*|logging\..*|types\..*|enum\..*|io\..*|datetime\..*"),
+    ("py:.*", r"difflib\..*"),
     ("py:class", r"(float|int|str|bool|bytes|object|dict|list|tuple|set|frozenset|None)"),
     ("py:class", r"(Callable|Iterable|Iterator|Sequence|Mapping|Any|Literal|Self|TypeVar)"),
 ]

@@ -177,7 +177,7 @@ class Robot:
     :class:`~reachwise.kinematics.link_geometry.LinkGeometry` in the frame the body
     rides on (one shape alone is accepted and stored as a one-shape tuple).
     ``frame_names`` names the rows of ``fk_all`` (default ``link_0`` … ``tool``);
-    ``bodies`` maps each body to its :class:`~reachwise.kinematics.bodies.Body` (default:
+    ``bodies`` maps each body to its ``reachwise.kinematics.bodies.Body`` (default:
     one per frame, a chain).
     """
 
