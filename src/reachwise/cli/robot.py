@@ -149,6 +149,12 @@ def pairs(
     points: int | None = typer.Option(
         None, "--points", min=1, help="Points per link cloud (default: the link's, 1000)."
     ),
+    resolution: float | None = typer.Option(
+        None,
+        "--resolution",
+        min=0.0,
+        help="m: link clouds that cover their shapes within this (instead of --points).",
+    ),
     seed: int = typer.Option(0, "--seed", help="Seed of the random configurations."),
     srdf: Path | None = typer.Option(
         None, "--srdf", help="Also write the excluded pairs as MoveIt SRDF disable_collisions."
@@ -172,7 +178,9 @@ def pairs(
     from reachwise.io.robot_clouds import link_clouds
 
     r = load_with_options(robot, tip, package_dir, lenient)
-    clouds = link_clouds(r, points)
+    if points is not None and resolution is not None:
+        raise typer.BadParameter("give --points or --resolution, not both")
+    clouds = link_clouds(r, points, resolution=resolution)
     if len(clouds) < 2:
         raise typer.BadParameter(f"{robot} has {len(clouds)} link(s) with shapes; pairs need two")
     t0 = time.perf_counter()

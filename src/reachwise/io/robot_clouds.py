@@ -45,6 +45,7 @@ if TYPE_CHECKING:
     from reachwise.kinematics.robot import LinkGeometry, Robot
 
 __all__ = [
+    "covering_points",
     "geometry_folder",
     "link_cloud",
     "link_clouds",
@@ -151,16 +152,23 @@ def link_cloud(
     base_dir: str | Path | None = None,
     *,
     density: float | None = None,
+    resolution: float | None = None,
 ) -> PointCloud:
     """Surface samples of all of ``link``'s collision shapes, by area, in the link
     frame, named ``"<robot>/<link>"``: ``points`` of them, or ``density`` per m² of
     surface, or the link's own count (the largest ``points`` of its shapes, 1000 by
-    default)."""
+    default). With ``resolution`` (m) the cloud covers the surface instead: every point
+    of the shapes' surface meshes lies within ``resolution`` of a cloud point
+    (:func:`covering_points`)."""
     shapes = _shapes(robot, link)
     where = f"geometry.{link}"
-    if points is not None and density is not None:
-        raise InputError(robot.name, where, "give points or density, not both")
+    given = [x for x in (points, density, resolution) if x is not None]
+    if len(given) > 1:
+        raise InputError(robot.name, where, "give one of points, density and resolution")
     mesh = link_mesh(robot, link, base_dir)
+    if resolution is not None:
+        pts = covering_points(mesh, resolution, source=robot.source or robot.name, field=where)
+        return PointCloud(pts, frame=robot.frame_of(link), name=f"{robot.name}/{link}")
     if density is not None:
         if isinstance(density, bool) or not math.isfinite(density) or not density > 0:
             raise InputError(robot.name, "density", f"must be finite and > 0, got {density!r}")
@@ -175,6 +183,36 @@ def link_cloud(
     return sample_mesh_surface(mesh, n=n, seed=rng, frame=frame, name=f"{robot.name}/{link}")
 
 
+def covering_points(
+    mesh: trimesh.Trimesh, resolution: float, *, source: str = "mesh", field: str = ""
+) -> np.ndarray:
+    """Points of ``mesh`` such that every point of its surface lies within
+    ``resolution`` (m) of one: the vertices of the mesh subdivided until no edge is
+    longer than ``√3 · resolution`` (in a triangle whose edges are at most ``e`` every
+    point lies within ``e / √3`` of a vertex: the circumradius bounds it for an acute
+    triangle, half the longest edge for an obtuse one). The number of points follows
+    the area, about ``area / resolution²``. Checked when made: 20 000 points sampled on
+    the surface are each within ``resolution`` of the result, else
+    :class:`~reachwise.errors.InputError`."""
+    import trimesh
+    from scipy.spatial import cKDTree
+
+    if isinstance(resolution, bool) or not math.isfinite(resolution) or not resolution > 0:
+        raise InputError(
+            source, f"{field}.resolution", f"must be finite and > 0, got {resolution!r}"
+        )
+    edge = math.sqrt(3.0) * float(resolution) * (1.0 - 1e-9)
+    v, _ = trimesh.remesh.subdivide_to_size(mesh.vertices, mesh.faces, max_edge=edge, max_iter=60)
+    pts = np.unique(np.asarray(v, dtype=float), axis=0)
+    check = np.asarray(mesh.sample(20_000, seed=0), dtype=float)
+    gap = float(cKDTree(pts).query(check)[0].max())
+    if gap > resolution * (1.0 + 1e-9):
+        raise InputError(
+            source, field, f"cloud misses the surface by {gap:.4g} m > {resolution:g} m"
+        )
+    return pts
+
+
 def link_clouds(
     robot: Robot,
     points: int | None = None,
@@ -182,13 +220,17 @@ def link_clouds(
     base_dir: str | Path | None = None,
     *,
     density: float | None = None,
+    resolution: float | None = None,
 ) -> dict[str, PointCloud]:
     """A cloud for every body that has collision shapes, base to tool, keyed by body
     (``link_0`` … ``tool``, or a URDF robot's link names), each in the frame its body
     rides on (see ``link_cloud``)."""
     order = [name for name in robot.body_names if name in robot.geometry]
     return {
-        name: link_cloud(robot, name, points, seed, base_dir, density=density) for name in order
+        name: link_cloud(
+            robot, name, points, seed, base_dir, density=density, resolution=resolution
+        )
+        for name in order
     }
 
 
