@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -186,3 +187,35 @@ def test_clearance_reports_left_out_poses_and_each_pose_clearance(tmp_path: Path
         rows = list(csv.DictReader(fh))
     assert all(float(r["clearance_m"]) >= 0.1 and " ~ " in r["clearance_pair"] for r in rows)
     assert {r["name"] for r in rows}.isdisjoint(left)
+
+
+def test_a_task_that_leaves_the_design_free_is_warned_about(tmp_path: Path) -> None:
+    """Two poses: joint motion alone reaches them from the random start, every design
+    parameter stays where it started, and the command says so by name."""
+    task = load_task("tunnel-87").subset(np.array([0, 40]), name="tunnel-2")
+    from reachwise.io.task_file import save_task
+
+    path = tmp_path / "t2.yaml"
+    save_task(task, path)
+    out = tmp_path / "out"
+    args = ["synth", "--task", str(path), "--robot", "sb60", "--runs", "1", "--out", str(out)]
+    res = runner.invoke(app, [*args, "--no-figures"])
+    assert res.exit_code == 0, res.output
+    data = json.loads((out / "summary.json").read_text())
+    free = data["unconstrained"]
+    assert free and set(free) <= set(data["design_parameters"])
+    assert "unconstrained" in res.output and free[0] in res.output
+    # the rule on the result itself: a parameter that a reaching run moved is not free
+    import reachwise
+
+    result = reachwise.synthesize(task, reachwise.load_robot("sb60"), runs=1, seed=0)
+    names = result.unconstrained()
+    assert names
+    run = result.best
+    moved = run.design.copy()
+    k = result.problem.design_names.index(names[0])
+    lo, hi = result.problem.declared_bounds
+    moved[k] += 0.01 * (hi[k] - lo[k])
+    runs = (replace(run, design=moved, reach_design=None),)
+    other = replace(result, runs=runs, best_index=0)
+    assert names[0] not in other.unconstrained() and set(other.unconstrained()) < set(names)

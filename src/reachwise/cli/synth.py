@@ -271,6 +271,15 @@ def _print(result: object, data: dict) -> None:  # type: ignore[type-arg]
         )
         for u in c["unservable"]:
             console.print(f"[yellow]left out {u['name']}: {u['reason']}")
+    free = data["unconstrained"]
+    if free:
+        console.print(
+            f"[yellow]warning: the task's {data['task_points']} poses leave "
+            f"{len(free)} of {len(data['design_parameters'])} design parameters unconstrained "
+            "(every reaching run kept them at its random start; joint motion alone served "
+            f"each pose): {', '.join(free)}. Add poses or dimensions to the task, or an "
+            "objective (--objective)"
+        )
     hits = data["bound_hits"]
     if hits:
         console.print(

@@ -62,6 +62,7 @@ def summary(result: SynthesisResult) -> dict[str, Any]:
         "objective": dict(result.objective),
         **_clearance(result),
         "bound_hits": [h.as_dict() for h in result.bound_hits()],
+        "unconstrained": list(result.unconstrained()),
         "table3": result.table3(),
         "table4": result.table4(),
         "per_run": [

@@ -123,6 +123,24 @@ class SynthesisResult:
         the range from a bound (``bound_hits``)."""
         return bound_hits(self.problem, (run or self.best).design, tolerance)
 
+    def unconstrained(self, tolerance: float = 1e-6) -> tuple[str, ...]:
+        """The design parameters the task leaves free: every run that reached every
+        pose kept them within ``tolerance`` of the range from its (random) start
+        design, so joint motion alone served each pose. Few poses (or position-only
+        points) for many design parameters do this; the result is then any design the
+        random start happened to give. Empty when no run reached every pose."""
+        ok = [r for r in self.runs if r.reached.all()]
+        if not ok:
+            return ()
+        lo, hi = self.problem.declared_bounds
+        span = np.where(hi > lo, hi - lo, 1.0)
+        still = np.ones(len(self.problem.design_names), dtype=bool)
+        for r in ok:
+            start = r.initial_design
+            final = r.design if r.reach_design is None else r.reach_design
+            still &= np.abs(final - start) <= tolerance * span
+        return tuple(n for n, s in zip(self.problem.design_names, still, strict=True) if s)
+
     def table3(self) -> list[dict[str, float | str]]:
         """Initial and optimized normalized design of the best run (P-I Table 3)."""
         a = self.normalized(self.best.initial_design)
