@@ -16,6 +16,7 @@ the interpreter's own start-up) is delivered once the handler is in place.
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
 from types import FrameType
@@ -52,8 +53,11 @@ def main() -> None:
         run_command()
     except KeyboardInterrupt:  # before the command's own handling began
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-        print("interrupted", file=sys.stderr)
-        raise SystemExit(INTERRUPTED) from None
+        print("interrupted", file=sys.stderr, flush=True)
+        # not SystemExit: a KeyboardInterrupt raised inside code that an extension ran
+        # while importing (PyRun_String) marks it unhandled, and the interpreter would
+        # then end itself with SIGINT (exit -2) whatever code it was given
+        os._exit(INTERRUPTED)
 
 
 if __name__ == "__main__":
