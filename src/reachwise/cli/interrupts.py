@@ -57,7 +57,9 @@ def deferred_interrupts() -> Iterator[Interrupts]:
     """SIGINT recorded in the yielded :class:`Interrupts` instead of raising, until the
     block ends; then the previous handler is restored — unless a SIGINT was received:
     the command is then ending (exit code 130) and a further Ctrl-C during its exit must
-    not raise, so the recording handler stays.
+    neither raise nor kill it, so the recording handler stays and SIGINT is blocked (the
+    interpreter's finalization restores the default action, which would end the
+    process with SIGINT instead of 130).
 
     Outside the main thread (where Python cannot set handlers) and where SIGINT is
     ignored (a background job) nothing is installed and nothing is ever received.
@@ -75,3 +77,5 @@ def deferred_interrupts() -> Iterator[Interrupts]:
     finally:
         if not state.received:
             signal.signal(signal.SIGINT, previous)
+        else:  # the interpreter's finalization resets handlers: block it at the OS level
+            signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
