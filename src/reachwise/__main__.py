@@ -54,10 +54,28 @@ def main() -> None:
     except KeyboardInterrupt:  # before the command's own handling began
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         print("interrupted", file=sys.stderr, flush=True)
-        # not SystemExit: a KeyboardInterrupt raised inside code that an extension ran
-        # while importing (PyRun_String) marks it unhandled, and the interpreter would
-        # then end itself with SIGINT (exit -2) whatever code it was given
-        os._exit(INTERRUPTED)
+        _exit_interrupted()
+    except SystemExit as exc:
+        if exc.code == INTERRUPTED:
+            _exit_interrupted()
+        raise
+
+
+def _exit_interrupted() -> None:
+    """End with :data:`INTERRUPTED`, not by SystemExit: a KeyboardInterrupt raised inside
+    code that an extension ran while importing (PyRun_String) is marked unhandled even
+    when caught, and the interpreter then ends itself with SIGINT (exit -2) whatever
+    code it was given. The command has written its files (atomically) already."""
+    import logging
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    logging.shutdown()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(INTERRUPTED)
 
 
 if __name__ == "__main__":
