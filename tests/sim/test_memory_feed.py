@@ -96,3 +96,24 @@ def test_frames_reach_the_scene_as_the_memorys_obstacles() -> None:
     centre = frame.points[np.argmin(np.linalg.norm(frame.points[:, :2], axis=1))]
     assert direct.memory.state[direct.memory.voxel_of(centre)] == 2
     assert all(np.linalg.norm(got - [0.5, 0.0, 1.0], axis=1) > 0.1)
+
+
+def test_a_built_memory_scenario_watches_the_map_with_the_inflation_and_runs() -> None:
+    from reachwise.sim.simulate import simulate
+    from reachwise.sim.world import build_world
+
+    sc = scenario_from_dict(spec_dict(), source=FIXTURE.name, folder=FOLDER)
+    world = build_world(sc)
+    assert "cell" in world.scene.objects and "camera" not in world.scene.objects
+    (feed,) = world.memories
+    assert world.sensors[0].feed is feed
+    assert {p.b for p in world.scene.pairs} == {"cell"}
+    assert np.allclose(world.margins, 0.25 + feed.inflation)
+    assert all(
+        p.margin == pytest.approx(0.25 + sc.spec.monitor + feed.inflation)
+        for p in world.scene.pairs
+    )
+    log = simulate(sc, duration=0.3)
+    assert log.frames["camera"].max() >= 8  # 30 frames/s for 0.3 s, all fused
+    assert not np.isnan(log.distance).any()  # inf: beyond the monitor range, no risk
+    assert log.first_collision is None
