@@ -273,7 +273,8 @@ def _scene(
     scene = Scene(voxel=spec.voxel)
     scene.add_robot(robot)
     for link in links:
-        scene.add_object(link, link_clouds[link], robot=robot.name, link=link)
+        # a URDF link fixed to a chain link (a flange, a hand) rides on that frame
+        scene.add_object(link, link_clouds[link], robot=robot.name, link=robot.frame_of(link))
     pairs = []
     for name in objects:
         scene.add_object(name, _NOWHERE)
