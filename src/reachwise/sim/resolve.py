@@ -97,10 +97,11 @@ def resolve_scenario(scenario: Scenario | str | Path | ResolvedScenario) -> Reso
         return scenario
     sc = load_scenario(scenario)
     check_requirements(sc)
-    robots: dict[str, Robot] = {}
+    robots: dict[str, Robot] = {r.name: robot_of(r, sc) for r in sc.spec.robots}
+    sc = _named_starts(sc, robots)
     links: dict[str, tuple[PointCloud, Solid]] = {}
     for rs in sc.spec.robots:
-        robot = robots[rs.name] = robot_of(rs, sc)
+        robot = robots[rs.name]
         if len(rs.q0) != robot.n:
             raise InputError(sc.source, f"robots.{rs.name}.q0", f"expected {robot.n} values")
         chosen = rs.links if rs.links is not None else list(robot.geometry)
@@ -133,6 +134,36 @@ def resolve_scenario(scenario: Scenario | str | Path | ResolvedScenario) -> Reso
         scan_targets=_frozen(targets),
         self_pairs=MappingProxyType(_self_pairs(sc, robots, links)),
     )
+
+
+def _named_starts(sc: Scenario, robots: Mapping[str, Robot]) -> Scenario:
+    """``sc`` with every named ``q0`` (``q0: ready``) replaced by the joint values of
+    that ``group_state`` of the robot's SRDF (:mod:`reachwise.sim.srdf_inputs`); ``sc``
+    itself when no start is named."""
+    if all(not isinstance(rs.q0, str) for rs in sc.spec.robots):
+        return sc
+    from reachwise.io.ros.joint_state import robot_joint_names
+    from reachwise.sim.srdf_inputs import named_pose, robot_srdf
+
+    specs = []
+    for rs in sc.spec.robots:
+        if isinstance(rs.q0, str):
+            where = f"robots.{rs.name}.q0"
+            found = robot_srdf(sc, rs.name)
+            if found is None:
+                raise InputError(
+                    sc.source, where,
+                    f"{rs.q0!r} names a pose: give the robot's SRDF in a self watch "
+                    f"(watch: [{{self: {{robot: {rs.name}, pairs: {{srdf: FILE}}}}, margin: …}}]) "
+                    "or joint values",
+                )  # fmt: skip
+            robot = robots[rs.name]
+            q = named_pose(found[0], rs.q0, robot, robot_joint_names(robot), sc.source, where)
+            rs = rs.model_copy(update={"q0": q})
+        specs.append(rs)
+    named = Scenario(sc.spec.model_copy(update={"robots": specs}), sc.source, sc.folder)
+    named.cache_dir = sc.cache_dir
+    return named
 
 
 def unknown(source: str, field: str, what: str, name: str, valid: Sequence[str]) -> InputError:

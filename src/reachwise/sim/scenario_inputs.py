@@ -23,7 +23,7 @@ import numpy as np
 
 from reachwise.errors import InputError, MissingDependency
 from reachwise.kinematics.robot import Robot
-from reachwise.sim.scenarios import RobotSpec, ScanSpec, Scenario, WatchSpec
+from reachwise.sim.scenarios import RobotSpec, ScanSpec, Scenario, SrdfPairsSpec, WatchSpec
 
 if TYPE_CHECKING:
     from reachwise.geometry.cloud import PointCloud
@@ -103,22 +103,29 @@ def watched_self_pairs(
     sc: Scenario,
     where: str,
 ) -> list[tuple[str, str]] | None:
-    """The link pairs a ``self`` watch lists, or picks with ``pairs: auto`` among the
-    robot's link ``clouds`` (link → cloud in the link frame; restricted to ``links``);
-    ``None`` when the watch lists none (every non-adjacent pair)."""
+    """The link pairs a ``self`` watch lists, or picks with ``pairs: auto`` (or all but
+    an SRDF's disabled ones, ``pairs: {srdf: FILE}``) among the robot's link ``clouds``
+    (link → cloud in the link frame; restricted to ``links``); ``None`` when the watch
+    lists none (every non-adjacent pair)."""
     if w.pairs is None:
         return None
+    keep = set(w.links) if w.links is not None else None
+    if isinstance(w.pairs, SrdfPairsSpec):
+        from reachwise.sim.srdf_inputs import srdf_of, srdf_watched_pairs
+
+        srdf = srdf_of(sc, w.pairs, where)
+        mine = {k: c for k, c in clouds.items() if keep is None or k in keep}
+        return srdf_watched_pairs(srdf, robot, mine, sc.source, f"{where}.pairs.srdf")
     if w.pairs != "auto":
         return [(a, b) for a, b in w.pairs]
     from reachwise.sim.self_pairs import auto_self_pairs
 
-    keep = set(w.links) if w.links is not None else None
     mine = {k: c for k, c in clouds.items() if keep is None or k in keep}
     if len(mine) < 2:
         raise InputError(sc.source, where, "pairs: auto needs at least two link clouds")
     try:
         pairs = auto_self_pairs(
-            robot, mine, w.margin, home=np.asarray(spec.q0, dtype=float), samples=w.samples,
+            robot, mine, w.margin, home=np.asarray(spec.start, dtype=float), samples=w.samples,
             seed=w.seed, cache_dir=sc.cache_dir, label=spec.name,
         )  # fmt: skip
     except InputError as exc:

@@ -19,7 +19,8 @@ robots:
     # robot: {file: package://example-robot-data/robots/ur_description/urdf/ur5_robot.urdf,
     #         tip: tool0, package_dirs: [], lenient: false}
     base: {xyz: [0, 0, 1.5], rpy_deg: [0, 0, 0]}   # optional: replaces the robot's base
-    q0: [0, 0.2, 0.5, 0, 0, 0, 0, 0.5]             # start, one value per joint variable
+    q0: [0, 0.2, 0.5, 0, 0, 0, 0, 0.5]             # start, one value per joint variable,
+                            # or the name of a group_state of the robot's SRDF (q0: ready)
     links: [link_2, link_8] # links that get clouds (default: every link with geometry)
     points: 1000            # points per link cloud (default: the geometry's, 1000)
     density: 20000          # or: points per m² of the link's shapes
@@ -69,6 +70,7 @@ sensors:                    # depth cameras: each streams its cloud into the
 watch:                      # pairs and their collision margins rho_O
   - {self: boom, margin: 0.3, pairs: [[link_8, link_2]]}
   - {self: {robot: arm, pairs: auto, samples: 10000}, margin: 0.05}   # picked for you
+  - {self: {robot: arm, pairs: {srdf: arm.srdf}}, margin: 0.05}  # all but MoveIt's disabled
   - {robot: crane, environment: [scan], links: [link_6], margin: 0.3}
   - {robots: [a, b], links: [link_7, link_8], margin: 0.3}
 jobs:                       # shared work list (P-IV): each idle robot takes the first
@@ -127,6 +129,7 @@ __all__ = [
     "Scenario",
     "ScenarioSpec",
     "SensorSpec",
+    "SrdfPairsSpec",
     "WatchSpec",
     "WaypointSpec",
     "builtin_scenarios",
@@ -250,7 +253,9 @@ class RobotSpec(StrictModel):
     name: str = Field(min_length=1)
     robot: RobotFileSpec | str  # RobotFileSpec first: its errors are the ones shown
     base: FrameSpec | None = None
-    q0: list[float]
+    #: Joint values, or the name of a ``group_state`` of the SRDF a ``self`` watch of
+    #: this robot names (replaced by its values when the scenario is resolved).
+    q0: list[float] | str
     links: list[str] | None = None
     points: int | None = Field(default=None, gt=0, le=MAX_SAMPLED_POINTS)
     density: float | None = Field(default=None, gt=0.0)
@@ -260,6 +265,17 @@ class RobotSpec(StrictModel):
     controller: ControllerSpec = ControllerSpec()
     plant: PlantSpec = PlantSpec()
     goals: list[GoalSpec] = []
+
+    @property
+    def start(self) -> list[float]:
+        """``q0`` as joint values; a named start (``q0: ready``) is replaced by its values
+        when the scenario is resolved (:func:`reachwise.sim.resolve.resolve_scenario`),
+        before that it is an :class:`~reachwise.errors.InputError`."""
+        if isinstance(self.q0, str):
+            raise InputError(
+                "scenario", f"robots.{self.name}.q0", f"the pose {self.q0!r} is not resolved yet"
+            )
+        return self.q0
 
     @model_validator(mode="after")
     def _count(self) -> RobotSpec:
@@ -466,10 +482,20 @@ class ObjectSpec(StrictModel):
         return self
 
 
+class SrdfPairsSpec(StrictModel):
+    """``pairs: {srdf: FILE}``: every pair of the robot's link clouds that the MoveIt
+    SRDF ``FILE`` (relative to the scenario) does not disable
+    (:mod:`reachwise.sim.srdf_inputs`)."""
+
+    model_config = _STRICT
+    srdf: str = Field(min_length=1)
+
+
 class WatchSpec(StrictModel):
     """``self: R`` (pairs among R's links; ``pairs`` lists link pairs, ``pairs: auto``
     picks them (:mod:`reachwise.sim.self_pairs`: adjacent and never-close pairs
-    excluded over ``samples`` random configurations, ``seed``), else every
+    excluded over ``samples`` random configurations, ``seed``), ``pairs: {srdf: FILE}``
+    watches all but the pairs a MoveIt SRDF disables, else every
     non-adjacent pair of ``links``; ``self: {robot: R, pairs: auto}`` is the same),
     ``robot: R, environment: [objects]`` or ``robots: [A, B]``; ``links`` restricts
     the robots' links, ``margin`` is ρ_O."""
@@ -480,7 +506,7 @@ class WatchSpec(StrictModel):
     environment: list[str] | None = None
     robots: tuple[str, str] | None = None
     links: list[str] | None = None
-    pairs: list[tuple[str, str]] | Literal["auto"] | None = None
+    pairs: list[tuple[str, str]] | Literal["auto"] | SrdfPairsSpec | None = None
     samples: int = Field(default=10_000, ge=1)
     seed: int = Field(default=0, ge=0)
     margin: float = Field(gt=0.0)

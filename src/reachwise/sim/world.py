@@ -166,7 +166,7 @@ def _add_robots(
     solids: dict[str, tuple[Solid, str, str]] = {}
     for rs in res.scenario.spec.robots:
         robot = robots[rs.name] = res.robots[rs.name]
-        scene.add_robot(robot, rs.q0)
+        scene.add_robot(robot, rs.start)
         prefix = f"{rs.name}/"
         for obj, (cloud, solid) in res.link_clouds.items():
             if obj.startswith(prefix):
@@ -227,7 +227,7 @@ def _add_sensors(
         index = robots[rname].link_index(link)
         bodies[name] = BodySurface(name, rname, link, index, mesh, solid)
     sight = Sight(robots, objects, bodies)
-    qs = {rs.name: np.asarray(rs.q0, dtype=float) for rs in spec.robots}
+    qs = {rs.name: np.asarray(rs.start, dtype=float) for rs in spec.robots}
     feeds = {m.name: MemoryFeed(m) for m in spec.memory}
     feed_of = {s: feeds[m.name] for m in spec.memory for s in m.sensors}
     sensors = []
@@ -351,7 +351,7 @@ def _make_agent(
         rs.name,
         robot,
         Controller(robot, cfg),
-        _make_plant(plant, robot, rs.q0, pc),
+        _make_plant(plant, robot, rs.start, pc),
         conv,
         own,
         rs.name in job_robots,

@@ -119,7 +119,7 @@ class SimScene:
         scene = world.scene
         objs = scene.objects
         spec = world.scenario.spec
-        self.q = {rs.name: np.asarray(rs.q0, dtype=float) for rs in spec.robots}
+        self.q = {rs.name: np.asarray(rs.start, dtype=float) for rs in spec.robots}
         for name, q in self.q.items():
             scene.set_joints(name, q)
         poses = scene.poses()
