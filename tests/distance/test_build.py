@@ -24,9 +24,16 @@ def check_layout(points: np.ndarray, leaf_size: int, median: bool | None = None)
     split rule; None: the one ``build_tree`` picks for the cloud's size)."""
     pts = np.ascontiguousarray(points, dtype=np.float64)
     if median is None:
-        tp, perm, boxes, info = build_tree(pts, leaf_size)
+        tree = build_tree(pts, leaf_size)
     else:
-        tp, perm, boxes, info = build_tree_as(pts, summary(pts)[1], leaf_size, median)
+        tree = build_tree_as(pts, summary(pts)[1], leaf_size, median)
+    check_tree(points, tree, leaf_size)
+
+
+def check_tree(points: np.ndarray, tree: tuple, leaf_size: int) -> None:
+    """Every property of the tree layout ``(tree points, perm, boxes, info)`` against
+    the input ``points``."""
+    tp, perm, boxes, info = tree
     n = points.shape[0]
     assert sorted(perm.tolist()) == list(range(n))
     np.testing.assert_array_equal(tp, points[perm])

@@ -10,6 +10,8 @@ import weakref
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from reachwise.distance import PairQuery, Scene, closest_points
 from reachwise.distance.index import INDICES, IndexRegistry, build_index, cloud_index
@@ -129,3 +131,56 @@ def test_a_lookup_never_returns_another_clouds_index() -> None:
     del a, index_a
     gc.collect()
     assert list(reg._entries) == [id(b)]
+
+
+def _interleave(u: int, v: int) -> int:
+    """The Morton code of grid cell (u, v), bit by bit (u's bits in the even places)."""
+    return sum(((u >> b) & 1) << (2 * b) | ((v >> b) & 1) << (2 * b + 1) for b in range(20))
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    h=st.integers(1, 13),
+    w=st.integers(1, 17),
+    leaf_size=st.integers(1, 9),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_an_index_over_a_grid_order_is_a_valid_tree_and_exact(
+    h: int, w: int, leaf_size: int, seed: int
+) -> None:
+    """Points of a height field sampled on a grid, some cells missing, taken in the
+    grid's Z-order: the index built over that order without sorting has the layout
+    every query relies on, and distances on it equal brute force."""
+    from scipy.spatial.distance import cdist
+
+    from reachwise.distance.index import index_of_ordered
+    from tests.distance.test_build import check_tree
+
+    rng = np.random.default_rng(seed)
+    cells = sorted((_interleave(u, v), u, v) for v in range(h) for u in range(w))
+    keep = [c for c in cells if rng.random() > 0.3] or cells[:1]
+    codes = np.array([c for c, _, _ in keep], dtype=np.int64)
+    uv = np.array([(u, v) for _, u, v in keep], dtype=np.float64)
+    pts = np.column_stack([0.1 * uv, rng.uniform(0.5, 3.0, len(keep))])
+    # far outliers: a box over a range of pixels may be deep; the tree stays exact
+    pts[rng.random(len(keep)) < 0.1, 2] += 50.0
+    given_pts = pts.copy()
+    ix = index_of_ordered(pts, codes, pts.mean(axis=0), version=4, leaf_size=leaf_size)
+    check_tree(given_pts, (ix.points, ix.perm, ix.boxes, ix.info), leaf_size)
+    np.testing.assert_array_equal(ix.perm, np.arange(len(keep)))  # kept in the given order
+    assert ix.version == 4 and len(ix) == len(keep)
+    np.testing.assert_array_equal(ix.aabb.lo, given_pts.min(axis=0))
+    cloud = PointCloud(given_pts)
+    INDICES.put(cloud, ix)
+    for _ in range(3):
+        other = rng.normal(scale=0.5, size=(40, 3)) + rng.uniform(-1.0, 3.0, 3)
+        res = closest_points(PointCloud(other), cloud)
+        assert res.distance == pytest.approx(cdist(other, given_pts).min(), abs=1e-12)
+
+
+def test_an_ordered_index_needs_one_code_per_point() -> None:
+    from reachwise.distance.index import index_of_ordered
+
+    pts = np.zeros((3, 3))
+    with pytest.raises(InputError, match="codes"):
+        index_of_ordered(pts, np.arange(2, dtype=np.int64), pts[0])

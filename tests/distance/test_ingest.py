@@ -401,3 +401,33 @@ def test_a_worker_started_by_a_fifo_loop_builds_under_the_normal_policy(
         assert os.sched_getscheduler(got["worker"]) == os.SCHED_OTHER
     finally:
         scene.close()
+
+
+def test_a_cloud_handed_over_with_its_index_is_not_indexed_again(
+    rng: np.random.Generator,
+) -> None:
+    """A producer that built the index while making the points (a depth image's pixel
+    order) hands over a cloud whose index INDICES holds: the scene uses that index,
+    numbered with the hand-over's version, and answers exactly on it."""
+    from reachwise.distance.index import INDICES
+    from reachwise.geometry.cloud import PointCloud
+
+    scene, part = _camera_scene(rng)
+    pts = rng.normal(size=(700, 3)) + np.array([1.5, 0.0, 0.0])
+    cloud = PointCloud(pts)
+    own = build_index(cloud.points, leaf_size=3)  # not what the scene would build
+    INDICES.put(cloud, own)
+    before = INDICES.builds
+    for block in (True, False):
+        version = scene.replace_cloud("camera", cloud, block=block, stamp=1.0)
+        if not block:
+            assert scene.ingest.wait("camera", version, WAIT)
+        res = scene.query_all()
+        assert res.versions["camera"] == version
+        used = INDICES.peek(scene.objects["camera"].cloud)
+        assert used is not None and used.version == version
+        np.testing.assert_array_equal(used.boxes, own.boxes)  # the same tree, not rebuilt
+        assert res.rows[0, 0] == pytest.approx(_brute(part, pts), abs=1e-12)
+    ready = ready_cloud("x", 3, PointCloud(pts), 0.0)  # no index kept: built
+    assert ready.index.version == 3 and len(ready.index.info) != len(own.info)
+    assert INDICES.builds == before

@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 import reachwise.distance._kernels as K
-from reachwise.distance._build import build_tree_in, summary
+from reachwise.distance._build import build_tree_in, summary, tree_of_sorted
 from reachwise.errors import InputError
 from reachwise.geometry.boxes import AABB
 from reachwise.geometry.cloud import PointCloud
@@ -46,6 +46,7 @@ __all__ = [
     "cloud_centroid",
     "cloud_index",
     "index_of_checked",
+    "index_of_ordered",
 ]
 
 #: Leaf size of the per-cloud tree (points per leaf at most).
@@ -112,6 +113,38 @@ def index_of_checked(
     _check_leaf_size(leaf_size)
     tp, perm, boxes, info = build_tree_in(points, bounds, leaf_size)
     aabb = AABB(boxes[0, :3].copy(), boxes[0, 3:].copy())  # the root box: exact min, max
+    return CloudIndex(tp, perm, boxes, info, centroid, aabb, int(version))
+
+
+def index_of_ordered(
+    points: NDArray[np.float64],
+    codes: NDArray[np.int64],
+    centroid: NDArray[np.float64],
+    *,
+    version: int = 0,
+    leaf_size: int = LEAF_SIZE,
+) -> CloudIndex:
+    """The index of C-ordered, finite float64 (N, 3) ``points`` that come sorted by
+    distinct cell ``codes`` of some Morton (Z-order) grid (N, increasing, each below
+    2**62), with their ``centroid``: no sort, the tree is built over the given order.
+
+    A depth camera's returned pixels taken in the Z-order of their pixel coordinates
+    are such points: a range of them splits where its first and last codes' highest
+    differing bit changes (:func:`reachwise.distance._build.tree_of_sorted`), i.e. into
+    the two halves of a block of the image, so each node holds the points of a block of
+    neighbouring pixels. The boxes are the tight bounds of the points below each node,
+    as in :func:`build_index`, so every query on this index is as exact as on that one;
+    only how well the boxes prune differs (a block that straddles a depth edge gets a
+    deep box). The points are kept as they are (not copied) and ``perm`` is the
+    identity.
+    """
+    _check_leaf_size(leaf_size)
+    n = points.shape[0]
+    if codes.shape != (n,) or n == 0:
+        raise InputError("index", "codes", f"expected {n} codes for {n} points, got {codes.shape}")
+    perm = np.arange(n, dtype=np.int64)
+    tp, perm, boxes, info = tree_of_sorted(points, perm, codes, leaf_size, False)
+    aabb = AABB(boxes[0, :3].copy(), boxes[0, 3:].copy())
     return CloudIndex(tp, perm, boxes, info, centroid, aabb, int(version))
 
 

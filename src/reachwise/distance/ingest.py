@@ -37,6 +37,7 @@ No clock is read here: time stamps come with each hand-over.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import sys
 import threading
@@ -47,7 +48,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from reachwise.distance._build import checked_copy
-from reachwise.distance.index import CloudIndex, build_index, index_of_checked
+from reachwise.distance.index import INDICES, CloudIndex, build_index, index_of_checked
 from reachwise.distance.voxel import voxel_thin
 from reachwise.errors import CloudError, ReachwiseError
 from reachwise.geometry.cloud import PointCloud
@@ -85,13 +86,21 @@ def ready_cloud(
     """Check ``points``, make the cloud and build its index (any thread; raises
     :class:`~reachwise.errors.CloudError` for bad points). An array is copied and
     checked in one compiled pass that also yields the bounds and centroid the index
-    needs; a :class:`PointCloud` (checked already) is indexed as it is. ``voxel`` (m):
+    needs; a :class:`PointCloud` (checked already) is indexed as it is, or not at all
+    when :data:`~reachwise.distance.index.INDICES` holds its index already (a producer
+    that built it while making the points, e.g. over a depth image's pixel order:
+    :func:`~reachwise.distance.index.index_of_ordered`). ``voxel`` (m):
     keep one point per voxel of that edge first (:func:`voxel_thin`)."""
     if voxel is not None:
         thinned = voxel_thin(points, voxel, name=name)
         return Ready(name, version, thinned, build_index(thinned.points, version=version), stamp)
     if isinstance(points, PointCloud):
-        return Ready(name, version, points, build_index(points.points, version=version), stamp)
+        index = INDICES.peek(points)
+        if index is None:
+            index = build_index(points.points, version=version)
+        elif index.version != version:
+            index = dataclasses.replace(index, version=version)
+        return Ready(name, version, points, index, stamp)
     arr = _frame_array(points, name)
     copy, bad, bounds, centroid = checked_copy(arr)
     if bad:

@@ -136,3 +136,61 @@ def test_projector_equals_points_moved_by_the_pose(seed: int) -> None:
         T[:3, 3] = rng.uniform(-2, 2, 3)
         expected = depth_points(msg, cam) @ T[:3, :3].T + T[:3, 3]
         np.testing.assert_allclose(proj.points(msg, T), expected, rtol=0, atol=1e-12)
+
+
+def test_pixel_z_order_against_bit_by_bit_interleaving() -> None:
+    from reachwise.io.ros.depth_image import pixel_z_order
+
+    def code(u: int, v: int) -> int:
+        return sum(((u >> b) & 1) << (2 * b) | ((v >> b) & 1) << (2 * b + 1) for b in range(12))
+
+    for h, w in ((1, 1), (3, 5), (7, 4), (12, 16)):
+        order, codes = pixel_z_order(h, w)
+        expected = sorted((code(i % w, i // w), i) for i in range(h * w))
+        assert order.tolist() == [i for _, i in expected]
+        assert codes.tolist() == [c for c, _ in expected]
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    encoding=st.sampled_from(["16UC1", "32FC1"]),
+    big=st.booleans(),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_ordered_points_are_the_projected_points_in_pixel_z_order(
+    encoding: str, big: bool, seed: int
+) -> None:
+    """The same points as the row-major projection (bit for bit), each tagged with its
+    pixel's Z-order code, codes increasing; the mean point is theirs."""
+    from scipy.spatial.transform import Rotation
+
+    from reachwise.io.ros.depth_image import DepthProjector, pixel_z_order
+
+    rng = np.random.default_rng(seed)
+    h, w = int(rng.integers(1, 9)), int(rng.integers(1, 11))
+    if encoding == "16UC1":
+        raw = rng.integers(0, 5000, (h, w)).astype(np.uint16)
+        raw[rng.random((h, w)) < 0.3] = 0
+    else:
+        raw = rng.uniform(0.3, 5.0, (h, w)).astype(np.float32)
+        raw[rng.random((h, w)) < 0.2] = np.nan
+        raw[rng.random((h, w)) < 0.1] = -1.0
+        raw[rng.random((h, w)) < 0.1] = np.inf
+    msg = depth_message(raw, encoding, step=w * raw.itemsize + 3, big=big)
+    cam = camera_from_info(camera_info(w, h, 9.0, 11.0, 3.5, 2.5))
+    proj = DepthProjector(cam)
+    T = np.eye(4)
+    T[:3, :3] = Rotation.random(random_state=rng).as_matrix()
+    T[:3, 3] = rng.uniform(-2, 2, 3)
+    pts, codes, centroid = proj.ordered_points(msg, T)
+    row_major = proj.points(msg, T)
+    order, all_codes = pixel_z_order(h, w)
+    valid = np.isfinite(depth_image_metres(msg)).reshape(-1)
+    in_z_order = valid[order]
+    np.testing.assert_array_equal(codes, all_codes[in_z_order])
+    # the k-th valid pixel in Z-order is row rank[k] of the row-major points
+    rank = np.cumsum(valid) - 1
+    np.testing.assert_array_equal(pts, row_major[rank[order[in_z_order]]])
+    assert (np.diff(codes) > 0).all()
+    if len(pts):
+        np.testing.assert_allclose(centroid, row_major.mean(axis=0), rtol=0, atol=1e-12)

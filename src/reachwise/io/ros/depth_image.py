@@ -15,6 +15,7 @@ rectified (``image_rect``); its size must be the CameraInfo's.
 
 from __future__ import annotations
 
+from functools import cached_property
 from typing import Any, Literal
 
 import numpy as np
@@ -32,6 +33,7 @@ __all__ = [
     "camera_from_info",
     "depth_image_metres",
     "depth_points",
+    "pixel_z_order",
 ]
 
 DepthEncoding = Literal["16UC1", "mono16", "32FC1"]
@@ -46,9 +48,10 @@ def _stamp(msg: Any) -> float | None:
         return None
 
 
-def depth_image_metres(msg: Any, *, topic: str = "Image") -> NDArray[np.float64]:
-    """The depth image of ``msg`` in metres, ``(height, width)``, NaN where the camera
-    returned nothing."""
+def _raw_pixels(msg: Any, topic: str) -> tuple[NDArray[Any], bool]:
+    """The pixels of depth image ``msg`` as stored, ``(height, width)`` (a view of its
+    data, native byte order: copied only when big-endian), and whether they are
+    millimetres (``16UC1``, ``mono16``; else metres, ``32FC1``)."""
     t = _stamp(msg)
     enc = str(msg.encoding)
     code = DEPTH_ENCODINGS.get(enc)
@@ -67,7 +70,16 @@ def depth_image_metres(msg: Any, *, topic: str = "Image") -> NDArray[np.float64]
     if data.size < need:
         raise RecordingError(topic, t, "data", f"has {data.size} bytes, {h}×{w} pixels need {need}")
     raw = np.ndarray((h, w), dtype=px, buffer=data, strides=(step, px.itemsize))
-    if code == "u2":
+    if not px.isnative:
+        raw = raw.astype(px.newbyteorder("="))
+    return raw, code == "u2"
+
+
+def depth_image_metres(msg: Any, *, topic: str = "Image") -> NDArray[np.float64]:
+    """The depth image of ``msg`` in metres, ``(height, width)``, NaN where the camera
+    returned nothing."""
+    raw, millimetres = _raw_pixels(msg, topic)
+    if millimetres:
         z = raw.astype(np.float64) * 1e-3
         z[raw == 0] = np.nan
         return z
@@ -122,12 +134,26 @@ class DepthProjector:
     ``z`` becomes ``R · (z · r_uv) + t = z · (R · r_uv) + t`` for the pose ``(R, t)`` of
     the camera in that frame, with the rotated rays ``R · r_uv`` computed once per pose
     (a fixed camera: once), so a frame costs one multiply-add per pixel and no matrix
-    product."""
+    product.
+
+    :meth:`points` gives the points in row-major pixel order; :meth:`ordered_points`
+    in the Z-order of the pixel coordinates (bits of ``u`` and ``v`` interleaved), with
+    each point's code in that order: neighbouring pixels stay together, so a tree
+    can be built over the points as they come, without sorting them
+    (:func:`reachwise.distance.index.index_of_ordered`). It reads the stored pixels
+    directly (one compiled pass: decode, drop the invalid, project, sum for the
+    centroid)."""
 
     def __init__(self, camera: DepthCamera) -> None:
         self.camera = camera
         self._pose: bytes | None = None
         self._rays: NDArray[np.float64] = np.zeros((0, 3))
+        self._zpose: bytes | None = None
+        self._zrays: NDArray[np.float64] = np.zeros((0, 3))
+
+    @cached_property
+    def _z_order(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        return pixel_z_order(*self.camera.shape)
 
     def points(
         self, image: Any, pose: NDArray[np.float64], *, topic: str = "Image"
@@ -147,6 +173,54 @@ class DepthProjector:
         n = _scale_rays(np.ascontiguousarray(z).reshape(-1), self._rays, t, out)
         return out[:n]
 
+    def ordered_points(
+        self, image: Any, pose: NDArray[np.float64], *, topic: str = "Image"
+    ) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
+        """``(points, codes, centroid)``: the returned pixels of ``image`` as points
+        ``(k, 3)`` in the frame where the camera is at ``pose`` (4 × 4), in pixel Z-order
+        (the same points as :meth:`points`, in another order), their pixels' Z-order
+        codes ``(k,)`` (increasing) and their mean point."""
+        cam = self.camera
+        raw, millimetres = _raw_pixels(image, topic)
+        if raw.shape != cam.shape:
+            depth_points(image, cam, topic=topic)  # raises the size error
+        order, zcodes = self._z_order
+        key = np.ascontiguousarray(pose[:3, :3]).tobytes()
+        if key != self._zpose:
+            rays = cam.intrinsics.rays()[order] @ pose[:3, :3].T
+            self._zrays = np.ascontiguousarray(rays)
+            self._zpose = key
+        out = np.empty_like(self._zrays)
+        codes = np.empty(out.shape[0], dtype=np.int64)
+        t = np.ascontiguousarray(pose[:3, 3], dtype=np.float64)
+        n, centroid = _project_in_order(raw, millimetres, order, zcodes, self._zrays, t, out, codes)
+        return out[:n], codes[:n], centroid
+
+
+def pixel_z_order(height: int, width: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """``(order, codes)``: the row-major pixel indices ``v · width + u`` of a
+    ``height`` × ``width`` image sorted by the Morton code of ``(u, v)`` (the bits of
+    ``u`` and ``v`` interleaved, ``u``'s in the even places), and those codes in that
+    order (increasing, below 2**62)."""
+    v, u = np.divmod(np.arange(height * width, dtype=np.uint64), np.uint64(max(width, 1)))
+    codes = _spread_bits(u) | (_spread_bits(v) << np.uint64(1))
+    order = np.argsort(codes, kind="stable")
+    return order.astype(np.int64), codes[order].astype(np.int64)
+
+
+def _spread_bits(x: NDArray[np.uint64]) -> NDArray[np.uint64]:
+    """The 31 low bits of each ``x`` spread to the even bit places (bit i → bit 2i)."""
+    x = x & np.uint64(0x7FFFFFFF)
+    for shift, mask in (
+        (16, 0x0000FFFF0000FFFF),
+        (8, 0x00FF00FF00FF00FF),
+        (4, 0x0F0F0F0F0F0F0F0F),
+        (2, 0x3333333333333333),
+        (1, 0x5555555555555555),
+    ):
+        x = (x | (x << np.uint64(shift))) & np.uint64(mask)
+    return x
+
 
 @njit(cache=True, nogil=True)
 def _scale_rays(z, rays, t, out):  # type: ignore[no-untyped-def]
@@ -162,3 +236,44 @@ def _scale_rays(z, rays, t, out):  # type: ignore[no-untyped-def]
             out[n, 2] = d * rays[i, 2] + t[2]
             n += 1
     return n
+
+
+@njit(cache=True, nogil=True)
+def _project_in_order(raw, millimetres, order, zcodes, rays, t, out, codes):  # type: ignore[no-untyped-def]
+    """For the pixels ``order[k]`` (row-major indices into the stored pixels ``raw``)
+    in turn: the depth ``z`` (``raw · 1e-3`` for ``millimetres``, 0 invalid; else
+    ``raw``, invalid unless finite and > 0, as :func:`depth_image_metres` reads them)
+    and, if valid, ``out[n] = z · rays[k] + t`` and ``codes[n] = zcodes[k]``. Returns
+    ``n`` and the mean of the points written (summed in order)."""
+    w = raw.shape[1]
+    n = 0
+    s0 = s1 = s2 = 0.0
+    for k in range(order.shape[0]):
+        i = order[k]
+        v = i // w
+        r = raw[v, i - v * w]
+        if millimetres:
+            if r == 0:
+                continue
+            d = np.float64(r) * 1e-3
+        else:
+            d = np.float64(r)
+            if not (d > 0.0 and d < np.inf):  # NaN fails both
+                continue
+        x = d * rays[k, 0] + t[0]
+        y = d * rays[k, 1] + t[1]
+        z = d * rays[k, 2] + t[2]
+        out[n, 0] = x
+        out[n, 1] = y
+        out[n, 2] = z
+        codes[n] = zcodes[k]
+        s0 += x
+        s1 += y
+        s2 += z
+        n += 1
+    centroid = np.empty(3)
+    m = max(n, 1)
+    centroid[0] = s0 / m
+    centroid[1] = s1 / m
+    centroid[2] = s2 / m
+    return n, centroid

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from reachwise.distance.index import INDICES, index_of_ordered
 from reachwise.distance.scene import Scene
 from reachwise.distance.scene_memory import MemoryConfig, SceneMemory, ViewIntrinsics
 from reachwise.errors import InputError, UnknownName
@@ -199,8 +200,13 @@ class _CloudTopic:
             )
         return self.projector
 
-    def points(self, msg: Any, t: float, tree: TransformTree, frame: str) -> tuple[F64, float]:
-        """The message's points in ``frame`` and their stamp (s)."""
+    def points(
+        self, msg: Any, t: float, tree: TransformTree, frame: str
+    ) -> tuple[F64 | PointCloud, float]:
+        """The message's points in ``frame`` and their stamp (s). A depth image's come
+        as a cloud already indexed (over its pixels' Z-order, no sort:
+        :func:`~reachwise.distance.index.index_of_ordered`), which the scene takes as
+        it is."""
         T, stamp = self.pose(msg, t, tree, frame)
         if self.msgtype == POINTCLOUD2:
             pts = pointcloud2_points(msg, topic=self.topic)
@@ -208,7 +214,15 @@ class _CloudTopic:
                 pts = pts @ T[:3, :3].T + T[:3, 3]
         else:
             proj = self._projector(stamp)
-            pts = proj.points(msg, np.eye(4) if T is None else T, topic=self.topic)
+            pose = np.eye(4) if T is None else T
+            pts, codes, centroid = proj.ordered_points(msg, pose, topic=self.topic)
+            if len(pts):
+                index = index_of_ordered(pts, codes, centroid)
+                # the cloud and its index share the points (a read-only view for the
+                # cloud; the compiled queries take the index's arrays as writable)
+                cloud = PointCloud.of_checked(pts.view(), name=self.topic)
+                INDICES.put(cloud, index)
+                return cloud, stamp
         if len(pts) == 0:  # nothing returned: the frame says "nothing near"
             pts = _NOWHERE
         return np.ascontiguousarray(pts, dtype=np.float64), stamp
@@ -363,11 +377,11 @@ def _drive(
             src = sources[m.topic]
             src.count += 1
             if memory is not None and src.msgtype == IMAGE:
-                pts, stamp = src.fuse(memory, m.msg, m.t, tree, spec.frame)
-                scene.replace_cloud(MEMORY, pts, block=spec.block, stamp=stamp)
+                voxels, stamp = src.fuse(memory, m.msg, m.t, tree, spec.frame)
+                scene.replace_cloud(MEMORY, voxels, block=spec.block, stamp=stamp)
             else:
-                pts, stamp = src.points(m.msg, m.t, tree, spec.frame)
-                scene.replace_cloud(m.topic, pts, block=spec.block, stamp=stamp)
+                cloud, stamp = src.points(m.msg, m.t, tree, spec.frame)
+                scene.replace_cloud(m.topic, cloud, block=spec.block, stamp=stamp)
         else:
             q = matcher.positions(m.msg, topic=m.topic)
             t = _joint_time(m.msg, m.t)
