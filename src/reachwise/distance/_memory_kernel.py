@@ -1,15 +1,22 @@
 """Compiled kernels of the scene memory (:mod:`reachwise.distance.scene_memory`).
 
-Two passes per depth frame and one per hand-over, each over flat arrays:
+Three passes per depth frame and one per hand-over, each over flat arrays:
 
+- :func:`prepare_frame` — one pass over the pixels: the frame as one ``code`` image
+  (the return's depth, minus it where the pixel saw the robot, NaN without a return)
+  and, per tile of ``TILE`` × ``TILE`` pixels, the nearest and farthest return and
+  whether a pixel without a return or on the robot lies in it, as a sparse table over
+  squares of 2**level tiles so that any rectangle of tiles is bounded by a few reads.
 - :func:`project_frame` — the projective update (nvblox's method, on the CPU): every
-  voxel of the grid that a brick test cannot rule out is projected into the depth image
-  through its centre; against the depth ``d`` measured at that pixel, a centre at depth
-  ``z`` (along the optical axis) is *free* when ``z < d − band`` and *at or behind the
-  surface* when ``d − band ≤ z ≤ d + shadow`` (occupied shadow, unless another frame saw
-  it free within ``hold`` s); pixels without a return change nothing, and a pixel that
-  sees the robot (``body``, its depth the robot's) only frees what lies in front of the
-  robot: the robot's own shadow keeps what was seen there before.
+  voxel of the grid that a brick test cannot decide at once is projected into the depth
+  image through its centre; against the depth ``d`` measured at that pixel, a centre at
+  depth ``z`` (along the optical axis) is *free* when ``z < d − band`` and *at or behind
+  the surface* when ``d − band ≤ z ≤ d + shadow`` (occupied shadow, unless another frame
+  saw it free within ``hold`` s); pixels without a return change nothing, and a pixel
+  that sees the robot (its depth the robot's) only frees what lies in front of the
+  robot: the robot's own shadow keeps what was seen there before. Bricks of ``BRICK``³
+  voxels, then of half that edge, are skipped, freed or shadowed whole when the tiles
+  under their corners' projections decide every centre the same way.
 - :func:`mark_points` — every returned pixel back-projected to its point, whose voxel
   is marked occupied at time ``t``: a voxel that holds an observed point is occupied,
   whatever its centre's pixel saw (depth edges).
@@ -42,210 +49,351 @@ _W_F8_3D = types.Array(types.float64, 3, "C")
 _RO_F8_2D = types.Array(types.float64, 2, "C", readonly=True)
 _RO_B1_2D = types.Array(types.boolean, 2, "C", readonly=True)
 _RO_F8_1D = types.Array(types.float64, 1, "C", readonly=True)
+_RO_F8_3D = types.Array(types.float64, 3, "C", readonly=True)
 _W_F8_2D = types.Array(types.float64, 2, "C")
 
+_W_F4_2D = types.Array(types.float32, 2, "C")
+_RO_F4_2D = types.Array(types.float32, 2, "C", readonly=True)
+_W_F8_4D = types.Array(types.float64, 4, "C")
+_RO_F8_4D = types.Array(types.float64, 4, "C", readonly=True)
+
+# code: the frame's pixels as one image (float32): NaN where there is no return, the
+# depth (m) where the pixel saw the scene, minus the depth where it saw the robot.
+# tiles[level, ty, tx] = [nearest, farthest return, 1.0 when a pixel without a return or
+# on the robot lies there else 0.0] over the 2**level x 2**level tiles of TILE x TILE
+# pixels from tile (ty, tx) on (a sparse table: any rectangle of tiles is the union of
+# a few such squares)
+_SIG_PREPARE = types.float64(_RO_F8_2D, _RO_B1_2D, types.float64, types.float64, _W_F4_2D, _W_F8_4D)
+
+
+def tile_levels(height: int, width: int) -> tuple[int, int, int]:
+    """The shape ``(levels, tile rows, tile columns)`` of the tile table of a
+    ``height`` × ``width`` image (:func:`prepare_frame`)."""
+    nty = (height + TILE - 1) // TILE
+    ntx = (width + TILE - 1) // TILE
+    return max(nty, ntx).bit_length(), nty, ntx
+
+
+@njit(_SIG_PREPARE, cache=True, nogil=True)
+def prepare_frame(depth, body, near, far, code, tiles):  # type: ignore[no-untyped-def]
+    """One pass over the pixels: the ``code`` image (above) of the returns within
+    ``[near, far]`` (and > 0), and the per-tile bounds the brick tests of
+    :func:`project_frame` use; returns the farthest return (0.0 when there is none)."""
+    H, W = depth.shape
+    L, nty, ntx = tiles.shape[0], tiles.shape[1], tiles.shape[2]
+    for ty in range(nty):
+        for tx in range(ntx):
+            tiles[0, ty, tx, 0] = np.inf
+            tiles[0, ty, tx, 1] = -np.inf
+            tiles[0, ty, tx, 2] = 0.0
+    dmax = 0.0
+    nan = np.float32(np.nan)
+    for r in range(H):
+        ty = r // TILE
+        for c in range(W):
+            tx = c // TILE
+            d = depth[r, c]
+            if d > 0.0 and d >= near and d <= far:
+                if d > dmax:
+                    dmax = d
+                if d < tiles[0, ty, tx, 0]:
+                    tiles[0, ty, tx, 0] = d
+                if d > tiles[0, ty, tx, 1]:
+                    tiles[0, ty, tx, 1] = d
+                if body[r, c]:
+                    code[r, c] = -d
+                    tiles[0, ty, tx, 2] = 1.0
+                else:
+                    code[r, c] = d
+            else:
+                code[r, c] = nan
+                tiles[0, ty, tx, 2] = 1.0
+    for lv in range(1, L):
+        h = 1 << (lv - 1)
+        for ty in range(nty - 2 * h + 1):
+            for tx in range(ntx - 2 * h + 1):
+                tiles[lv, ty, tx, 0] = min(
+                    min(tiles[lv - 1, ty, tx, 0], tiles[lv - 1, ty + h, tx, 0]),
+                    min(tiles[lv - 1, ty, tx + h, 0], tiles[lv - 1, ty + h, tx + h, 0]),
+                )
+                tiles[lv, ty, tx, 1] = max(
+                    max(tiles[lv - 1, ty, tx, 1], tiles[lv - 1, ty + h, tx, 1]),
+                    max(tiles[lv - 1, ty, tx + h, 1], tiles[lv - 1, ty + h, tx + h, 1]),
+                )
+                tiles[lv, ty, tx, 2] = max(
+                    max(tiles[lv - 1, ty, tx, 2], tiles[lv - 1, ty + h, tx, 2]),
+                    max(tiles[lv - 1, ty, tx + h, 2], tiles[lv - 1, ty + h, tx + h, 2]),
+                )
+    return dmax
+
+
 # camera = [fx, fy, cx, cy, near, far]; grid = [ox, oy, oz, voxel];
-# rules = [band, shadow, t, hold]; pose_cw: world -> camera (4 x 4)
+# rules = [band, shadow, t, hold, dmax]; pose_cw: world -> camera (4 x 4)
 _SIG_PROJECT = types.int64(
-    _W_U1_3D, _W_F8_3D, _RO_F8_2D, _RO_B1_2D, _RO_F8_1D, _RO_F8_2D, _RO_F8_1D, _RO_F8_1D
+    _W_U1_3D, _W_F8_3D, _RO_F4_2D, _RO_F8_4D, _RO_F8_1D, _RO_F8_2D, _RO_F8_1D, _RO_F8_1D
 )
+
+# what a brick test decides for every voxel of a brick
+_SKIP = 0  # nothing to change: out of view, before the near plane or beyond the shadow
+_ALL_FREE = 1  # every centre seen in front of its pixel's return
+_ALL_SHADOW = 2  # every centre at or behind its pixel's surface, within the shadow
+_EACH = 3  # decide voxel by voxel
+
+
+@njit(cache=True, nogil=True)
+def _brick_test(lo3, ext, view, tiles, rules, W, H):  # type: ignore[no-untyped-def]
+    """Decide a brick of voxels ``lo3 .. lo3 + ext`` at once (``_SKIP``, ``_ALL_FREE``,
+    ``_ALL_SHADOW``) or voxel by voxel (``_EACH``). ``view`` rows: the camera
+    coordinates of voxel (0, 0, 0)'s centre, one step along i, j, k, then [fx, fy, cx,
+    cy, near, voxel]. The centres of a convex brick project inside the convex hull of
+    its corners' projections (every centre in front of the camera), so the tiles under
+    the corners' pixel rectangle bound every pixel a centre reads."""
+    fx, fy, cx, cy, near, vox = (
+        view[4, 0],
+        view[4, 1],
+        view[4, 2],
+        view[4, 3],
+        view[4, 4],
+        view[4, 5],
+    )
+    band, shadow, reach = rules[0], rules[1], rules[4] + rules[1]
+    bi, bj, bk = lo3[0], lo3[1], lo3[2]
+    ei, ej, ek = ext[0], ext[1], ext[2]
+    mi = bi + 0.5 * (ei - 1)
+    mj = bj + 0.5 * (ej - 1)
+    mk = bk + 0.5 * (ek - 1)
+    x = view[0, 0] + mi * view[1, 0] + mj * view[2, 0] + mk * view[3, 0]
+    y = view[0, 1] + mi * view[1, 1] + mj * view[2, 1] + mk * view[3, 1]
+    z = view[0, 2] + mi * view[1, 2] + mj * view[2, 2] + mk * view[3, 2]
+    rad = 0.5 * vox * math.sqrt((ei - 1) ** 2 + (ej - 1) ** 2 + (ek - 1) ** 2) + 1e-9
+    if z + rad <= near or z - rad > reach:
+        return _SKIP
+    if z - rad <= near:
+        return _EACH
+    # the frustum's four side planes, through the optical centre (pixels round to the
+    # nearest, so the image spans u in [-0.5, W - 0.5) and v in [-0.5, H - 0.5))
+    a0 = cx + 0.5
+    a1 = W - 0.5 - cx
+    b0 = cy + 0.5
+    b1 = H - 0.5 - cy
+    if (fx * x + a0 * z) / math.sqrt(fx * fx + a0 * a0) < -rad:
+        return _SKIP
+    if (-fx * x + a1 * z) / math.sqrt(fx * fx + a1 * a1) < -rad:
+        return _SKIP
+    if (fy * y + b0 * z) / math.sqrt(fy * fy + b0 * b0) < -rad:
+        return _SKIP
+    if (-fy * y + b1 * z) / math.sqrt(fy * fy + b1 * b1) < -rad:
+        return _SKIP
+    umin = vmin = zmin = np.inf
+    umax = vmax = zmax = -np.inf
+    for ci in (bi, bi + ei - 1):
+        for cj in (bj, bj + ej - 1):
+            for ck in (bk, bk + ek - 1):
+                qx = view[0, 0] + ci * view[1, 0] + cj * view[2, 0] + ck * view[3, 0]
+                qy = view[0, 1] + ci * view[1, 1] + cj * view[2, 1] + ck * view[3, 1]
+                qz = view[0, 2] + ci * view[1, 2] + cj * view[2, 2] + ck * view[3, 2]
+                qu = fx * qx / qz + cx
+                qv = fy * qy / qz + cy
+                umin = min(umin, qu)
+                umax = max(umax, qu)
+                vmin = min(vmin, qv)
+                vmax = max(vmax, qv)
+                zmin = min(zmin, qz)
+                zmax = max(zmax, qz)
+    pu0 = max(0, math.floor(umin + 0.5))
+    pu1 = min(W - 1, math.floor(umax + 0.5))
+    pv0 = max(0, math.floor(vmin + 0.5))
+    pv1 = min(H - 1, math.floor(vmax + 0.5))
+    if pu0 > pu1 or pv0 > pv1:
+        return _EACH
+    inside = umin + 0.5 >= 0.0 and umax + 0.5 < W and vmin + 0.5 >= 0.0 and vmax + 0.5 < H
+    # the tiles under the rectangle, as squares of 2**lv tiles from the sparse table
+    ty0, ty1 = pv0 // TILE, pv1 // TILE
+    tx0, tx1 = pu0 // TILE, pu1 // TILE
+    lv = 0
+    while (2 << lv) <= min(ty1 - ty0 + 1, tx1 - tx0 + 1):
+        lv += 1
+    side = 1 << lv
+    lo = np.inf
+    hi = -np.inf
+    bad = False
+    for y in range(ty0, ty1 + 1, side):
+        yy = min(y, ty1 - side + 1)
+        for x in range(tx0, tx1 + 1, side):
+            xx = min(x, tx1 - side + 1)
+            lo = min(lo, tiles[lv, yy, xx, 0])
+            hi = max(hi, tiles[lv, yy, xx, 1])
+            bad = bad or tiles[lv, yy, xx, 2] != 0.0
+    if zmin > hi + shadow:
+        return _SKIP
+    if inside and not bad:
+        if zmax < lo - band:
+            return _ALL_FREE
+        if zmin >= hi - band and zmax <= lo + shadow:
+            return _ALL_SHADOW
+    return _EACH
+
+
+@njit(cache=True, nogil=True)
+def _apply(decision, lo3, ext, state, freed_at, code, view, rules, W, H):  # type: ignore[no-untyped-def]
+    """Apply a brick test's ``decision`` to its voxels (voxel by voxel for ``_EACH``);
+    returns how many of them projected onto a pixel with a return."""
+    band, shadow, t, hold = rules[0], rules[1], rules[2], rules[3]
+    bi, bj, bk = lo3[0], lo3[1], lo3[2]
+    ei, ej, ek = ext[0], ext[1], ext[2]
+    if decision == _SKIP:
+        return 0
+    if decision == _ALL_FREE:
+        for i in range(bi, bi + ei):
+            for j in range(bj, bj + ej):
+                for k in range(bk, bk + ek):
+                    state[i, j, k] = FREE
+                    freed_at[i, j, k] = t
+        return ei * ej * ek
+    if decision == _ALL_SHADOW:
+        for i in range(bi, bi + ei):
+            for j in range(bj, bj + ej):
+                for k in range(bk, bk + ek):
+                    if state[i, j, k] != OCCUPIED and t - freed_at[i, j, k] > hold:
+                        state[i, j, k] = SHADOW
+        return ei * ej * ek
+    fx, fy, cx, cy, near = view[4, 0], view[4, 1], view[4, 2], view[4, 3], view[4, 4]
+    reach = rules[4] + shadow
+    sx, sy, sz = view[3, 0], view[3, 1], view[3, 2]
+    seen = 0
+    for i in range(bi, bi + ei):
+        for j in range(bj, bj + ej):
+            px = view[0, 0] + i * view[1, 0] + j * view[2, 0] + bk * sx
+            py = view[0, 1] + i * view[1, 1] + j * view[2, 1] + bk * sy
+            pz = view[0, 2] + i * view[1, 2] + j * view[2, 2] + bk * sz
+            for k in range(bk, bk + ek):
+                if pz > near and pz <= reach:
+                    inv = 1.0 / pz
+                    uf = fx * px * inv + cx + 0.5
+                    vf = fy * py * inv + cy + 0.5
+                    if uf >= 0.0 and uf < W and vf >= 0.0 and vf < H:
+                        d = code[int(vf), int(uf)]
+                        if d == d:
+                            seen += 1
+                            if d > 0.0:
+                                if pz < d - band:
+                                    state[i, j, k] = FREE
+                                    freed_at[i, j, k] = t
+                                elif pz <= d + shadow:
+                                    if state[i, j, k] != OCCUPIED and t - freed_at[i, j, k] > hold:
+                                        state[i, j, k] = SHADOW
+                            elif pz < -d - band:
+                                state[i, j, k] = FREE
+                                freed_at[i, j, k] = t
+                px += sx
+                py += sy
+                pz += sz
+    return seen
 
 
 @njit(_SIG_PROJECT, cache=True, nogil=True)
-def project_frame(state, freed_at, depth, body, camera, pose_cw, grid, rules):  # type: ignore[no-untyped-def]
-    """Free and shadow marks of one frame (module docstring); returns the number of
-    voxels whose centre projected onto a pixel with a return."""
-    fx, fy, cx, cy, near = camera[0], camera[1], camera[2], camera[3], camera[4]
+def project_frame(state, freed_at, code, tiles, camera, pose_cw, grid, rules):  # type: ignore[no-untyped-def]
+    """Free and shadow marks of one frame (module docstring) from its ``code`` image and
+    ``tiles`` (:func:`prepare_frame`); ``rules`` = [band, shadow, t, hold, farthest
+    return]. Bricks of ``BRICK``³ voxels are decided at once where their corners allow
+    (:func:`_brick_test`), else split into bricks of half the edge, then voxel by voxel.
+    Returns the number of voxels whose centre projected onto a pixel with a return."""
     ox, oy, oz, vox = grid[0], grid[1], grid[2], grid[3]
-    band, shadow, t, hold = rules[0], rules[1], rules[2], rules[3]
-    H, W = depth.shape
+    H, W = code.shape
     nx, ny, nz = state.shape
-    # per tile of TILE x TILE pixels: the nearest and farthest return, and whether a
-    # pixel without a return (or on the robot) lies in it
-    nty = (H + TILE - 1) // TILE
-    ntx = (W + TILE - 1) // TILE
-    tmin = np.full((nty, ntx), np.inf)
-    tmax = np.full((nty, ntx), -np.inf)
-    tbad = np.zeros((nty, ntx), dtype=np.bool_)
-    dmax = 0.0
-    for r in range(H):
-        for c in range(W):
-            d = depth[r, c]
-            ty = r // TILE
-            tx = c // TILE
-            if d == d:
-                if d > dmax:
-                    dmax = d
-                if d < tmin[ty, tx]:
-                    tmin[ty, tx] = d
-                if d > tmax[ty, tx]:
-                    tmax[ty, tx] = d
-            if d != d or body[r, c]:
-                tbad[ty, tx] = True
-    if dmax <= 0.0:
+    if rules[4] <= 0.0:
         return 0
-    reach = dmax + shadow
     R = pose_cw[:3, :3]
     tc = pose_cw[:3, 3]
-    # camera coordinates of the voxel (0, 0, 0) centre and of one step along each axis
-    c0 = np.empty(3)
-    dx = np.empty(3)
-    dy = np.empty(3)
-    dz = np.empty(3)
+    view = np.empty((5, 6))
     for a in range(3):
-        c0[a] = (
+        view[0, a] = (
             R[a, 0] * (ox + 0.5 * vox)
             + R[a, 1] * (oy + 0.5 * vox)
             + R[a, 2] * (oz + 0.5 * vox)
             + tc[a]
         )
-        dx[a] = R[a, 0] * vox
-        dy[a] = R[a, 1] * vox
-        dz[a] = R[a, 2] * vox
+        view[1, a] = R[a, 0] * vox
+        view[2, a] = R[a, 1] * vox
+        view[3, a] = R[a, 2] * vox
+    for a in range(5):
+        view[4, a] = camera[a]
+    view[4, 5] = vox
+    half = BRICK // 2
+    lo3 = np.empty(3, dtype=np.int64)
+    ext = np.empty(3, dtype=np.int64)
+    sub = np.empty(3, dtype=np.int64)
+    sext = np.empty(3, dtype=np.int64)
     seen = 0
     for bi in range(0, nx, BRICK):
         for bj in range(0, ny, BRICK):
             for bk in range(0, nz, BRICK):
-                # the brick's bounding sphere in camera coordinates: skip it when it lies
-                # wholly before the near plane, beyond every return's shadow, or outside
-                # the image's frustum
-                ei = min(BRICK, nx - bi)
-                ej = min(BRICK, ny - bj)
-                ek = min(BRICK, nz - bk)
-                mi = bi + 0.5 * (ei - 1)
-                mj = bj + 0.5 * (ej - 1)
-                mk = bk + 0.5 * (ek - 1)
-                x = c0[0] + mi * dx[0] + mj * dy[0] + mk * dz[0]
-                y = c0[1] + mi * dx[1] + mj * dy[1] + mk * dz[1]
-                z = c0[2] + mi * dx[2] + mj * dy[2] + mk * dz[2]
-                rad = 0.5 * vox * math.sqrt((ei - 1) ** 2 + (ej - 1) ** 2 + (ek - 1) ** 2) + 1e-9
-                if z + rad <= near or z - rad > reach:
+                lo3[0], lo3[1], lo3[2] = bi, bj, bk
+                ext[0], ext[1], ext[2] = (
+                    min(BRICK, nx - bi),
+                    min(BRICK, ny - bj),
+                    min(BRICK, nz - bk),
+                )
+                decision = _brick_test(lo3, ext, view, tiles, rules, W, H)
+                if decision != _EACH:
+                    seen += _apply(decision, lo3, ext, state, freed_at, code, view, rules, W, H)
                     continue
-                if z - rad > near:
-                    # the frustum's four side planes, through the optical centre
-                    # (pixels round to the nearest, so the image spans u in
-                    # [-0.5, W - 0.5) and v in [-0.5, H - 0.5))
-                    a0 = cx + 0.5
-                    a1 = W - 0.5 - cx
-                    b0 = cy + 0.5
-                    b1 = H - 0.5 - cy
-                    if (fx * x + a0 * z) / math.sqrt(fx * fx + a0 * a0) < -rad:
-                        continue
-                    if (-fx * x + a1 * z) / math.sqrt(fx * fx + a1 * a1) < -rad:
-                        continue
-                    if (fy * y + b0 * z) / math.sqrt(fy * fy + b0 * b0) < -rad:
-                        continue
-                    if (-fy * y + b1 * z) / math.sqrt(fy * fy + b1 * b1) < -rad:
-                        continue
-                    # the pixels every centre of the brick projects into (the corners'
-                    # projections bound them): a brick wholly behind its pixels' shadow
-                    # is skipped; one wholly in front of them, all seen, is free at once
-                    umin = vmin = zmin = np.inf
-                    umax = vmax = zmax = -np.inf
-                    for ci in (bi, bi + ei - 1):
-                        for cj in (bj, bj + ej - 1):
-                            for ck in (bk, bk + ek - 1):
-                                qx = c0[0] + ci * dx[0] + cj * dy[0] + ck * dz[0]
-                                qy = c0[1] + ci * dx[1] + cj * dy[1] + ck * dz[1]
-                                qz = c0[2] + ci * dx[2] + cj * dy[2] + ck * dz[2]
-                                qu = fx * qx / qz + cx
-                                qv = fy * qy / qz + cy
-                                umin = min(umin, qu)
-                                umax = max(umax, qu)
-                                vmin = min(vmin, qv)
-                                vmax = max(vmax, qv)
-                                zmin = min(zmin, qz)
-                                zmax = max(zmax, qz)
-                    pu0 = max(0, math.floor(umin + 0.5))
-                    pu1 = min(W - 1, math.floor(umax + 0.5))
-                    pv0 = max(0, math.floor(vmin + 0.5))
-                    pv1 = min(H - 1, math.floor(vmax + 0.5))
-                    inside = (
-                        umin + 0.5 >= 0.0
-                        and umax + 0.5 < W
-                        and vmin + 0.5 >= 0.0
-                        and vmax + 0.5 < H
-                    )
-                    if pu0 <= pu1 and pv0 <= pv1:
-                        lo = np.inf
-                        hi = -np.inf
-                        bad = False
-                        for ty in range(pv0 // TILE, pv1 // TILE + 1):
-                            for tx in range(pu0 // TILE, pu1 // TILE + 1):
-                                lo = min(lo, tmin[ty, tx])
-                                hi = max(hi, tmax[ty, tx])
-                                bad = bad or tbad[ty, tx]
-                        if zmin > hi + shadow:
-                            continue
-                        if inside and not bad and zmax < lo - band:
-                            for i in range(bi, bi + ei):
-                                for j in range(bj, bj + ej):
-                                    for k in range(bk, bk + ek):
-                                        state[i, j, k] = FREE
-                                        freed_at[i, j, k] = t
-                            seen += ei * ej * ek
-                            continue
-                for i in range(bi, bi + ei):
-                    for j in range(bj, bj + ej):
-                        px = c0[0] + i * dx[0] + j * dy[0] + bk * dz[0]
-                        py = c0[1] + i * dx[1] + j * dy[1] + bk * dz[1]
-                        pz = c0[2] + i * dx[2] + j * dy[2] + bk * dz[2]
-                        for k in range(bk, bk + ek):
-                            if pz > near and pz <= reach:
-                                inv = 1.0 / pz
-                                u = math.floor(fx * px * inv + cx + 0.5)
-                                v = math.floor(fy * py * inv + cy + 0.5)
-                                if 0 <= u < W and 0 <= v < H:
-                                    d = depth[v, u]
-                                    if d == d:
-                                        seen += 1
-                                        if pz < d - band:
-                                            state[i, j, k] = FREE
-                                            freed_at[i, j, k] = t
-                                        elif pz <= d + shadow and not body[v, u]:
-                                            s = state[i, j, k]
-                                            if s != OCCUPIED and t - freed_at[i, j, k] > hold:
-                                                state[i, j, k] = SHADOW
-                            px += dz[0]
-                            py += dz[1]
-                            pz += dz[2]
+                for si in range(bi, bi + ext[0], half):
+                    for sj in range(bj, bj + ext[1], half):
+                        for sk in range(bk, bk + ext[2], half):
+                            sub[0], sub[1], sub[2] = si, sj, sk
+                            sext[0] = min(half, bi + ext[0] - si)
+                            sext[1] = min(half, bj + ext[1] - sj)
+                            sext[2] = min(half, bk + ext[2] - sk)
+                            d = _brick_test(sub, sext, view, tiles, rules, W, H)
+                            seen += _apply(d, sub, sext, state, freed_at, code, view, rules, W, H)
     return seen
 
 
 _SIG_MARK = types.int64(
-    _W_U1_3D, _W_F8_3D, _RO_F8_2D, _RO_B1_2D, _RO_F8_1D, _RO_F8_2D, _RO_F8_1D, types.float64
+    _W_U1_3D, _W_F8_3D, _RO_F4_2D, _RO_F8_1D, _RO_F8_2D, _RO_F8_1D, types.float64
 )
 
 
 @njit(_SIG_MARK, cache=True, nogil=True)
-def mark_points(state, seen_at, depth, body, camera, pose_wc, grid, t):  # type: ignore[no-untyped-def]
-    """Mark the voxel of every returned pixel's point occupied at time ``t``; returns
-    the number of points that fell inside the grid."""
+def mark_points(state, seen_at, code, camera, pose_wc, grid, t):  # type: ignore[no-untyped-def]
+    """Mark the voxel of every scene pixel's point (``code`` > 0, :func:`prepare_frame`)
+    occupied at time ``t``; returns the number of points that fell inside the grid."""
     fx, fy, cx, cy = camera[0], camera[1], camera[2], camera[3]
     ox, oy, oz, vox = grid[0], grid[1], grid[2], grid[3]
     inv_vox = 1.0 / vox
-    H, W = depth.shape
+    H, W = code.shape
     nx, ny, nz = state.shape
     R = pose_wc[:3, :3]
     tw = pose_wc[:3, 3]
+    xs = np.empty(W)
+    for c in range(W):
+        xs[c] = (c - cx) / fx
     marked = 0
+    li = lj = lk = -1  # the last voxel marked: neighbouring pixels mostly share one
     for r in range(H):
+        yr = (r - cy) / fy
+        # world position of the ray's unit-depth point for this row, per column step
+        bx = R[0, 1] * yr + R[0, 2]
+        by = R[1, 1] * yr + R[1, 2]
+        bz = R[2, 1] * yr + R[2, 2]
         for c in range(W):
-            d = depth[r, c]
-            if d != d or body[r, c]:
+            d = code[r, c]
+            if not d > 0.0:
                 continue
-            xc = (c - cx) / fx * d
-            yc = (r - cy) / fy * d
-            x = R[0, 0] * xc + R[0, 1] * yc + R[0, 2] * d + tw[0]
-            y = R[1, 0] * xc + R[1, 1] * yc + R[1, 2] * d + tw[1]
-            z = R[2, 0] * xc + R[2, 1] * yc + R[2, 2] * d + tw[2]
+            xc = xs[c]
+            x = (R[0, 0] * xc + bx) * d + tw[0]
+            y = (R[1, 0] * xc + by) * d + tw[1]
+            z = (R[2, 0] * xc + bz) * d + tw[2]
             i = math.floor((x - ox) * inv_vox)
             j = math.floor((y - oy) * inv_vox)
             k = math.floor((z - oz) * inv_vox)
             if 0 <= i < nx and 0 <= j < ny and 0 <= k < nz:
-                state[i, j, k] = OCCUPIED
-                seen_at[i, j, k] = t
                 marked += 1
+                if i != li or j != lj or k != lk:
+                    state[i, j, k] = OCCUPIED
+                    seen_at[i, j, k] = t
+                    li, lj, lk = i, j, k
     return marked
 
 

@@ -60,7 +60,9 @@ from reachwise.distance._memory_kernel import (
     UNKNOWN,
     decay_and_collect,
     mark_points,
+    prepare_frame,
     project_frame,
+    tile_levels,
 )
 from reachwise.errors import InputError
 
@@ -195,12 +197,10 @@ class SceneMemory:
         that saw the robot: their depth, when given, is the robot's, and frees only the
         space in front of it; they never mark anything occupied or shadow (the robot
         never enters its own map, and what it hides keeps what was seen before)."""
-        z = np.array(depth, dtype=np.float64)
+        z = np.ascontiguousarray(depth, dtype=np.float64)
         if z.ndim != 2 or z.size == 0:
             raise InputError(_SRC, "depth", f"expected a (height, width) image, got {z.shape}")
         near, far = float(intrinsics.near), float(intrinsics.far)
-        with np.errstate(invalid="ignore"):
-            z[~((z > 0.0) & (z >= near) & (z <= far))] = np.nan
         mask = (
             np.zeros(z.shape, dtype=np.bool_)
             if body is None
@@ -221,11 +221,18 @@ class SceneMemory:
             raise InputError(_SRC, "t", f"must be a finite time, got {t!r}")
         cw = np.linalg.inv(T)
         cfg = self.config
-        rules = np.array([cfg.surface_band, cfg.shadow_depth, tt, cfg.free_hold_s])
-        for a in (z, mask, camera, cw, T, rules):
+        H, W = z.shape
+        code = np.empty((H, W), dtype=np.float32)
+        tiles = np.empty((*tile_levels(H, W), 3))
+        zv, mv = z.view(), mask.view()  # read-only views: the caller's arrays keep their flags
+        zv.flags.writeable = False
+        mv.flags.writeable = False
+        dmax = prepare_frame(zv, mv, near, far, code, tiles)
+        rules = np.array([cfg.surface_band, cfg.shadow_depth, tt, cfg.free_hold_s, dmax])
+        for a in (code, tiles, camera, cw, T, rules):
             a.setflags(write=False)
-        project_frame(self.state, self.freed_at, z, mask, camera, cw, self._grid, rules)
-        mark_points(self.state, self.seen_at, z, mask, camera, T, self._grid, tt)
+        project_frame(self.state, self.freed_at, code, tiles, camera, cw, self._grid, rules)
+        mark_points(self.state, self.seen_at, code, camera, T, self._grid, tt)
         self._stamp = max(self._stamp, tt)
 
     def obstacles(self, t: float | None = None) -> NDArray[np.float64]:
