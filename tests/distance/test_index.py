@@ -17,6 +17,7 @@ from reachwise.distance import PairQuery, Scene, closest_points
 from reachwise.distance.index import INDICES, IndexRegistry, build_index, cloud_index
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
+from tests.distance.test_build import check_tree
 
 
 def clouds(seed: int = 0) -> tuple[PointCloud, PointCloud]:
@@ -154,7 +155,6 @@ def test_an_index_over_a_grid_order_is_a_valid_tree_and_exact(
     from scipy.spatial.distance import cdist
 
     from reachwise.distance.index import index_of_ordered
-    from tests.distance.test_build import check_tree
 
     rng = np.random.default_rng(seed)
     cells = sorted((_interleave(u, v), u, v) for v in range(h) for u in range(w))
