@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -17,6 +18,8 @@ from reachwise.io.atomic import atomic_write
 
 if TYPE_CHECKING:
     from reachwise.server.client import ServerOptions
+    from reachwise.sim.log import SimulationLog
+    from reachwise.sim.plant import PlantName
     from reachwise.sim.world import SceneFactory
 
 
@@ -80,14 +83,16 @@ def simulate(
         "setting).",
     ),
 ) -> None:
-    """Simulate a scenario with collision avoidance (thesis §3.3, P-III/P-IV/P-V)."""
+    """Simulate a scenario with collision avoidance (thesis §3.3, P-III/P-IV/P-V).
+
+    Ctrl-C (once or more) ends the run between two ticks: the ticks finished so far are
+    written to --out as a valid log (``extras.interrupted`` in its summary), the runs
+    finished before it in full, and the command exits with 130.
+    """
+    from reachwise.cli.interrupts import deferred_interrupts
     from reachwise.errors import InputError, check_choice
-    from reachwise.sim.bag_recorder import BagRecorder
-    from reachwise.sim.log import SimulationLog
-    from reachwise.sim.plant import PLANT_NAMES, PlantName
+    from reachwise.sim.plant import PLANT_NAMES
     from reachwise.sim.scenarios import load_scenario
-    from reachwise.sim.simulate import simulate as run
-    from reachwise.sim.world import build_world
 
     plant_name = check_choice(plant, PLANT_NAMES, source="--plant", kind="plant")
     if plant_name == "mujoco":
@@ -96,54 +101,151 @@ def simulate(
         require_mujoco()  # a clear error naming the missing extra, before any work
     if bag is not None and bag.exists():
         raise InputError(str(bag), "--bag", "exists already; not overwriting a recording")
-    sc = load_scenario(scenario)
-    if out is not None:  # computed helpers (automatic self-collision pairs) cached there
-        sc.cache_dir = out
-    make_scene = None
-    if server is not None:
-        from reachwise.server.client import ServerOptions
-
-        link = ServerOptions(
-            server, deadline=server_deadline, keys=server_keys, ready_timeout=server_timeout
-        )
-        make_scene = _server_scene(link)
     console = Console(stderr=True)
-    live = None
-    if view:
-        from reachwise.viz.live import LiveSession
+    with deferred_interrupts() as interrupts:
+        sc = load_scenario(scenario)
+        if out is not None:  # computed helpers (automatic self-collision pairs) cached there
+            sc.cache_dir = out
+        make_scene = None
+        if server is not None:
+            from reachwise.server.client import ServerOptions
 
-        live = LiveSession(sc, echo=console.print)
+            link = ServerOptions(
+                server, deadline=server_deadline, keys=server_keys, ready_timeout=server_timeout
+            )
+            make_scene = _server_scene(link)
+        live = None
+        if view:
+            from reachwise.viz.live import LiveSession
+
+            live = LiveSession(sc, echo=console.print)
+        modes = [True, False] if baseline else [True]
+        runs: list[tuple[bool, PlantName]] = [(m, plant_name) for m in modes]
+        if plant_name == "mujoco":
+            runs.append((True, "scenario"))
+        opts = _RunOptions(duration, make_scene, escape, bag, live, json_out)
+        logs, stopped = _run_all(sc, runs, opts, console, interrupts.check)
+        if stopped is not None:
+            _keep_interrupted(sc, logs, stopped, out, console, json_out)
+            raise typer.Exit(130)
+        data = _write(sc, logs, out, figures)
+    if json_out:
+        typer.echo(json.dumps(data, indent=2))
+    else:
+        _print(data, console)
+    if live is not None:
+        live.replay(logs)  # until Ctrl-C
+
+
+@dataclass(frozen=True)
+class _RunOptions:
+    """How each run of the command goes: its ``duration`` override (s, ``None``: the
+    scenario's), the distance scene factory (``None``: in process), the ``escape``
+    override, the ``bag`` file the avoidance run records, the live viewer session
+    and whether the progress bar is off (``quiet``)."""
+
+    duration: float | None
+    make_scene: SceneFactory | None
+    escape: bool | None
+    bag: Path | None
+    live: Any
+    quiet: bool
+
+
+def _label(avoid: bool, kind: str, plant_name: str) -> str:
+    if plant_name == "mujoco" and kind != plant_name:
+        return "reference"  # the same scenario on its own plant, for comparison
+    return "avoidance" if avoid else "baseline"
+
+
+def _run_all(
+    sc: Any, runs: list[tuple[bool, PlantName]], opts: _RunOptions, console: Console,
+    check: Callable[[], None],
+) -> tuple[dict[str, SimulationLog], str | None]:  # fmt: skip
+    """Each run in turn (``(avoidance, plant)``); ``check`` is called between ticks and
+    may raise :class:`KeyboardInterrupt` to stop. The logs by label (an interrupted
+    run's log holds its finished ticks) and the label of the interrupted run, if any."""
+    from reachwise.sim.bag_recorder import BagRecorder
+    from reachwise.sim.simulate import SimulationInterrupted
+    from reachwise.sim.simulate import simulate as run
+
     logs: dict[str, SimulationLog] = {}
-    modes = [True, False] if baseline else [True]
-    runs: list[tuple[bool, PlantName]] = [(m, plant_name) for m in modes]
-    if plant_name == "mujoco":
-        runs.append((True, "scenario"))
-    total = duration if duration is not None else sc.spec.duration
+    total = opts.duration if opts.duration is not None else sc.spec.duration
     with Progress(
         TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.fields[t]}"),
-        TimeElapsedColumn(), console=console, disable=json_out,
+        TimeElapsedColumn(), console=console, disable=opts.quiet,
     ) as bar:  # fmt: skip
         for avoid, kind in runs:
-            label = "avoidance" if avoid else "baseline"
-            if plant_name == "mujoco" and kind != plant_name:
-                label = "reference"  # the same scenario on its own plant, for comparison
+            label = _label(avoid, kind, runs[0][1])
             job = bar.add_task(f"{sc.name} {label}", total=total, t="")
 
             def tick(t: float, end: float, job: TaskID = job) -> None:
+                check()
                 if round(t / sc.spec.dt) % 10 == 0:
                     bar.update(job, completed=min(t, end), t=f"{t:6.2f} s")
 
-            recorder = BagRecorder(bag) if bag is not None and label == "avoidance" else None
+            recorder = (
+                BagRecorder(opts.bag) if opts.bag is not None and label == "avoidance" else None
+            )
+            live = opts.live
             try:
+                check()
                 logs[label] = run(
-                    sc, avoidance=avoid, duration=duration, progress=tick, plant=kind,
-                    make_scene=make_scene, escape=escape, recorder=recorder,
+                    sc, avoidance=avoid, duration=opts.duration, progress=tick, plant=kind,
+                    make_scene=opts.make_scene, escape=opts.escape, recorder=recorder,
                     on_tick=live.hook(avoid, label) if live is not None else None,
                 )  # fmt: skip
+            except SimulationInterrupted as exc:
+                logs[label] = exc.log
+                return logs, label
+            except KeyboardInterrupt:  # before the run's first tick
+                return logs, label
             finally:
                 if recorder is not None:
                     recorder.close()
             bar.update(job, completed=total)
+    return logs, None
+
+
+def _keep_interrupted(
+    sc: Any, logs: dict[str, SimulationLog], stopped: str, out: Path | None, console: Console,
+    json_out: bool,
+) -> None:  # fmt: skip
+    """Write what an interrupted command finished: each log with at least one tick (the
+    interrupted run's up to its last finished tick) and ``summary.json``; no figures,
+    no report. Say what was kept and how to run it whole."""
+    kept = {label: log for label, log in logs.items() if log.t.size}
+    data = {label: log.summary() for label, log in kept.items()}
+    data["interrupted"] = stopped  # type: ignore[assignment]
+    if out is not None and kept:
+        for label, log in kept.items():
+            log.save(out / label)
+        atomic_write(out / "summary.json", json.dumps(data, indent=2))
+    t = logs[stopped].t[-1] if stopped in logs and logs[stopped].t.size else None
+    where = f" at t = {t:.2f} s" if t is not None else " before its first tick"
+    if out is None:
+        what = "nothing written (no --out)"
+    elif kept:
+        what = (
+            "kept "
+            + ", ".join(f"{out / label}/ ({log.t.size} ticks)" for label, log in kept.items())
+            + f" and {out / 'summary.json'}"
+        )
+    else:
+        what = "nothing written"
+    console.print(
+        f"interrupted during the {stopped} run of {sc.name}{where}: {what}; "
+        "run the same command to simulate it whole"
+    )
+    if json_out:
+        typer.echo(json.dumps(data, indent=2))
+
+
+def _write(
+    sc: Any, logs: dict[str, SimulationLog], out: Path | None, figures: bool
+) -> dict[str, Any]:
+    """The summary of the finished runs; with ``out``, their logs, figures, summary and
+    HTML report written there."""
     main = logs["avoidance"]
     base = logs.get("baseline")
     ref = logs.get("reference")
@@ -151,43 +253,45 @@ def simulate(
         from reachwise.sim.mujoco_plant import plant_comparison
 
         main.extras["comparison"] = plant_comparison(main, ref)
-    data = {"avoidance": main.summary()}
+    data: dict[str, Any] = {"avoidance": main.summary()}
     if base is not None:
         data["baseline"] = base.summary()
     if ref is not None:
         data["reference"] = ref.summary()
-    if out is not None:
-        main.save(out / "avoidance")
-        if base is not None:
-            base.save(out / "baseline")
-        if ref is not None:
-            ref.save(out / "reference")
-        cloud, pngs = None, None
-        if figures:
-            from reachwise.report.sim_plots import save_figures
+    if out is None:
+        return data
+    for label, log in logs.items():
+        log.save(out / label)
+    cloud, pngs = None, None
+    if figures:
+        from reachwise.report.sim_plots import save_figures
 
-            world = build_world(sc)
-            objs = [o for o in world.scene.objects.values() if "/" not in o.name]
-            if objs:
-                import numpy as np
+        cloud = _object_cloud(sc)
+        pngs = {p.stem: p for p in save_figures(out, main, base, cloud)}
+    atomic_write(out / "summary.json", json.dumps(data, indent=2))
+    data["out"] = str(out)
+    from reachwise.report.simulate import write_simulation_report
 
-                poses = world.scene.poses()
-                cloud = np.concatenate(
-                    [o.cloud.points @ poses[o.name][:3, :3].T + poses[o.name][:3, 3] for o in objs]
-                )
-            pngs = {p.stem: p for p in save_figures(out, main, base, cloud)}
-        atomic_write(out / "summary.json", json.dumps(data, indent=2))
-        data["out"] = str(out)  # type: ignore[assignment]
-        from reachwise.report.simulate import write_simulation_report
+    report = write_simulation_report(out, sc, logs, pngs or False, cloud)
+    data["report"] = str(report)
+    return data
 
-        report = write_simulation_report(out, sc, logs, pngs or False, cloud)
-        data["report"] = str(report)  # type: ignore[assignment]
-    if json_out:
-        typer.echo(json.dumps(data, indent=2))
-    else:
-        _print(data, console)
-    if live is not None:
-        live.replay(logs)  # until Ctrl-C
+
+def _object_cloud(sc: Any) -> Any:
+    """The scenario's objects' clouds at their start poses, in one array (``None``
+    without objects), for the figures."""
+    from reachwise.sim.world import build_world
+
+    world = build_world(sc)
+    objs = [o for o in world.scene.objects.values() if "/" not in o.name]
+    if not objs:
+        return None
+    import numpy as np
+
+    poses = world.scene.poses()
+    return np.concatenate(
+        [o.cloud.points @ poses[o.name][:3, :3].T + poses[o.name][:3, 3] for o in objs]
+    )
 
 
 def _print(data: dict, console: Console) -> None:  # type: ignore[type-arg]

@@ -57,7 +57,18 @@ from reachwise.sim.world import (
 if TYPE_CHECKING:
     from reachwise.sim.escape import Escape
 
-__all__ = ["RunRecorder", "run_world", "simulate"]
+__all__ = ["RunRecorder", "SimulationInterrupted", "run_world", "simulate"]
+
+
+class SimulationInterrupted(KeyboardInterrupt):
+    """A run stopped by :class:`KeyboardInterrupt` (Ctrl-C, or raised by a ``progress``
+    or ``on_tick`` callback): :attr:`log` holds every tick finished before it (maybe
+    none), with ``extras["interrupted"]`` set."""
+
+    def __init__(self, log: SimulationLog) -> None:
+        super().__init__("simulation interrupted")
+        #: The log of the ticks finished before the interruption.
+        self.log = log
 
 
 class RunRecorder(Protocol):
@@ -154,30 +165,35 @@ def run_world(
         goals.next_goal(a, 0.0)
     if recorder is not None:
         recorder.start(world)
-    k = 0
-    for k in range(ticks):
-        t = k * dt
-        clock.now = t
-        rec.t[k] = t
-        res, seen_res, twists = _sense(world, seen, t)
-        rec.object_poses(k, t)
-        if on_tick is not None:
-            on_tick(t, {a.name: a.plant.q.copy() for a in world.agents}, res)
-        if recorder is not None:
-            recorder.tick(k, t, world)
-        _check_contact(world, pair_objs, res, k, t, rec, goals.events)
-        all_done = True
-        for a in world.agents:
-            rec.robot_state(k, a)
-            cmd, state = _act(a, seen_res, twists, t, dt, avoidance, goals, esc)
-            if state != "done":
-                all_done = False
-            rec.command(k, a.name, cmd, state)
-            a.plant.step(cmd, dt)
-        if progress is not None:
-            progress(t, T_end)
-        if all_done:
-            break
+    n = 0  # ticks finished
+    interrupted = False
+    try:
+        for k in range(ticks):
+            t = k * dt
+            clock.now = t
+            rec.t[k] = t
+            res, seen_res, twists = _sense(world, seen, t)
+            rec.object_poses(k, t)
+            if on_tick is not None:
+                on_tick(t, {a.name: a.plant.q.copy() for a in world.agents}, res)
+            if recorder is not None:
+                recorder.tick(k, t, world)
+            _check_contact(world, pair_objs, res, k, t, rec, goals.events)
+            all_done = True
+            for a in world.agents:
+                rec.robot_state(k, a)
+                cmd, state = _act(a, seen_res, twists, t, dt, avoidance, goals, esc)
+                if state != "done":
+                    all_done = False
+                rec.command(k, a.name, cmd, state)
+                a.plant.step(cmd, dt)
+            n = k + 1
+            if progress is not None:
+                progress(t, T_end)
+            if all_done:
+                break
+    except KeyboardInterrupt:  # a callback or Ctrl-C: the finished ticks are kept
+        interrupted = True
     close_scene(scene)
     if recorder is not None:
         recorder.close()
@@ -186,7 +202,10 @@ def run_world(
         extras["tracking"] = {a.name: a.plant.tracking() for a in world.agents}  # type: ignore[union-attr]
     if esc is not None:
         extras["escape"] = esc.summary()
-    return rec.log(k + 1, avoidance, goals, extras)
+    if interrupted:
+        extras["interrupted"] = True
+        raise SimulationInterrupted(rec.log(n, avoidance, goals, extras))
+    return rec.log(n, avoidance, goals, extras)
 
 
 class _Recorder:
