@@ -17,7 +17,8 @@ Stages (each writes its outputs and an HTML report into its own folder of ``--ou
 ``report.html`` at the top summarises every stage and links its report. A finished
 stage leaves ``stage.json`` (or its JSON file) holding its parameters and key figures;
 a rerun with the same parameters reuses it (``--fresh`` redoes everything). Ctrl-C
-keeps every finished stage (and every finished topology run, in the sweep database).
+keeps every finished stage (and every finished topology run, in the sweep database):
+SIGINT is recorded and honoured between a stage's steps, never inside compiled code.
 """
 
 from __future__ import annotations
@@ -60,6 +61,10 @@ class Ctx:
     err: Console
     json_out: bool
     done: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: Called between the steps of a stage (runs, ticks, queries); raises
+    #: :class:`KeyboardInterrupt` once Ctrl-C was pressed
+    #: (:meth:`reachwise.cli.interrupts.Interrupts.check`).
+    check: Callable[[], None] = lambda: None
 
     @contextmanager
     def progress(self, label: str) -> Iterator[Progress]:
@@ -140,6 +145,7 @@ def demo(
 
     A rerun reuses the stages already complete in --out; Ctrl-C keeps them.
     """
+    from reachwise.cli.interrupts import deferred_interrupts
     from reachwise.report.demo import write_demo_report
 
     console = Console(quiet=json_out)
@@ -161,13 +167,9 @@ def demo(
     if fresh:
         _clear(out, stages)
     t0 = time.perf_counter()
-    interrupted = None
-    for st in stages:
-        try:
-            ctx.done[st.key] = _run_stage(ctx, st)
-        except KeyboardInterrupt:
-            interrupted = st.key
-            break
+    with deferred_interrupts() as interrupts:
+        ctx.check = interrupts.check
+        interrupted = _run_stages(ctx, stages)
     elapsed = time.perf_counter() - t0
     figures: dict[str, Any] = {
         "seed": seed,
@@ -181,8 +183,8 @@ def demo(
     report = write_demo_report(out, [(s, ctx.done.get(s.key)) for s in stages], figures)
     figures["report"] = str(report.resolve())
     atomic_write(out / "demo.json", json.dumps(figures, indent=2, default=str))
-    if interrupted is not None:
-        console.print(
+    if interrupted is not None:  # on stderr even with --json: what was kept, how to resume
+        Console(stderr=True).print(
             f"[bold red]interrupted[/] during {interrupted}: {len(ctx.done)} finished stages "
             f"kept in {out.resolve()}/; run the same command to resume"
         )
@@ -196,6 +198,19 @@ def demo(
         from reachwise.viz.viewer import serve_results
 
         serve_results(out, block=True)
+
+
+def _run_stages(ctx: Ctx, stages: list[Stage]) -> str | None:
+    """Run (or reuse) each stage in turn until Ctrl-C: the key of the stage it stopped,
+    or ``None``. SIGINT is only recorded (the compiled kernels must not be interrupted)
+    and honoured between a stage's steps (``ctx.check``) and between stages."""
+    for st in stages:
+        try:
+            ctx.check()
+            ctx.done[st.key] = _run_stage(ctx, st)
+        except KeyboardInterrupt:
+            return st.key
+    return None
 
 
 def _stages(ctx: Ctx) -> list[Stage]:
@@ -345,6 +360,7 @@ def _synthesis(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
         job = bar.add_task("", total=runs)
 
         def on_run(r: Any) -> None:
+            ctx.check()
             bar.update(job, advance=1, description=f"seed {r.seed}: {r.n_reached}/{len(task)}")
 
         # reach first, then the conditioning objective (GCI, P-II Eq. 38) in the null
@@ -437,6 +453,7 @@ def _topology(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
         jobs: dict[int, Any] = {}
 
         def on_event(e: Any) -> None:
+            ctx.check()
             if e.kind == "round":
                 n = e.total * cfg.runs
                 jobs[e.round] = bar.add_task(
@@ -513,6 +530,7 @@ def _simulate(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
             job = bar.add_task(label, total=round(total / sc.spec.dt))
 
             def tick(t: float, end: float, job: Any = job) -> None:
+                ctx.check()
                 bar.update(job, completed=round(min(t, end) / sc.spec.dt))
 
             logs[label] = simulate(sc, avoidance=avoid, duration=duration, progress=tick)
@@ -572,6 +590,7 @@ def _kinematics(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
         mask = None if robot.actuated.sum() >= 6 else 3
         solved, ep, eo, times = 0, 0.0, 0.0, []
         for T in robot.fk(Q):
+            ctx.check()
             t = time.perf_counter()
             res = robot.ik(T, mask=mask, rng=rng)
             times.append(time.perf_counter() - t)
@@ -621,6 +640,7 @@ def _distance(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
     agree, times, at_risk = 0, [], 0
     m = p["queries"]
     for _ in range(m):
+        ctx.check()
         xyz = rng.uniform(lo, hi) + np.array([0.0, 0.0, rng.uniform(0.2, 1.0)])
         pose = pose_from_xyz_rpy(xyz, rng.uniform(-np.pi, np.pi, 3))
         t = time.perf_counter()

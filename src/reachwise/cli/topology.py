@@ -82,8 +82,8 @@ def topology(
     """Optimize many topologies and rank them by GCI, KCI and more (P-II Fig. 1, Table 2).
 
     Every finished run is stored in --db at once; running the same command again skips
-    what is done. Ctrl-C stops submitting, waits for the running runs, stores them and
-    exits (130); a killed sweep loses nothing it stored.
+    what is done. Ctrl-C (once or more) stops submitting, waits for the running runs,
+    stores them and exits (130); a killed sweep loses nothing it stored.
     """
     from reachwise.io.task_file import load_task
     from reachwise.synthesis.objectives import parse_objective
@@ -182,13 +182,16 @@ class SweepOutput:
 
 def _sweep(t: Any, topos: list[Any], cfg: Any, place: SweepPlace, output: SweepOutput) -> Any:
     """Run the sweep with a progress bar, storing every run in ``output.db``; on
-    Ctrl-C say how to resume and exit with 130."""
+    Ctrl-C say what is stored and how to resume, and exit with 130. SIGINT is only
+    recorded while the sweep runs (compiled code in process must not be interrupted)
+    and honoured after each stored run."""
+    from reachwise.cli.interrupts import deferred_interrupts
     from reachwise.results.sweep_store import SweepStore
     from reachwise.synthesis.sweep import SweepInterrupted, dask_executor, run_sweep
 
     console = Console(stderr=True)
-    interrupted = False
-    with SweepStore(output.db) as store, Progress(
+    interrupted, stored = False, 0
+    with deferred_interrupts() as interrupts, SweepStore(output.db) as store, Progress(
         TextColumn("[bold]{task.fields[label]}"), BarColumn(), MofNCompleteColumn(),
         TimeElapsedColumn(), TextColumn("{task.description}"), console=console,
         disable=output.json_out,
@@ -196,6 +199,7 @@ def _sweep(t: Any, topos: list[Any], cfg: Any, place: SweepPlace, output: SweepO
         jobs: dict[int, Any] = {}
 
         def on_event(e: Any) -> None:
+            interrupts.check()
             if e.kind == "round":
                 label = "round 1 (subset)" if e.round == 1 else "round 2 (complete task)"
                 jobs[e.round] = bar.add_task("", total=e.total, completed=e.done, label=label)
@@ -218,9 +222,11 @@ def _sweep(t: Any, topos: list[Any], cfg: Any, place: SweepPlace, output: SweepO
                 )
         except SweepInterrupted:
             interrupted = True
+            stored = store.count()
     if interrupted:
         console.print(
-            f"interrupted: finished runs are stored in {output.db}; run the same command to resume"
+            f"interrupted: {stored} finished runs are stored in {output.db}; run the same "
+            "command to resume"
         )
         raise typer.Exit(130)
     return result
