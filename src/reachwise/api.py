@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_clouds import link_clouds as link_clouds_of
 from reachwise.io.robot_file import load_robot
@@ -24,6 +25,7 @@ from reachwise.io.task_file import load_task
 from reachwise.kinematics.robot import Robot
 from reachwise.report.replay import write_replay_outputs
 from reachwise.server.client.owned import ServerOptions, owned_scene
+from reachwise.sim.bag_recorder import BagRecorder
 from reachwise.sim.log import SimulationLog
 from reachwise.sim.plant import PlantName
 from reachwise.sim.resolve import ResolvedScenario, resolve_scenario
@@ -137,6 +139,7 @@ def simulate(
     server: str | ServerOptions | None = None,
     escape: bool | EscapeSpec | None = None,
     recorder: RunRecorder | None = None,
+    bag: str | Path | None = None,
 ) -> SimulationLog:
     """Run ``scenario`` (a built-in name, a file, a ``Scenario`` or a resolved one) in
     simulated time, in three stages, each once: *resolve* (every file read and checked,
@@ -145,12 +148,28 @@ def simulate(
     ``reachwise.sim.simulate.run_world``). The options are those of
     ``reachwise.sim.simulate.simulate``; ``server`` (an address or
     ``reachwise.server.client.ServerOptions``) runs the distance queries on that
-    collision server instead of in process (:func:`~reachwise.api.server_scene`)."""
+    collision server instead of in process (:func:`~reachwise.api.server_scene`).
+
+    ``bag`` (a path that does not exist yet: ``.mcap`` for MCAP, else ROS 2 sqlite3;
+    the ``ros`` extra) also writes the run as a recording, as ``reachwise simulate
+    --bag`` does (``reachwise.sim.bag_recorder.BagRecorder``: joint states, the
+    cameras' depth images, CameraInfo and clouds, TF), for :func:`replay` to read
+    back; it replaces ``recorder``, so give one or the other."""
+    if bag is not None:
+        if recorder is not None:
+            raise InputError("simulate", "bag", "give bag or recorder, not both")
+        if Path(bag).exists():
+            raise InputError(str(bag), "bag", "exists already; not overwriting a recording")
     resolved = resolve_scenario(scenario)
     clock = SimClock()
     make_scene = None if server is None else server_scene(server)
     world = build_world(resolved, avoidance, plant=plant, make_scene=make_scene, clock=clock)
-    return run_world(
-        world, clock, duration=duration, progress=progress, on_tick=on_tick,
-        static_world=static_world, escape=escape, recorder=recorder,
-    )  # fmt: skip
+    writer = BagRecorder(bag) if bag is not None else None
+    try:
+        return run_world(
+            world, clock, duration=duration, progress=progress, on_tick=on_tick,
+            static_world=static_world, escape=escape, recorder=writer or recorder,
+        )  # fmt: skip
+    finally:
+        if writer is not None:
+            writer.close()
