@@ -48,6 +48,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from reachwise.distance.self_pairs import PairRule, SelfPairs
 from reachwise.errors import InputError
 from reachwise.io.atomic import atomic_write
+from reachwise.io.text_input import parse_text, read_text
 from reachwise.io.validation import input_error
 
 __all__ = ["RULES", "load_pairs", "pairs_to_dict", "save_pairs", "seal"]
@@ -62,10 +63,6 @@ RULES = {
     "whether the two links touch by design (MoveIt would disable them as 'default')",
     "watched": "came within the margin in some random configuration: watched",
 }
-
-#: Largest pair file read (bytes): far beyond any robot's pairs (a 100-link robot's
-#: 4950 pairs take about 1 MB).
-MAX_BYTES = 64 * 1024 * 1024
 
 _STRICT = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
 _Name = Field(min_length=1)
@@ -175,34 +172,11 @@ def save_pairs(
     return atomic_write(path, head + yaml.safe_dump(data, sort_keys=False, width=100))
 
 
-def _read_yaml(path: str | os.PathLike[str], source: str) -> Any:
-    """The YAML document in ``path``: unreadable, oversized, non-UTF-8, malformed or
-    too deeply nested text is an :class:`InputError` naming the file."""
-    try:
-        with open(path, "rb") as fh:
-            raw = fh.read(MAX_BYTES + 1)
-    except OSError as exc:
-        raise InputError(source, "", f"cannot read: {exc.strerror or exc}") from None
-    if len(raw) > MAX_BYTES:
-        raise InputError(source, "", f"larger than {MAX_BYTES} bytes: not a pair file")
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = raw[: exc.start].count(b"\n") + 1
-        raise InputError(source, f"line {line}", "not UTF-8 text") from None
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise InputError(source, "", f"not valid YAML: {exc}") from None
-    except RecursionError:
-        raise InputError(source, "", "nested too deeply") from None
-
-
 def load_pairs(path: str | os.PathLike[str]) -> tuple[SelfPairs, str]:
     """The pairs in file ``path`` and its ``key``, every field checked (module
     docstring); a bad file is an :class:`InputError` naming it and the field."""
     source = str(path)
-    data = _read_yaml(path, source)
+    data = parse_text(read_text(path, source), source, "yaml")
     if not isinstance(data, dict):
         raise InputError(source, "", "a pair file holds a mapping")
     try:
