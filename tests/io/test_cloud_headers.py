@@ -11,6 +11,7 @@ import pytest
 
 from reachwise.errors import CloudError
 from reachwise.geometry.cloud import PointCloud
+from reachwise.io.cloud_headers import TEXT_ROW_BYTES
 from reachwise.io.clouds import load_cloud, save_cloud
 
 N = 40
@@ -138,3 +139,24 @@ def test_max_points_is_a_bound_the_user_can_raise(
         load_cloud(path, max_points=N - 1)
     assert info.value.source == str(path)
     np.testing.assert_array_equal(load_cloud(path, max_points=N).points, pts)
+
+
+@pytest.mark.parametrize("suffix", [".xyz", ".csv"])
+def test_text_cloud_larger_than_its_byte_bound_is_refused_unread(
+    tmp_path: Path, pts: np.ndarray, suffix: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A text file states no count: its size against ``max_points`` rows of
+    TEXT_ROW_BYTES is the bound, checked before a byte is read."""
+    path = save_cloud(PointCloud(pts[:10]), tmp_path / f"c{suffix}")
+    path.write_bytes(path.read_bytes() + b"#" + b"x" * 70_000 + b"\n")  # a long comment
+    limit = 64 * 1024 + 10 * TEXT_ROW_BYTES
+    assert path.stat().st_size > limit
+
+    def no_read(self: Path) -> bytes:
+        raise AssertionError(f"{self} read")
+
+    with monkeypatch.context() as m:
+        m.setattr(Path, "read_bytes", no_read)
+        err = _refused(path, "file", f"more than {limit}: 10 points", max_points=10)
+    assert "--max-points" in str(err)
+    np.testing.assert_array_equal(load_cloud(path, max_points=100).points, pts[:10])

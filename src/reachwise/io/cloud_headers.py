@@ -32,7 +32,15 @@ import numpy as np
 
 from reachwise.errors import CloudError
 
-__all__ = ["MAX_CLOUD_POINTS", "check_npy", "check_pcd", "check_ply", "count_lines"]
+__all__ = [
+    "MAX_CLOUD_POINTS",
+    "TEXT_ROW_BYTES",
+    "check_npy",
+    "check_pcd",
+    "check_ply",
+    "check_text_size",
+    "count_lines",
+]
 
 #: Default bound on the points of one cloud file (about 1.2 GB as float64 x, y, z).
 MAX_CLOUD_POINTS = 50_000_000
@@ -41,6 +49,10 @@ _MAX_HEADER = 64 * 1024
 _XYZ = ("x", "y", "z")
 #: Largest point record accepted (bytes): x, y, z and a few hundred more values.
 _MAX_ROW_BYTES = 4096
+#: Bytes an XYZ or CSV row may take on average (x, y, z and about seven more values at
+#: full float precision, comments and blank lines included): with ``max_points`` it
+#: bounds the size of a text cloud file read whole.
+TEXT_ROW_BYTES = 256
 
 _PLY_SIZES = {
     "char": 1, "int8": 1, "uchar": 1, "uint8": 1, "short": 2, "int16": 2, "ushort": 2,
@@ -55,6 +67,19 @@ def _check_count(source: str, field: str, count: int, max_points: int) -> None:
         raise CloudError(
             source, field, f"declares {count} points, more than the bound {max_points} "
             "(raise it with --max-points / max_points)",
+        )  # fmt: skip
+
+
+def check_text_size(path: Path, source: str, max_points: int) -> None:
+    """Refuse an XYZ or CSV file larger than ``max_points`` rows of
+    :data:`TEXT_ROW_BYTES` bytes (plus a header of up to 64 KiB) before it is read:
+    a text file has no header stating its count, so its size is the bound."""
+    size = path.stat().st_size
+    limit = _MAX_HEADER + max_points * TEXT_ROW_BYTES
+    if size > limit:
+        raise CloudError(
+            source, "file", f"{size} bytes, more than {limit}: {max_points} points of at most "
+            f"{TEXT_ROW_BYTES} bytes a row (raise the bound with --max-points / max_points)",
         )  # fmt: skip
 
 

@@ -45,7 +45,13 @@ from numpy.typing import NDArray
 from reachwise.errors import CloudError
 from reachwise.geometry.cloud import DEFAULT_MESH_POINTS, PointCloud, sample_mesh_surface
 from reachwise.io.atomic import atomic_open
-from reachwise.io.cloud_headers import MAX_CLOUD_POINTS, check_npy, check_pcd, check_ply
+from reachwise.io.cloud_headers import (
+    MAX_CLOUD_POINTS,
+    check_npy,
+    check_pcd,
+    check_ply,
+    check_text_size,
+)
 from reachwise.io.meshes import MESH_FORMATS, load_mesh
 from reachwise.io.text_input import decode_text
 
@@ -109,8 +115,10 @@ def load_cloud(
     row, unless ``drop_non_finite`` is set: then they are removed (organized scans mark
     "no return" with NaN), and a file of nothing but such rows is still an error. The
     cloud's ``name`` defaults to the path as given. A file declaring or holding more
-    than ``max_points`` points is refused before it is read; binary headers are checked
-    against the file's size (:mod:`reachwise.io.cloud_headers`).
+    than ``max_points`` points is refused before it is read: binary headers are checked
+    against the file's size, and an XYZ or CSV file larger than ``max_points`` rows of
+    :data:`~reachwise.io.cloud_headers.TEXT_ROW_BYTES` bytes is refused unread
+    (:mod:`reachwise.io.cloud_headers`).
     """
     source = str(path)
     kind = cloud_format(path, fmt)
@@ -130,6 +138,7 @@ def load_cloud(
             check_npy(p, source, max_points)
             pts = _read_npy(p, source)
         else:
+            check_text_size(p, source, max_points)
             pts = _read_text(p, source, max_points)
     except OSError as exc:
         raise CloudError(source, "file", f"cannot read: {exc.strerror or exc}") from None
