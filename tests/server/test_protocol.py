@@ -40,12 +40,12 @@ def sample_requests(crane: Robot) -> list[P.Request]:
         P.ReplaceCloud("camera", cloud.astype(np.float32), 2.5, True),
         P.SetJoints("hiab-xs033", np.linspace(0, 1, crane.n), 3.0),
         P.SetPose("probe", _pose()),
-        P.Watch("a", "b", math.inf, "custom"),
-        P.WatchSelf("hiab-xs033", 0.2, (("link_1", "link_3"),)),
-        P.WatchEnvironment("hiab-xs033", 0.5, ("environment",)),
-        P.WatchEnvironment("hiab-xs033", 0.5),
-        P.WatchRobots("r1", "r2", 0.3),
-        P.Unwatch("a", "b"),
+        P.OperationCall.of("watch", "a", "b", math.inf, kind="custom"),
+        P.OperationCall.of("watch_self", "hiab-xs033", 0.2, (("link_1", "link_3"),)),
+        P.OperationCall.of("watch_environment", "hiab-xs033", 0.5, ("environment",)),
+        P.OperationCall.of("watch_environment", "hiab-xs033", 0.5),
+        P.OperationCall.of("watch_robots", "r1", "r2", 0.3),
+        P.OperationCall.of("unwatch", "a", "b"),
         P.Clear(),
         P.Query(),
         P.Query(1.0, {"hiab-xs033": np.zeros(crane.n)}, {"probe": _pose()}, (("a", "b"),), "x-1"),
@@ -96,7 +96,6 @@ def test_replies_round_trip(crane: Robot) -> None:
         ),
         ("add_robot", P.RobotReply("hiab-xs033", crane.link_names, crane.n)),
         ("add_object", P.ObjectReply("part", 10)),
-        ("watch", P.PairsReply(pairs)),
         ("set_joints", P.Ack()),
         ("query", P.QueryReply(3, 1.25, 1e-4, "abc-2", pairs, rows)),
         ("query", P.QueryReply(4, 1.25, 1e-4, "abc-2", None, rows)),
@@ -120,7 +119,7 @@ def test_replies_round_trip(crane: Robot) -> None:
         back = P.decode_reply(P.encode_reply(11, rep), P.REPLIES[op])
         assert back.request_id == 11 and back.error is None
         assert _equal(back.reply, rep), op
-    q = P.decode_reply(P.encode_reply(1, replies[7][1]), P.QueryReply).reply
+    q = P.decode_reply(P.encode_reply(1, replies[6][1]), P.QueryReply).reply
     assert isinstance(q, P.QueryReply)
     assert q.index.tolist() == [[7, 9], [-1, -1]] and q.no_risk.tolist() == [False, True]
     err = P.decode_reply(
@@ -133,6 +132,10 @@ def test_replies_round_trip(crane: Robot) -> None:
 
 def _raw(op: str, body: Any, v: int = 1, rid: Any = 1) -> bytes:
     return msgpack.packb({"v": v, "id": rid, "op": op, "body": body}, use_bin_type=True)
+
+
+def _call(operation: str, arguments: Any) -> bytes:
+    return _raw("call", {"operation": operation, "arguments": arguments})
 
 
 def _arr(a: np.ndarray, dtype: str = "<f8") -> list[Any]:
@@ -219,24 +222,30 @@ def _code(raw: bytes, limits: P.Limits = LIMITS) -> tuple[P.ErrorCode, str]:
             "body.dynamic",
         ),
         (
-            _raw("watch", {"a": "x", "b": "y", "margin": -1.0, "kind": "custom"}),
+            _call("watch", {"a": "x", "b": "y", "margin": "near", "kind": "custom"}),
             E.WRONG_TYPE,
-            "body.margin",
+            "body.arguments.margin",
         ),
         (
-            _raw("watch", {"a": "x", "b": "y", "margin": math.nan, "kind": "custom"}),
-            E.NON_FINITE,
-            "body.margin",
-        ),
-        (
-            _raw("watch", {"a": "x", "b": "y", "margin": 0.1, "kind": "robot-obstacle"}),
+            _call("watch", {"a": "x", "b": "y", "margin": 0.1, "kind": "robot-obstacle"}),
             E.INVALID,
-            "body.kind",
+            "body.arguments.kind",
         ),
         (
-            _raw("watch_self", {"robot": "r", "margin": 0.1, "exclude": [["a"]]}),
+            _call("watch", {"a": "x", "b": "y", "margin": 0.1, "side": "a"}),
+            E.UNKNOWN_FIELD,
+            "body.arguments.side",
+        ),
+        (_call("watch", {"a": "x", "margin": 0.1}), E.MISSING_FIELD, "body.arguments.b"),
+        (
+            _call("watch_self", {"robot": "r", "margin": 0.1, "exclude": [["a"]]}),
             E.WRONG_SHAPE,
-            "body.exclude[0]",
+            "body.arguments.exclude[0]",
+        ),
+        (
+            _call("watch_environment", {"robot": "r", "margin": 0.1, "objects": [1]}),
+            E.WRONG_TYPE,
+            "body.arguments.objects[0]",
         ),
         (_raw("query", {"pairs": [["a", 3]]}), E.WRONG_TYPE, "body.pairs[0][1]"),
         (_raw("query", {"joints": {"r": _arr(np.array([np.nan]))}}), E.NON_FINITE, "body.joints.r"),

@@ -170,8 +170,24 @@ def test_bad_input_gets_typed_errors_and_the_server_keeps_serving(
                 "body.link",
             ),
             (P.AddObject("p", np.ones((3, 3)), np.diag([1.0, 1, 2, 1])), E.INVALID, "body.pose"),
-            (P.Watch("link_2", "nothing", 0.1), E.UNKNOWN_ID, "body.b"),
-            (P.WatchSelf("nobody", 0.1), E.UNKNOWN_ID, "body.robot"),
+            (P.OperationCall.of("watch", "link_2", "nothing", 0.1), E.UNKNOWN_ID, "object"),
+            (
+                P.OperationCall.of("watch", "link_2", "link_2", 0.1),
+                E.INVALID,
+                "pair ('link_2', 'link_2')",
+            ),
+            (P.OperationCall.of("watch", "link_2", "environment", -1.0), E.INVALID, "margin"),
+            (
+                P.OperationCall.of("watch", "link_2", "environment", math.nan),
+                E.NON_FINITE,
+                "body.arguments.margin",
+            ),
+            (P.OperationCall.of("watch_self", "nobody", 0.1), E.UNKNOWN_ID, "robot"),
+            (
+                P.OperationCall.of("watch_robots", crane.name, crane.name, 1.0),
+                E.INVALID,
+                "watch_robots",
+            ),
             (P.AddRobot({"name": "r", "joints": []}), E.INVALID, "body.robot.joints"),
             (
                 P.AddRobot({"name": "r", "joints": [{"type": "revolute", "a": "long"}]}),

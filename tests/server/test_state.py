@@ -34,10 +34,10 @@ def _populate(svc: SceneService, crane: Robot, clouds: dict[str, NDArray[np.floa
     probe = np.eye(4)
     probe[:3, 3] = [2.0, 0.5, 1.0]
     svc.handle(P.AddObject("probe", clouds["link_6"], probe, dynamic=True))
-    svc.handle(P.WatchEnvironment(crane.name, 1.5))
-    svc.handle(P.WatchSelf(crane.name, 0.5))
-    svc.handle(P.Watch("probe", "environment", math.inf, "custom"))
-    svc.handle(P.Watch("probe", "link_3", 0.8, "robot-environment"))
+    svc.handle(P.OperationCall.of("watch_environment", crane.name, 1.5))
+    svc.handle(P.OperationCall.of("watch_self", crane.name, 0.5))
+    svc.handle(P.OperationCall.of("watch", "probe", "environment", math.inf, kind="custom"))
+    svc.handle(P.OperationCall.of("watch", "probe", "link_3", 0.8, kind="robot-environment"))
 
 
 def _query(svc: SceneService) -> P.QueryReply:

@@ -261,11 +261,11 @@ def _service(seed: int) -> tuple[SceneService, dict[str, int], list[str]]:
         svc.handle(P.AddObject(f"fixed{j}", rng.normal(scale=0.5, size=(800, 3)), pose))
     svc.handle(P.AddObject("probe", rng.normal(scale=0.1, size=(100, 3)), np.eye(4), dynamic=True))
     for r in robots:
-        svc.handle(P.WatchEnvironment(r, float(rng.uniform(0.5, 3.0))))
-        svc.handle(P.WatchSelf(r, 0.4))
+        svc.handle(P.OperationCall.of("watch_environment", r, float(rng.uniform(0.5, 3.0))))
+        svc.handle(P.OperationCall.of("watch_self", r, 0.4))
     if len(robots) == 2:
-        svc.handle(P.WatchRobots("r0", "r1", 2.0))
-    svc.handle(P.Watch("probe", objects[0], math.inf, "custom"))
+        svc.handle(P.OperationCall.of("watch_robots", "r0", "r1", 2.0))
+    svc.handle(P.OperationCall.of("watch", "probe", objects[0], math.inf, kind="custom"))
     return svc, robots, objects
 
 
@@ -339,7 +339,7 @@ def test_a_tick_is_refused_like_the_full_query(crane: Robot) -> None:
     svc.handle(P.AddRobot(robot_to_dict(crane), np.zeros(crane.n), 1.0))
     svc.handle(P.AddObject("part", box_points((1, 1, 1), 50, 1), None, crane.name, "link_2"))
     svc.handle(P.AddObject("probe", box_points((1, 1, 1), 50, 2), np.eye(4), dynamic=True))
-    svc.handle(P.Watch("part", "probe", 1.0, "custom"))
+    svc.handle(P.OperationCall.of("watch", "part", "probe", 1.0, kind="custom"))
     layout = P.Layout.of(svc.handle(P.Query(1.0)))  # type: ignore[arg-type]
     assert layout is not None
     bad_pose = np.eye(4)
@@ -356,7 +356,9 @@ def test_a_tick_is_refused_like_the_full_query(crane: Robot) -> None:
         err = P.decode_reply(payload, P.QueryReply).error
         assert reply is None and err is not None
         assert (err.code, err.field) == (full.value.code, full.value.field)
-    svc.handle(P.Unwatch("part", "probe"))  # the layout changes: the old key is stale
+    svc.handle(
+        P.OperationCall.of("unwatch", "part", "probe")
+    )  # the layout changes: the old key is stale
     tick = P.encode_tick(4, P.Query(1.0, None, None, None, layout.name), layout)
     assert tick is not None
     err = P.decode_reply(svc.tick(tick, P.DEFAULT_LIMITS)[0], P.QueryReply).error

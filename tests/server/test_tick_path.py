@@ -36,7 +36,7 @@ def _both(crane: Robot, clouds: dict[str, NDArray[np.float64]]) -> tuple[SceneSe
     env[0, 3] = 1.6
     svc.handle(P.AddObject("environment", clouds["environment"], env))
     local.add_object("environment", clouds["environment"], env)
-    svc.handle(P.WatchEnvironment(crane.name, 1.5))
+    svc.handle(P.OperationCall.of("watch_environment", crane.name, 1.5))
     local.watch_environment(crane.name, 1.5)
     return svc, local
 
@@ -101,10 +101,10 @@ def test_what_the_tick_path_keeps_follows_every_change(
     assert layout is before and reply.clouds is not None
     assert tuple(reply.clouds[layout.objects.index("environment")]) == (1.0, 42.0)
     changes: list[tuple[P.Request, str]] = [
-        (P.Watch(LINKS[0], LINKS[2], 0.8, "custom"), "watch"),
+        (P.OperationCall.of("watch", LINKS[0], LINKS[2], 0.8, kind="custom"), "watch"),
         (P.AddObject("probe", box_points((0.3, 0.3, 0.3), 80, 9), np.eye(4), dynamic=True), "add"),
-        (P.Watch("probe", LINKS[1], math.inf, "custom"), "probe"),
-        (P.Unwatch(LINKS[0], LINKS[2]), "unwatch"),
+        (P.OperationCall.of("watch", "probe", LINKS[1], math.inf, kind="custom"), "probe"),
+        (P.OperationCall.of("unwatch", LINKS[0], LINKS[2]), "unwatch"),
     ]
     for request, what in changes:
         svc.handle(request)

@@ -56,7 +56,7 @@ def _service(robot: Robot) -> SceneService:
     pose = np.eye(4)
     pose[0, 3] = ENV_X
     svc.handle(P.AddObject("environment", environment_points(5500, seed=2), pose))
-    svc.handle(P.WatchEnvironment(robot.name, MARGIN))
+    svc.handle(P.OperationCall.of("watch_environment", robot.name, MARGIN))
     return svc
 
 

@@ -52,6 +52,7 @@ from reachwise.distance.index import INDICES, cloud_index
 from reachwise.distance.ingest import CloudIngest, Ready, ready_cloud
 from reachwise.distance.pairs import PAIR_KINDS, PairKind, PairResult, WatchedPair
 from reachwise.distance.scene_arrays import SceneArrays
+from reachwise.distance.scene_ops import scene_change
 from reachwise.errors import InputError, UnknownName, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.kinematics.fk import fk_all_into
@@ -478,6 +479,7 @@ class Scene:
         return version
 
     # ------------------------------------------------------------------ rules
+    @scene_change
     def watch(self, a: str, b: str, margin: float, *, kind: PairKind = "custom") -> WatchedPair:
         """Watch objects ``a`` and ``b`` with ``margin`` metres (replaces an earlier rule
         for the same pair); ``kind`` (``PairKind``) says why."""
@@ -498,7 +500,9 @@ class Scene:
         self._plan = None
         return pair
 
+    @scene_change
     def unwatch(self, a: str, b: str) -> None:
+        """Stop watching the pair ``a``, ``b`` (either order; nothing if it was not)."""
         for key in ((a, b), (b, a)):
             self._pairs.pop(key, None)
             self._queries.pop(key, None)
@@ -515,6 +519,7 @@ class Scene:
         ]
         return tuple(sorted(objs, key=lambda o: order[o.source.link]))  # type: ignore[union-attr]
 
+    @scene_change
     def watch_self(
         self,
         robot: str,
@@ -541,6 +546,7 @@ class Scene:
                 out.append(self.watch(oa.name, ob.name, margin, kind="self"))
         return tuple(out)
 
+    @scene_change
     def watch_environment(
         self, robot: str, margin: float, objects: Iterable[str] | None = None
     ) -> tuple[WatchedPair, ...]:
@@ -555,6 +561,7 @@ class Scene:
             self.watch(o.name, e, margin, kind="robot-environment") for o in mine for e in others
         )
 
+    @scene_change
     def watch_robots(self, robot_a: str, robot_b: str, margin: float) -> tuple[WatchedPair, ...]:
         """Pairs of every object of ``robot_a`` with every object of ``robot_b``."""
         if robot_a == robot_b:

@@ -17,12 +17,20 @@ query is written once and works in process and through the server alike::
     watched_count(scene, "self")   # in process
     watched_count(client, "self")  # through the collision server
 
-Operations read the scene; they run under the server's scene lock, between queries.
+Operations registered with :func:`scene_operation` read the scene; they run under the
+server's scene lock, between queries. Operations that *change* it — the pair rules
+(:meth:`Scene.watch <reachwise.distance.scene.Scene.watch>` and its kin) — are
+registered with :func:`scene_change`: the server runs them in order on its writer
+thread, persists the scene before it replies and sends a new layout with the next
+answer, and a client that mirrors the scene applies the same function to its copy.
+A method of :class:`~reachwise.distance.scene.Scene` can be registered as it is
+(``self`` is the scene), so the remote scene takes it over by assignment.
+
 Argument and result types the wire carries: ``bool``, ``int``, ``float``, ``str``,
 ``None``, ``Literal`` names, float64 arrays (``NDArray[np.float64]``, their shape
-given by :class:`ArrayShape`), ``tuple``,
-``list``, ``dict`` with string keys, unions with ``None`` and frozen dataclasses of
-those.
+given by :class:`ArrayShape`), ``tuple``, ``list``, ``Iterable`` and ``Sequence``
+(sent as lists), ``dict`` with string keys, unions with ``None`` and frozen
+dataclasses of those.
 """
 
 from __future__ import annotations
@@ -42,6 +50,7 @@ __all__ = [
     "ArrayShape",
     "RemoteOperations",
     "SceneOperation",
+    "scene_change",
     "scene_operation",
 ]
 
@@ -70,34 +79,40 @@ class ArrayShape:
 
 @dataclass(frozen=True)
 class Argument:
-    """One argument of an operation: its ``name``, type ``hint`` and whether it has a
-    ``default`` (then ``default`` holds it)."""
+    """One argument of an operation: its ``name``, type ``hint``, whether it has a
+    ``default`` (then ``default`` holds it) and whether it is ``keyword_only``."""
 
     name: str
     hint: Any
     has_default: bool = False
     default: Any = None
+    keyword_only: bool = False
 
 
 @dataclass(frozen=True)
 class SceneOperation:
-    """A registered scene query: wire ``name``, the ``function`` that answers it on a
-    scene, its typed ``arguments`` (after the scene) and ``result`` type."""
+    """A registered scene operation: wire ``name``, the ``function`` that answers it on
+    a scene, its typed ``arguments`` (after the scene), ``result`` type and whether it
+    ``mutates`` the scene."""
 
     name: str
     function: Callable[..., Any]
     arguments: tuple[Argument, ...]
     result: Any
+    mutates: bool = False
 
     def bind(self, args: tuple[Any, ...], kwargs: dict[str, Any]) -> dict[str, Any]:
         """The call's arguments by name (defaults left out); a wrong call is an
         :class:`~reachwise.errors.InputError`."""
         names = [a.name for a in self.arguments]
-        if len(args) > len(names):
+        positional = [a.name for a in self.arguments if not a.keyword_only]
+        if len(args) > len(positional):
             raise InputError(
-                self.name, "arguments", f"takes {len(names)} arguments, got {len(args)}"
+                self.name,
+                "arguments",
+                f"takes {len(positional)} positional arguments, got {len(args)}",
             )
-        out = dict(zip(names, args, strict=False))
+        out = dict(zip(positional, args, strict=False))
         for key, value in kwargs.items():
             if key not in names:
                 raise InputError(self.name, key, f"unknown argument; arguments: {names}")
@@ -114,7 +129,7 @@ class SceneOperation:
 OPERATIONS: dict[str, SceneOperation] = {}
 
 
-def _describe(function: Callable[..., Any], name: str) -> SceneOperation:
+def _describe(function: Callable[..., Any], name: str, mutates: bool) -> SceneOperation:
     hints = typing.get_type_hints(function, include_extras=True)
     params = list(inspect.signature(function).parameters.values())
     if not params:
@@ -126,22 +141,40 @@ def _describe(function: Callable[..., Any], name: str) -> SceneOperation:
         if p.name not in hints:
             raise TypeError(f"scene operation {name!r}: argument {p.name!r} has no type hint")
         has_default = p.default is not inspect.Parameter.empty
-        arguments.append(Argument(p.name, hints[p.name], has_default, p.default))
+        arguments.append(
+            Argument(p.name, hints[p.name], has_default, p.default, p.kind == p.KEYWORD_ONLY)
+        )
     if "return" not in hints:
         raise TypeError(f"scene operation {name!r} has no result type hint")
-    return SceneOperation(name, function, tuple(arguments), hints["return"])
+    return SceneOperation(name, function, tuple(arguments), hints["return"], mutates)
 
 
 def scene_operation(
     function: Callable[Concatenate[_S, _P], _R],
 ) -> Callable[Concatenate[_S | RemoteOperations, _P], _R]:
     """Register ``function`` (``(scene, *args) -> result``, fully type-hinted) as the
-    scene operation of its name and return it, extended: called with a remote scene
-    (:class:`RemoteOperations`) it runs on that scene's server instead."""
+    scene operation of its name, one that reads the scene, and return it, extended:
+    called with a remote scene (:class:`RemoteOperations`) it runs on that scene's
+    server instead."""
+    return _register(function, mutates=False)
+
+
+def scene_change(
+    function: Callable[Concatenate[_S, _P], _R],
+) -> Callable[Concatenate[_S | RemoteOperations, _P], _R]:
+    """Register ``function`` as :func:`scene_operation` does, as an operation that
+    changes the scene (see the module docstring for what the server and a mirroring
+    client do with it)."""
+    return _register(function, mutates=True)
+
+
+def _register(
+    function: Callable[Concatenate[_S, _P], _R], mutates: bool
+) -> Callable[Concatenate[_S | RemoteOperations, _P], _R]:
     name = function.__name__
     if name in OPERATIONS and OPERATIONS[name].function is not function:
         raise ValueError(f"a scene operation named {name!r} is registered already")
-    op = _describe(function, name)
+    op = _describe(function, name, mutates)
 
     @functools.wraps(function)
     def call(scene: _S | RemoteOperations, /, *args: _P.args, **kwargs: _P.kwargs) -> _R:
@@ -150,5 +183,5 @@ def scene_operation(
             return result
         return function(scene, *args, **kwargs)
 
-    OPERATIONS[name] = SceneOperation(name, function, op.arguments, op.result)
+    OPERATIONS[name] = op
     return call

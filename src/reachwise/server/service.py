@@ -9,7 +9,8 @@ scene side; :mod:`reachwise.server.transport` puts it on the wire.
 :class:`SceneService` — the scene behind the wire (:class:`reachwise.distance.Scene`):
 validated requests in (:mod:`reachwise.server.protocol`), replies or typed errors out.
 The *initialization phase* of P-V Table 1 (robots, clouds and their spatial indices,
-pair rules) happens in ``add_robot``, ``add_object`` and ``watch*``; the *calculation
+pair rules) happens in ``add_robot``, ``add_object`` and the scene operations that
+change the scene (``watch*``, :mod:`reachwise.distance.scene_ops`); the *calculation
 phase* in ``set_joints`` (link poses by forward kinematics on the server), ``set_pose``
 and ``query``; ``clear`` empties the scene (a simulator that owns it starts each run
 from an empty one). With a state directory every change of the initialization phase is
@@ -61,7 +62,7 @@ from reachwise.distance._common import NO_RISK, check_pose
 from reachwise.distance.engine import STRATEGIES, StrategyName
 from reachwise.distance.index import cloud_index
 from reachwise.distance.scene import Fixed, OnLink, Scene, SceneResult
-from reachwise.errors import InputError, check_choice
+from reachwise.errors import InputError, UnknownName, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_file import robot_from_dict
 from reachwise.kinematics.robot import Robot
@@ -99,6 +100,8 @@ def _protocol_error(exc: Exception, op: str) -> P.ProtocolError:
     a scene input error ``invalid``, anything unexpected ``internal`` (logged)."""
     if isinstance(exc, P.ProtocolError):
         return exc
+    if isinstance(exc, UnknownName):
+        return _err(P.ErrorCode.UNKNOWN_ID, exc.field or exc.source, str(exc))
     if isinstance(exc, InputError):
         return _err(P.ErrorCode.INVALID, exc.field or exc.source, str(exc))
     log.error("request %s failed: %s", op, P.failure_text(exc), exc_info=exc)
@@ -192,11 +195,6 @@ class SceneService:
             P.ReplaceCloud: self._replace_cloud,
             P.SetJoints: self._set_joints,
             P.SetPose: self._set_pose,
-            P.Watch: self._watch,
-            P.WatchSelf: self._watch_self,
-            P.WatchEnvironment: self._watch_environment,
-            P.WatchRobots: self._watch_robots,
-            P.Unwatch: self._unwatch,
             P.Clear: self._clear,
             P.Query: self._query,
             P.Describe: self._describe,
@@ -563,12 +561,21 @@ class SceneService:
 
     def _operation(self, req: P.OperationCall) -> P.Reply:
         """A registered scene operation (:mod:`reachwise.distance.scene_ops`) run on
-        this server's scene, its result in the wire form its result type gives."""
+        this server's scene, its result in the wire form its result type gives. One
+        that changes the scene (the transport runs it on the writer thread) makes a
+        new layout and is persisted before the reply."""
         op = P.operation(req.operation, "body.operation")
         with self.lock:
-            return P.OperationResult(
-                P.encode_value(op.function(self.scene, **req.arguments), op.result)
-            )
+            try:
+                result = op.function(self.scene, **req.arguments)
+            finally:
+                if op.mutates:  # a failed call may have changed part of the scene
+                    self._pairs_changed()
+                    manifest = self._manifest()
+            reply = P.OperationResult(P.encode_value(result, op.result))
+        if op.mutates:
+            self._persist(manifest)
+        return reply
 
     # ------------------------------------------------------------------ initialization phase
     def _add_robot(self, req: P.AddRobot) -> P.Reply:
@@ -752,58 +759,6 @@ class SceneService:
             if old is not None:
                 self._drop_file(old.cloud_file)
 
-    def _watch(self, req: P.Watch) -> P.Reply:
-        with self.lock:
-            self._object(req.a, "body.a")
-            self._object(req.b, "body.b")
-            if req.a == req.b:
-                raise _err(P.ErrorCode.INVALID, "body.b", "an object cannot be paired with itself")
-            pairs = (self.scene.watch(req.a, req.b, req.margin, kind=req.kind),)
-            self._pairs_changed()
-            manifest = self._manifest()
-        self._persist(manifest)
-        return _pairs_reply(pairs)
-
-    def _watch_self(self, req: P.WatchSelf) -> P.Reply:
-        with self.lock:
-            self._robot(req.robot, "body.robot")
-            pairs = self.scene.watch_self(req.robot, req.margin, req.exclude)
-            self._pairs_changed()
-            manifest = self._manifest()
-        self._persist(manifest)
-        return _pairs_reply(pairs)
-
-    def _watch_environment(self, req: P.WatchEnvironment) -> P.Reply:
-        with self.lock:
-            self._robot(req.robot, "body.robot")
-            for i, name in enumerate(req.objects or ()):
-                self._object(name, f"body.objects[{i}]")
-            pairs = self.scene.watch_environment(req.robot, req.margin, req.objects)
-            self._pairs_changed()
-            manifest = self._manifest()
-        self._persist(manifest)
-        return _pairs_reply(pairs)
-
-    def _watch_robots(self, req: P.WatchRobots) -> P.Reply:
-        with self.lock:
-            self._robot(req.robot_a, "body.robot_a")
-            self._robot(req.robot_b, "body.robot_b")
-            if req.robot_a == req.robot_b:
-                raise _err(P.ErrorCode.INVALID, "body.robot_b", "use watch_self for one robot")
-            pairs = self.scene.watch_robots(req.robot_a, req.robot_b, req.margin)
-            self._pairs_changed()
-            manifest = self._manifest()
-        self._persist(manifest)
-        return _pairs_reply(pairs)
-
-    def _unwatch(self, req: P.Unwatch) -> P.Reply:
-        with self.lock:
-            self.scene.unwatch(req.a, req.b)
-            self._pairs_changed()
-            manifest = self._manifest()
-        self._persist(manifest)
-        return P.Ack()
-
     def _clear(self, req: P.Clear) -> P.Reply:
         with self.lock:
             dropped = [m.cloud_file for m in self._meta.values()]
@@ -986,10 +941,6 @@ def _cloud(points: NDArray[np.float64], name: str, frame: str) -> PointCloud:
     cloud = PointCloud(points, frame=frame, name=name)
     cloud_index(cloud)
     return cloud
-
-
-def _pairs_reply(pairs: tuple[Any, ...]) -> P.PairsReply:
-    return P.PairsReply(tuple(P.PairInfo(p.a, p.b, p.margin, p.kind) for p in pairs))
 
 
 def _rows(pairs: tuple[Any, ...]) -> NDArray[np.float64]:

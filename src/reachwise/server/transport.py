@@ -330,7 +330,7 @@ class CollisionServer:
                 return
             self._parked.append(_Parked(route, rid, wait))
             return
-        if req.STRUCTURAL:
+        if req.structural:
             if not self.service.ready:
                 why = P.ProtocolError(
                     P.ErrorCode.NOT_READY, "op", f"the server is {self.service.state}", rid

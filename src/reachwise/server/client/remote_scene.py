@@ -71,12 +71,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 import reachwise.server.protocol as P
-from reachwise.distance._common import as_cloud, check_margin, check_pose
+from reachwise.distance._common import as_cloud, check_pose
 from reachwise.distance.engine import STRATEGIES, StrategyName
 from reachwise.distance.scene import (
     Fixed,
     OnLink,
-    PairKind,
     RobotLike,
     Runtime,
     Scene,
@@ -211,9 +210,12 @@ class SceneClient:
             self.flush(deadline)
         rep = self._setup(P.OperationCall(name, arguments), P.OperationResult, deadline)
         try:
-            return P.decode_value(rep.result, op.result, "body.result")
+            result = P.decode_value(rep.result, op.result, "body.result")
         except P.ProtocolError as exc:
             raise ServerError(f"invalid reply to {name}: {exc}", exc.code, exc.field) from None
+        if op.mutates and self._mirror is not None:  # the same change on the local copy
+            op.function(self._mirror, **arguments)
+        return result
 
     def close(self) -> None:
         """Close the socket and the client's ZeroMQ context (and the mirror's worker)."""
@@ -452,24 +454,6 @@ class SceneClient:
             self._mirror.replace_cloud(name, copy, block=False, stamp=t)
         return rep.version
 
-    def watch(
-        self,
-        a: str,
-        b: str,
-        margin: float,
-        kind: PairKind = "custom",
-        *,
-        deadline: float | None = None,
-    ) -> WatchedPair:
-        """Watch ``a`` and ``b`` with ``margin`` metres."""
-        rep = self._setup(P.Watch(a, b, check_margin(margin), kind), P.PairsReply, deadline)
-        return self._watched(rep)[0]
-
-    def unwatch(self, a: str, b: str, *, deadline: float | None = None) -> None:
-        self._setup(P.Unwatch(a, b), P.Ack, deadline)
-        if self._mirror is not None:
-            self._mirror.unwatch(a, b)
-
     def clear(self, *, deadline: float | None = None) -> None:
         """Remove every robot, object and pair from the server's scene (and its saved
         state): for a client that owns the scene, before it registers its own."""
@@ -482,50 +466,12 @@ class SceneClient:
             self._mirror.close()
             self._mirror = Scene()
 
-    def _watched(self, rep: P.PairsReply) -> tuple[WatchedPair, ...]:
-        """The pairs a watch request made (copied into the mirror, in the same order)."""
-        out = tuple(watched_pair(p) for p in rep.pairs)
-        if self._mirror is not None:
-            for w in out:
-                self._mirror.watch(w.a, w.b, w.margin, kind=w.kind)
-        return out
-
-    def watch_self(
-        self,
-        robot: str,
-        margin: float,
-        exclude: Iterable[tuple[str, str]] = (),
-        *,
-        deadline: float | None = None,
-    ) -> tuple[WatchedPair, ...]:
-        """Self-collision pairs of ``robot`` (see :meth:`Scene.watch_self`)."""
-        ex = tuple((str(x), str(y)) for x, y in exclude)
-        rep = self._setup(P.WatchSelf(robot, check_margin(margin), ex), P.PairsReply, deadline)
-        return self._watched(rep)
-
-    def watch_environment(
-        self,
-        robot: str,
-        margin: float,
-        objects: Iterable[str] | None = None,
-        *,
-        deadline: float | None = None,
-    ) -> tuple[WatchedPair, ...]:
-        """``robot``'s objects against the environment (see :meth:`Scene.watch_environment`)."""
-        objs = None if objects is None else tuple(objects)
-        rep = self._setup(
-            P.WatchEnvironment(robot, check_margin(margin), objs), P.PairsReply, deadline
-        )
-        return self._watched(rep)
-
-    def watch_robots(
-        self, robot_a: str, robot_b: str, margin: float, *, deadline: float | None = None
-    ) -> tuple[WatchedPair, ...]:
-        """Every object of ``robot_a`` against every object of ``robot_b``."""
-        rep = self._setup(
-            P.WatchRobots(robot_a, robot_b, check_margin(margin)), P.PairsReply, deadline
-        )
-        return self._watched(rep)
+    # the pair rules are the scene's own operations, carried over the wire
+    watch = Scene.watch
+    unwatch = Scene.unwatch
+    watch_self = Scene.watch_self
+    watch_environment = Scene.watch_environment
+    watch_robots = Scene.watch_robots
 
     def robot_objects(self, robot: str) -> tuple[SceneObject, ...]:
         """Objects attached to ``robot``'s links, base to tool."""

@@ -241,20 +241,6 @@ def _pairs(r: Reader, key: str = "pairs") -> tuple[PairInfo, ...]:
     return tuple(PairInfo.parse(p, f"{r.path(key)}[{i}]") for i, p in enumerate(lst))
 
 
-@dataclass(frozen=True)
-class PairsReply(Reply):
-    """The pairs a ``watch*`` request created or updated."""
-
-    pairs: tuple[PairInfo, ...]
-
-    def body(self) -> Body:
-        return {"pairs": [p.wire() for p in self.pairs]}
-
-    @classmethod
-    def parse(cls, r: Reader) -> Self:
-        return cls(_pairs(r))
-
-
 #: Columns of :attr:`QueryReply.rows`: distance, point_a (3), point_b (3), direction (3),
 #: index_a, index_b, no_risk (0 or 1).
 ROW_COLUMNS = 13
@@ -508,11 +494,6 @@ REPLIES: dict[str, type[Reply]] = {
     "replace_cloud": ObjectReply,
     "set_joints": Ack,
     "set_pose": Ack,
-    "watch": PairsReply,
-    "watch_self": PairsReply,
-    "watch_environment": PairsReply,
-    "watch_robots": PairsReply,
-    "unwatch": Ack,
     "clear": Ack,
     "query": QueryReply,
     "describe": DescribeReply,

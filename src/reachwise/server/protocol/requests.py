@@ -10,7 +10,6 @@ from typing import Any, ClassVar, Self
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise.distance.scene import PAIR_KINDS, PairKind
 from reachwise.server.protocol.fields import (
     FLOAT,
     MAX_LIST,
@@ -24,8 +23,6 @@ from reachwise.server.protocol.fields import (
     Reader,
     check_array,
     check_bool,
-    check_choice,
-    check_float,
     check_int,
     check_list,
     check_map,
@@ -53,6 +50,11 @@ class Request:
 
     #: Raw binary frames that follow the msgpack envelope (arrays sent without msgpack).
     DATA_FRAMES: ClassVar[int] = 0
+
+    @property
+    def structural(self) -> bool:
+        """Whether this request changes the scene's structure (:attr:`STRUCTURAL`)."""
+        return self.STRUCTURAL
 
     def body(self) -> Body:
         return {}
@@ -312,132 +314,6 @@ class SetPose(Request):
         return cls(name, pose, stamp_of(r))
 
 
-def _margin(r: Reader) -> float:
-    return check_float(r.get("margin"), r.path("margin"), finite=False, minimum=0.0)
-
-
-@dataclass(frozen=True)
-class Watch(Request):
-    """Watch objects ``a`` and ``b`` with ``margin`` metres (inf allowed)."""
-
-    OP: ClassVar[str] = "watch"
-    STRUCTURAL: ClassVar[bool] = True
-    a: str
-    b: str
-    margin: float
-    kind: PairKind = "custom"
-
-    def body(self) -> Body:
-        return {"a": self.a, "b": self.b, "margin": self.margin, "kind": self.kind}
-
-    @classmethod
-    def parse(cls, r: Reader, limits: Limits) -> Self:
-        return cls(
-            check_name(r.get("a"), r.path("a")),
-            check_name(r.get("b"), r.path("b")),
-            _margin(r),
-            check_choice(r.get("kind"), PAIR_KINDS, r.path("kind")),
-        )
-
-
-@dataclass(frozen=True)
-class WatchSelf(Request):
-    """Self-collision pairs of a robot except adjacent links and ``exclude``."""
-
-    OP: ClassVar[str] = "watch_self"
-    STRUCTURAL: ClassVar[bool] = True
-    robot: str
-    margin: float
-    exclude: tuple[tuple[str, str], ...] = ()
-
-    def body(self) -> Body:
-        return {
-            "robot": self.robot,
-            "margin": self.margin,
-            "exclude": [list(e) for e in self.exclude],
-        }
-
-    @classmethod
-    def parse(cls, r: Reader, limits: Limits) -> Self:
-        ex = check_list(r.get("exclude"), r.path("exclude"))
-        return cls(
-            check_name(r.get("robot"), r.path("robot")),
-            _margin(r),
-            tuple(check_name_pair(e, f"{r.path('exclude')}[{i}]") for i, e in enumerate(ex)),
-        )
-
-
-@dataclass(frozen=True)
-class WatchEnvironment(Request):
-    """A robot's objects against every object not on a robot (or the named ones)."""
-
-    OP: ClassVar[str] = "watch_environment"
-    STRUCTURAL: ClassVar[bool] = True
-    robot: str
-    margin: float
-    objects: tuple[str, ...] | None = None
-
-    def body(self) -> Body:
-        return omit_none(
-            {
-                "robot": self.robot,
-                "margin": self.margin,
-                "objects": None if self.objects is None else list(self.objects),
-            }
-        )
-
-    @classmethod
-    def parse(cls, r: Reader, limits: Limits) -> Self:
-        robot = check_name(r.get("robot"), r.path("robot"))
-        margin = _margin(r)
-        objs = r.opt("objects")
-        names = None
-        if objs is not None:
-            lst = check_list(objs, r.path("objects"))
-            names = tuple(check_name(v, f"{r.path('objects')}[{i}]") for i, v in enumerate(lst))
-        return cls(robot, margin, names)
-
-
-@dataclass(frozen=True)
-class WatchRobots(Request):
-    """Every object of ``robot_a`` against every object of ``robot_b``."""
-
-    OP: ClassVar[str] = "watch_robots"
-    STRUCTURAL: ClassVar[bool] = True
-    robot_a: str
-    robot_b: str
-    margin: float
-
-    def body(self) -> Body:
-        return {"robot_a": self.robot_a, "robot_b": self.robot_b, "margin": self.margin}
-
-    @classmethod
-    def parse(cls, r: Reader, limits: Limits) -> Self:
-        return cls(
-            check_name(r.get("robot_a"), r.path("robot_a")),
-            check_name(r.get("robot_b"), r.path("robot_b")),
-            _margin(r),
-        )
-
-
-@dataclass(frozen=True)
-class Unwatch(Request):
-    """Stop watching a pair (either order); like the in-process scene, no error if it
-    was not watched."""
-
-    OP: ClassVar[str] = "unwatch"
-    STRUCTURAL: ClassVar[bool] = True
-    a: str
-    b: str
-
-    def body(self) -> Body:
-        return {"a": self.a, "b": self.b}
-
-    @classmethod
-    def parse(cls, r: Reader, limits: Limits) -> Self:
-        return cls(check_name(r.get("a"), r.path("a")), check_name(r.get("b"), r.path("b")))
-
-
 @dataclass(frozen=True, eq=False)
 class Query(Request):
     """Answer the watched pairs (P-V Table 1's calculation phase).
@@ -538,6 +414,17 @@ class OperationCall(Request):
     operation: str
     arguments: dict[str, Any]
 
+    @classmethod
+    def of(cls, name: str, *args: Any, **kwargs: Any) -> OperationCall:
+        """The call of operation ``name`` with its arguments given as the operation's
+        function takes them (after the scene)."""
+        return cls(name, operation(name, "operation").bind(args, kwargs))
+
+    @property
+    def structural(self) -> bool:
+        """An operation that changes the scene is structural."""
+        return operation(self.operation, "operation").mutates
+
     def body(self) -> Body:
         op = operation(self.operation, "operation")
         hints = {a.name: a.hint for a in op.arguments}
@@ -571,11 +458,6 @@ REQUESTS: dict[str, type[Request]] = {
         ReplaceCloud,
         SetJoints,
         SetPose,
-        Watch,
-        WatchSelf,
-        WatchEnvironment,
-        WatchRobots,
-        Unwatch,
         Clear,
         Query,
         Describe,

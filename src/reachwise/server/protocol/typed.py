@@ -7,7 +7,7 @@ no encoder, decoder, service method or client method of its own.
 typed :class:`~reachwise.server.protocol.fields.ProtocolError` naming the offending
 path. The forms follow the rest of the protocol: a float64 array travels as
 ``[dtype, shape, bytes]``, a frozen dataclass as a map of its fields (strict: unknown
-fields are errors), tuples and lists as lists, ``dict[str, X]`` as a map. The hints
+fields are errors), tuples, lists and other iterables as lists, ``dict[str, X]`` as a map. The hints
 are finite, so decoding recurses at most as deep as the hint nests.
 
 The request is ``call``
@@ -18,6 +18,7 @@ The request is ``call``
 
 from __future__ import annotations
 
+import collections.abc
 import dataclasses
 import types
 import typing
@@ -51,6 +52,10 @@ __all__ = ["decode_value", "encode_value", "operation"]
 MAX_ARRAY_DIMS = 4
 
 
+#: Sequence hints the wire carries as a list (any iterable is sent; a tuple is received).
+_SEQUENCES = (tuple, list, collections.abc.Iterable, collections.abc.Sequence)
+
+
 def _is_array(hint: Any) -> bool:
     return typing.get_origin(hint) is np.ndarray or hint is np.ndarray
 
@@ -79,7 +84,7 @@ def encode_value(value: Any, hint: Any) -> Any:
         return value
     if hint is float:  # anything else travels as it is: the receiver's check names it
         return float(value) if isinstance(value, int | float) and type(value) is not bool else value
-    if origin in (tuple, list):
+    if origin in _SEQUENCES:
         args = typing.get_args(hint)
         if origin is tuple and not (len(args) == 2 and args[1] is Ellipsis):
             return [encode_value(v, h) for v, h in zip(value, args, strict=True)]
@@ -143,7 +148,7 @@ def decode_value(raw: Any, hint: Any, where: str) -> Any:
                 ErrorCode.INVALID, where, f"{safe_repr(raw)} is none of {list(valid)}"
             )
         return raw
-    if origin in (tuple, list):
+    if origin in _SEQUENCES:
         items = check_list(raw, where, MAX_LIST)
         args = typing.get_args(hint)
         if origin is tuple and not (len(args) == 2 and args[1] is Ellipsis):
@@ -156,7 +161,7 @@ def decode_value(raw: Any, hint: Any, where: str) -> Any:
                 for i, (v, h) in enumerate(zip(items, args, strict=True))
             )
         out = [decode_value(v, args[0], f"{where}[{i}]") for i, v in enumerate(items)]
-        return tuple(out) if origin is tuple else out
+        return out if origin is list else tuple(out)
     if origin is dict:
         entries = check_map(raw, where)
         if len(entries) > MAX_LIST:
