@@ -87,7 +87,7 @@ def replay(
     out: str | Path | None = None,
     tip: str | None = None,
     link_clouds: Mapping[str, PointCloud] | None = None,
-    results_bag: str | None = "results.mcap",
+    results_bag: str | None = "auto",
     **spec: Any,
 ) -> ReplayResult:
     """Replay a recorded cell (a ROS 1 ``.bag``, a ROS 2 bag folder or ``.db3``/``.mcap``
@@ -100,8 +100,10 @@ def replay(
     default ``reachwise.link_clouds(robot)``). Frames closer than ``margin`` (m) are
     near. With ``out``, the files of ``reachwise replay`` are written there
     (``distances.csv``, ``near.csv``, ``summary.json``, ``report.html`` and the
-    ``results_bag``). Further ``spec`` options (``frame``, ``camera_info``, ``links``,
-    ``every``, ``block``, ``rate``, ``voxel``, ``tf_tolerance``) go to
+    ``results_bag``: ``.bag`` ROS 1, ``.mcap`` MCAP, else ROS 2 sqlite3; ``"auto"``:
+    ``results.bag`` for a ROS 1 recording, else ``results.mcap``; None: none).
+    Further ``spec`` options (``frame``, ``camera_info``, ``links``, ``every``,
+    ``block``, ``rate``, ``voxel``, ``tf_tolerance``) go to
     ``reachwise.io.ros.replay.ReplaySpec``.
     """
     model = robot if isinstance(robot, Robot) else load_robot(robot, tip=tip)
@@ -150,9 +152,9 @@ def simulate(
     ``reachwise.server.client.ServerOptions``) runs the distance queries on that
     collision server instead of in process (:func:`~reachwise.api.server_scene`).
 
-    ``bag`` (a path that does not exist yet: ``.mcap`` for MCAP, else ROS 2 sqlite3;
-    the ``ros`` extra) also writes the run as a recording, as ``reachwise simulate
-    --bag`` does (``reachwise.sim.bag_recorder.BagRecorder``: joint states, the
+    ``bag`` (a path that does not exist yet: ``.bag`` for ROS 1, ``.mcap`` for MCAP,
+    else ROS 2 sqlite3; the ``ros`` extra) also writes the run as a recording, as
+    ``reachwise simulate --bag`` does (``reachwise.sim.bag_recorder.BagRecorder``: joint states, the
     cameras' depth images, CameraInfo and clouds, TF), for :func:`replay` to read
     back; it replaces ``recorder``, so give one or the other."""
     if bag is not None:

@@ -100,9 +100,10 @@ def replay(
     ),
     out: Path = typer.Option(Path("replay"), "--out", help="Folder for the results."),
     results_bag: str = typer.Option(
-        "results.mcap",
+        "auto",
         "--results-bag",
-        help="The results as a ROS 2 bag in --out (.mcap: MCAP, else sqlite3; 'none': none).",
+        help="The results as a bag in --out: .bag ROS 1, .mcap MCAP, else ROS 2 sqlite3; "
+        "'auto': results.bag for a ROS 1 recording, else results.mcap; 'none': none.",
     ),
     json_out: bool = typer.Option(False, "--json", help="Print the summary as JSON."),
 ) -> None:

@@ -72,8 +72,8 @@ def simulate(
         None,
         "--bag",
         help="Also write the avoidance run (joint states, the cameras' depth images, "
-        "CameraInfo and clouds, TF) as a ROS 2 bag: .mcap for MCAP, else sqlite3 (the ros "
-        "extra); `reachwise replay BAG --scenario SCENARIO` reads it back.",
+        "CameraInfo and clouds, TF) as a bag: .bag for ROS 1, .mcap for MCAP, else ROS 2 "
+        "sqlite3 (the ros extra); `reachwise replay BAG --scenario SCENARIO` reads it back.",
     ),
     escape: bool | None = typer.Option(
         None,

@@ -91,11 +91,13 @@ def write_replay_outputs(
     out: str | Path,
     inputs: dict[str, Any],
     *,
-    results_bag: str | Path | None = "results.mcap",
+    results_bag: str | Path | None = "auto",
 ) -> dict[str, Any]:
     """Every file of a replay into folder ``out``: ``distances.csv``, ``near.csv``,
     ``summary.json``, ``report.html`` and the results bag ``results_bag`` (relative to
-    ``out``; None: none). Returns the summary."""
+    ``out``; ``.bag``: ROS 1, ``.mcap``: MCAP, else ROS 2 sqlite3; ``"auto"``:
+    ``results.bag`` when the recording was a ROS 1 bag, else ``results.mcap``; None:
+    none). Returns the summary."""
     from reachwise.io.ros.replay_out import (
         replay_summary,
         write_csv,
@@ -108,6 +110,8 @@ def write_replay_outputs(
     summary = replay_summary(result, inputs)
     write_csv(result, folder / "distances.csv")
     write_csv(result, folder / "near.csv", near_only=True)
+    if results_bag == "auto":
+        results_bag = "results.bag" if result.ros1 else "results.mcap"
     if results_bag is not None:
         bag = folder / results_bag
         write_results_bag(result, bag)

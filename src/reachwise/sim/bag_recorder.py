@@ -1,4 +1,5 @@
-"""A simulation run written as a ROS 2 recording, to replay and share like a real cell.
+"""A simulation run written as a recording (ROS 2, or ROS 1 for a ``.bag`` path), to
+replay and share like a real cell.
 
 :class:`BagRecorder` is handed to :func:`reachwise.sim.simulate.simulate`
 (``recorder=``); the run calls :meth:`BagRecorder.start` with the built world,
@@ -51,8 +52,8 @@ WORLD = "world"
 
 
 class BagRecorder:
-    """Writes a run to the ROS 2 bag ``path`` (``.mcap``: MCAP, else sqlite3); see the
-    module docstring."""
+    """Writes a run to the bag ``path`` (``.bag``: ROS 1, ``.mcap``: MCAP, else ROS 2
+    sqlite3); see the module docstring."""
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)

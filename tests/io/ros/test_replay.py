@@ -201,6 +201,26 @@ def test_a_ros1_copy_replays_the_same(cell: Path, tmp_path: Path) -> None:
     np.testing.assert_array_equal(a.t, b.t)
     np.testing.assert_array_equal(a.cloud_stamp, b.cloud_stamp)
     np.testing.assert_array_equal(a.distance, b.distance)
+    assert b.ros1 and not a.ros1
+    # the results go back into a ROS 1 bag, and read back to the replay's arrays
+    summary = write_replay_outputs(b, tmp_path / "out", {})
+    assert summary["results_bag"] == str(tmp_path / "out" / "results.bag")
+    assert not (tmp_path / "out" / "results.mcap").exists()
+    with Recording(tmp_path / "out" / "results.bag") as rec:
+        assert rec.ros1
+        topics = ["/reachwise/distances", "/reachwise/min_distance", "/reachwise/closest_points"]
+        got = {t: [m for m in rec.messages([t])] for t in topics}
+        (pairs,) = [m.msg.data for m in rec.messages(["/reachwise/pairs"])]
+    assert json.loads(pairs) == list(b.pairs)
+    assert [m.t for m in got["/reachwise/distances"]] == pytest.approx(b.t.tolist(), abs=1e-9)
+    dist = np.array([m.msg.data for m in got["/reachwise/distances"]])
+    np.testing.assert_array_equal(dist, b.distance)
+    mins = np.array([m.msg.data for m in got["/reachwise/min_distance"]])
+    np.testing.assert_array_equal(mins, b.min_distance)
+    last = got["/reachwise/closest_points"][-1].msg.markers[0]
+    line = np.array([[p.x, p.y, p.z] for p in last.points]).reshape(-1, 2, 3)
+    np.testing.assert_array_equal(line[:, 0], b.point_a[-1])
+    np.testing.assert_array_equal(line[:, 1], b.point_b[-1])
 
 
 def test_depth_frames_fused_into_a_scene_memory(cell: Path) -> None:

@@ -56,6 +56,8 @@ class Recording:
             ) from None
         self._reader = reader
         self.topics: dict[str, str] = {c.topic: c.msgtype for c in reader.connections}
+        #: A ROS 1 bag (else ROS 2).
+        self.ros1: bool = not reader.is2
 
     def __enter__(self) -> Recording:
         return self

@@ -132,7 +132,7 @@ class ReplayResult:
     the scene memory), ``point_a``,
     ``point_b`` (F, P, 3; the closest points in the fixed frame); ``margin``;
     ``clouds`` (per topic, the number of clouds handed over) and ``swapped`` (how many
-    of them some frame used)."""
+    of them some frame used); ``ros1``: the recording is a ROS 1 bag."""
 
     bag: str
     robot: str
@@ -146,6 +146,7 @@ class ReplayResult:
     margin: float
     clouds: dict[str, int]
     swapped: dict[str, int]
+    ros1: bool = False
 
     @property
     def min_distance(self) -> F64:
@@ -309,6 +310,7 @@ def replay_recording(
     carry ``link_clouds`` (link name → cloud in the link frame)."""
     matcher = JointMatcher(robot_joint_names(robot))
     with Recording(bag) as rec:
+        ros1 = rec.ros1
         rec.check_topic(spec.joints, (JOINT_STATE,))
         sources = _sources(rec, spec)
         try:
@@ -338,6 +340,7 @@ def replay_recording(
         margin=float(spec.margin),
         clouds={s.topic: s.count for s in sources.values()},
         swapped=used,
+        ros1=ros1,
     )
 
 

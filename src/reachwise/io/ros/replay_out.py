@@ -1,5 +1,5 @@
 """The files of a replay: ``distances.csv``, ``near.csv``, ``summary.json`` and the
-results as a ROS 2 bag beside the recording.
+results as a bag beside the recording.
 
 - ``distances.csv``: one row per frame and pair with a cloud: ``time`` (s), ``pair``
   (``link|topic``), ``distance`` (m), ``cloud_stamp`` (s, the stamp of the cloud the
@@ -7,7 +7,7 @@ results as a ROS 2 bag beside the recording.
 - ``near.csv``: the same columns, only the rows closer than the margin;
 - ``summary.json``: the inputs, and per pair the smallest distance, when, on which
   cloud, and how many frames came closer than the margin (and the first time);
-- the results bag (:func:`write_results_bag`, ROS 2 sqlite3 or MCAP): per frame
+- the results bag (:func:`write_results_bag`, ROS 2 sqlite3 or MCAP, or ROS 1): per frame
   ``/reachwise/distances`` (``std_msgs/Float64MultiArray``, one value per pair, NaN
   before the pair's first cloud, the pairs in the dimension label separated by
   ``;``), ``/reachwise/min_distance`` (``std_msgs/Float64``) and
@@ -103,8 +103,8 @@ def write_summary(summary: dict[str, Any], path: str | Path) -> Path:
 
 
 def write_results_bag(result: ReplayResult, path: str | Path) -> Path:
-    """The results as a ROS 2 bag (``.mcap``: MCAP, else sqlite3) to show beside the
-    recording (see the module docstring)."""
+    """The results as a bag (``.bag``: ROS 1, ``.mcap``: MCAP, else ROS 2 sqlite3) to
+    show beside the recording (see the module docstring)."""
     near = result.near
     with BagWriter(path) as w:
         f = w.factory
