@@ -167,15 +167,17 @@ def _point3(value: ArrayLike, source: str, field_name: str) -> NDArray[np.float6
     return out
 
 
-def _count(value: object, source: str, field_name: str) -> int:
-    """``value`` as an int >= 1, else a CloudError."""
+def _count(
+    value: object, source: str, field_name: str, max_points: int = MAX_SAMPLED_POINTS
+) -> int:
+    """``value`` as an int from 1 to ``max_points``, else a CloudError."""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
         raise CloudError(source, field_name, f"expected a whole number >= 1, got {value!r}")
     out = int(value)
     if out < 1:
         raise CloudError(source, field_name, f"must be >= 1, got {out}")
-    if out > MAX_SAMPLED_POINTS:
-        raise CloudError(source, field_name, f"at most {MAX_SAMPLED_POINTS} points, got {out}")
+    if out > max_points:
+        raise CloudError(source, field_name, f"at most {max_points} points, got {out}")
     return out
 
 
@@ -311,6 +313,7 @@ def sample_mesh_surface(
     *,
     frame: str = "world",
     name: str = "",
+    max_points: int = MAX_SAMPLED_POINTS,
 ) -> PointCloud:
     """``n`` points drawn uniformly over a triangle mesh's surface (area-weighted).
 
@@ -321,11 +324,12 @@ def sample_mesh_surface(
     ``seed`` (an int or a ``numpy.random.Generator``) gives the same points.
 
     Points are in the mesh's coordinates; ``frame`` names that frame (a link frame, say).
+    ``n`` above ``max_points`` (default :data:`MAX_SAMPLED_POINTS`) is refused.
     """
     import trimesh
 
     source = name or "mesh"
-    count = _count(n, source, "n")
+    count = _count(n, source, "n", max_points)
     if isinstance(seed, bool) or not isinstance(seed, numbers.Integral | np.random.Generator):
         raise CloudError(source, "seed", f"expected an int or numpy Generator, got {seed!r}")
     if isinstance(mesh, trimesh.Trimesh):

@@ -43,7 +43,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from reachwise.errors import CloudError
-from reachwise.geometry.cloud import DEFAULT_MESH_POINTS, PointCloud, sample_mesh_surface
+from reachwise.geometry.cloud import (
+    DEFAULT_MESH_POINTS,
+    MAX_SAMPLED_POINTS,
+    PointCloud,
+    sample_mesh_surface,
+)
 from reachwise.io.atomic import atomic_open
 from reachwise.io.cloud_headers import (
     MAX_CLOUD_POINTS,
@@ -368,6 +373,7 @@ def load_mesh_cloud(
     scale: float | tuple[float, float, float] = 1.0,
     frame: str = "world",
     name: str | None = None,
+    max_points: int = MAX_SAMPLED_POINTS,
 ) -> PointCloud:
     """Read a triangle mesh (:func:`reachwise.io.meshes.load_mesh`: STL, OBJ, PLY, OFF,
     glTF, COLLADA), sample ``n`` points.
@@ -377,7 +383,8 @@ def load_mesh_cloud(
     :func:`reachwise.geometry.cloud.sample_mesh_surface`). ``scale`` multiplies the
     mesh coordinates first (``0.001`` for a CAD part drawn in millimetres; three
     factors scale x, y, z). A file with several bodies is sampled as their union.
-    Errors are those of :func:`~reachwise.io.meshes.load_mesh`.
+    Errors are those of :func:`~reachwise.io.meshes.load_mesh`; ``n`` above
+    ``max_points`` is refused.
     """
     source = str(path)
     mesh = load_mesh(path, scale=scale)
@@ -388,4 +395,5 @@ def load_mesh_cloud(
         seed,
         frame=frame,
         name=source if name is None else name,
+        max_points=max_points,
     )

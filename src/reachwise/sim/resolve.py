@@ -211,7 +211,10 @@ def _link_cloud(
         mesh = _link_mesh(sc, rs, link)
         rng = np.random.default_rng([rs.seed, robot.link_index(link)])
         frame = robot.frame_of(link)
-        cloud = sample_mesh_surface(mesh, n=over.points, seed=rng, frame=frame, name=obj)
+        cloud = sample_mesh_surface(
+            mesh, n=over.points, seed=rng, frame=frame, name=obj,
+            max_points=sc.spec.size_limits.max_points,
+        )  # fmt: skip
         return cloud, solid_of_mesh(mesh)
     if link not in robot.geometry:
         raise InputError(sc.source, f"robots.{rs.name}.links", f"link {link!r} has no geometry")
@@ -229,11 +232,16 @@ def _object_cloud(spec: Any, sc: Scenario, name: str, seed: int) -> PointCloud:
         import trimesh
 
         box = trimesh.creation.box(extents=spec.box)
-        return sample_mesh_surface(box, n=spec.points, seed=seed, name=name)
+        return sample_mesh_surface(
+            box, n=spec.points, seed=seed, name=name, max_points=sc.spec.size_limits.max_points
+        )
     try:
         if spec.mesh is not None:
-            return load_mesh_cloud(sc.path(spec.mesh), spec.points, seed, name=name)
-        return load_cloud(sc.path(spec.file))
+            return load_mesh_cloud(
+                sc.path(spec.mesh), spec.points, seed, name=name,
+                max_points=sc.spec.size_limits.max_points,
+            )  # fmt: skip
+        return load_cloud(sc.path(spec.file), max_points=sc.spec.size_limits.max_cloud_points)
     except InputError as exc:
         raise InputError(sc.source, where, str(exc)) from None
 

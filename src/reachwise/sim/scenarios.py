@@ -78,6 +78,10 @@ jobs:                       # shared work list (P-IV): each idle robot takes the
   work: 3.0
   goals: [{xyz: [8, 0, 1], rpy_deg: [0, 90, 0]}]
 escape: {planner: ompl, time_limit: 5.0}   # or `escape: ompl`: plan out of a stall
+size_limits:                # bounds against counts that would only exhaust memory
+  max_points: 5000000       # points sampled on one mesh, box or link (default 5 000 000)
+  max_image_side: 8192      # a camera's width or height (pixels, default 8192)
+  max_cloud_points: 50000000  # points of one cloud file or scan (default 50 000 000)
 ```
 """
 
@@ -86,13 +90,15 @@ from __future__ import annotations
 import itertools
 import math
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import (
+    AfterValidator,
     ConfigDict,
     Field,
     ValidationError,
+    ValidationInfo,
     field_validator,
     model_validator,
 )
@@ -115,6 +121,7 @@ __all__ = [
     "EscapeSpec",
     "GoalSpec",
     "JobsSpec",
+    "LimitsSpec",
     "MemorySpec",
     "MotionSpec",
     "MountSpec",
@@ -141,6 +148,40 @@ _STRICT = ConfigDict(extra="forbid", allow_inf_nan=False)
 V3 = tuple[float, float, float]
 #: Largest width or height of a simulated depth camera (pixels).
 MAX_IMAGE_SIDE = 8192
+
+
+class LimitsSpec(StrictModel):
+    """The scenario's ``size_limits:``: upper bounds on counts that would only exhaust
+    memory, each raisable (or lowered) in the file. ``max_points``: points sampled on
+    one mesh, box or link (default :data:`~reachwise.geometry.cloud.MAX_SAMPLED_POINTS`);
+    ``max_image_side``: a camera's width or height in pixels (default
+    :data:`MAX_IMAGE_SIDE`); ``max_cloud_points``: points of one cloud file or scan
+    (default :data:`~reachwise.io.cloud_headers.MAX_CLOUD_POINTS`)."""
+
+    model_config = _STRICT
+    max_points: int = Field(default=MAX_SAMPLED_POINTS, gt=0)
+    max_image_side: int = Field(default=MAX_IMAGE_SIDE, gt=0)
+    max_cloud_points: int = Field(default=MAX_CLOUD_POINTS, gt=0)
+
+
+def _within(limit: str) -> AfterValidator:
+    """A validator refusing a value above the scenario's ``size_limits.<limit>`` (passed as
+    the validation context by :func:`scenario_from_dict`; the default without one)."""
+
+    def check(value: int | None, info: ValidationInfo) -> int | None:
+        limits = (info.context or {}).get("size_limits") or LimitsSpec()
+        bound = getattr(limits, limit)
+        if value is not None and value > bound:
+            raise ValueError(f"at most {bound} (size_limits.{limit}), got {value}")
+        return value
+
+    return AfterValidator(check)
+
+
+#: A count of sampled points, bounded by ``size_limits.max_points``.
+SampledPoints = Annotated[int, Field(gt=0), _within("max_points")]
+#: A camera image side in pixels, bounded by ``size_limits.max_image_side``.
+ImageSide = Annotated[int, Field(gt=0), _within("max_image_side")]
 
 
 # Frames in scenario files use the robot file's schema: xyz + rpy | rpy_deg.
@@ -231,7 +272,7 @@ class PlantSpec(StrictModel):
 class LinkCloudSpec(StrictModel):
     model_config = _STRICT
     mesh: str
-    points: int = Field(default=1000, gt=0, le=MAX_SAMPLED_POINTS)
+    points: SampledPoints = 1000
     pose: FrameSpec = FrameSpec()
 
 
@@ -257,7 +298,7 @@ class RobotSpec(StrictModel):
     #: this robot names (replaced by its values when the scenario is resolved).
     q0: list[float] | str
     links: list[str] | None = None
-    points: int | None = Field(default=None, gt=0, le=MAX_SAMPLED_POINTS)
+    points: SampledPoints | None = None
     density: float | None = Field(default=None, gt=0.0)
     seed: int = Field(default=0, ge=0)
     link_clouds: dict[str, LinkCloudSpec] = {}
@@ -348,7 +389,7 @@ class CloudAtSpec(StrictModel):
     file: str | None = None
     mesh: str | None = None
     box: V3 | None = None
-    points: int = Field(default=1000, gt=0, le=MAX_SAMPLED_POINTS)
+    points: SampledPoints = 1000
 
     @model_validator(mode="after")
     def _one(self) -> CloudAtSpec:
@@ -417,11 +458,17 @@ class ScanSpec(StrictModel):
                 raise ValueError(f"{name}: min {lo} > max {hi}")
         if any(a >= b for a, b in zip(self.crop[0], self.crop[1], strict=True)):
             raise ValueError("crop: each min must be below its max")
+        return self
+
+    @model_validator(mode="after")
+    def _size(self, info: ValidationInfo) -> ScanSpec:
+        bound = ((info.context or {}).get("size_limits") or LimitsSpec()).max_cloud_points
         beams = (self.azimuth_deg[1] - self.azimuth_deg[0]) / self.resolution_deg + 1
         lines = (self.tilt_deg[1] - self.tilt_deg[0]) / self.line_step_deg + 1
-        if beams * lines > MAX_CLOUD_POINTS:
+        if beams * lines > bound:
             raise ValueError(
-                f"{beams:.0f} beams x {lines:.0f} lines is more than {MAX_CLOUD_POINTS} points"
+                f"{beams:.0f} beams x {lines:.0f} lines is more than {bound} points "
+                "(size_limits.max_cloud_points)"
             )
         return self
 
@@ -441,7 +488,7 @@ class ObjectSpec(StrictModel):
     mesh: str | None = None
     file: str | None = None
     box: V3 | None = None
-    points: int = Field(default=1000, gt=0, le=MAX_SAMPLED_POINTS)
+    points: SampledPoints = 1000
     seed: int = Field(default=0, ge=0)
     pose: FrameSpec = FrameSpec()
     noise: float | None = Field(default=None, ge=0.0)
@@ -593,8 +640,8 @@ class SensorSpec(StrictModel):
     link: MountSpec | None = None
     rate: float = Field(default=30.0, gt=0.0)
     latency: float = Field(default=0.0, ge=0.0)
-    width: int = Field(default=640, gt=0, le=MAX_IMAGE_SIDE)
-    height: int = Field(default=480, gt=0, le=MAX_IMAGE_SIDE)
+    width: ImageSide = 640
+    height: ImageSide = 480
     fov: float | None = Field(default=None, gt=0.0, lt=math.pi)
     fov_deg: float | None = Field(default=None, gt=0.0, lt=180.0)
     near: float = Field(default=0.2, ge=0.0)
@@ -704,6 +751,7 @@ class ScenarioSpec(StrictModel):
     requires: dict[str, str] = {}
     sensors: list[SensorSpec] = []
     memory: list[MemorySpec] = []
+    size_limits: LimitsSpec = LimitsSpec()
 
     @field_validator("escape", mode="before")
     @classmethod
@@ -819,8 +867,12 @@ def scenario_from_dict(data: Any, source: str = "scenario", folder: Path | None 
     """Validate a scenario given as a dict (the parsed YAML)."""
     if not isinstance(data, dict):
         raise InputError(source, "", "a scenario file must hold a mapping")
+    try:  # the limits first: they bound the other fields
+        limits: LimitsSpec | None = LimitsSpec.model_validate(data.get("size_limits", {}))
+    except ValidationError:
+        limits = None  # reported, with its place, by the whole scenario's validation
     try:
-        spec = ScenarioSpec.model_validate(data)
+        spec = ScenarioSpec.model_validate(data, context={"size_limits": limits})
     except ValidationError as exc:
         raise input_error(exc, source, model=ScenarioSpec) from None
     return Scenario(spec, source, folder or Path.cwd())
