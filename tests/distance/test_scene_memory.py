@@ -211,6 +211,60 @@ def test_the_distance_answer_is_never_larger_than_the_distance_to_what_was_seen(
     assert np.all(d_map <= d_true + 1e-12)
 
 
+def box_halfspaces(R: np.ndarray, c: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """The six world half-spaces ``n · x ≤ d`` of a box (rotation ``R``, centre ``c``)."""
+    n = np.concatenate([R.T, -R.T])
+    return np.column_stack([n, np.concatenate([half, half]) + n @ c])
+
+
+def box_distance(x: np.ndarray, R: np.ndarray, c: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """The exact distance of points ``x`` to a solid box (0 inside)."""
+    local = (x - c) @ R
+    return np.linalg.norm(np.maximum(np.abs(local) - half, 0.0), axis=1)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_the_robots_body_is_no_obstacle_and_stays_not_free(seed: int) -> None:
+    """A random box-shaped robot part in a random map: no voxel within the inflation
+    of the part is returned (exact box distance), every other obstacle voxel farther
+    than sqrt(3) times it is (the planes' bound at a corner), the two answers differ by
+    the left-out voxels only, and no state changes."""
+    rng = np.random.default_rng(seed)
+    mem = SceneMemory(LOWER, UPPER, MemoryConfig(voxel=0.05, shadow_depth=0.4))
+    for f in range(2):
+        depth, body, K, T = random_frame(rng)
+        mem.integrate(depth, T, K, t=0.04 * f, body=body)
+    everything = mem.obstacles()
+    state = mem.state.copy()
+    R = Rotation.random(random_state=int(rng.integers(2**31))).as_matrix()
+    c = everything[rng.integers(len(everything))] if len(everything) else np.zeros(3)
+    c = c + rng.normal(scale=0.05, size=3)
+    half = rng.uniform(0.02, 0.25, size=3)
+    left = mem.obstacles(body=[box_halfspaces(R, c, half)])
+    assert np.array_equal(mem.state, state)  # not freed, not changed
+    d_left = box_distance(left, R, c, half)
+    assert np.all(d_left > mem.inflation - 1e-12)
+    d_all = box_distance(everything, R, c, half)
+    far = everything[d_all > math.sqrt(3.0) * mem.inflation + 1e-12]
+    kept = {tuple(p) for p in np.round(left, 9)}
+    assert {tuple(p) for p in np.round(far, 9)} <= kept
+    assert kept <= {tuple(p) for p in np.round(everything, 9)}
+    # a voxel the box holds at its centre is in the map but not an obstacle
+    inside = everything[d_all == 0.0]
+    assert not kept & {tuple(p) for p in np.round(inside, 9)}
+    if len(inside):
+        assert all(mem.state[mem.voxel_of(p)] in (OCC, SHADOW) for p in inside)
+
+
+def test_a_body_piece_that_is_not_half_spaces_is_a_typed_error() -> None:
+    mem = SceneMemory([0, 0, 0], [1, 1, 1], MemoryConfig(voxel=0.1))
+    with pytest.raises(InputError, match=r"body\[0\]"):
+        mem.obstacles(body=[np.ones((6, 3))])
+    with pytest.raises(InputError, match="unit"):
+        mem.obstacles(body=[np.ones((6, 4))])
+
+
 def test_bad_inputs_are_typed_errors() -> None:
     with pytest.raises(InputError, match="voxel"):
         MemoryConfig(voxel=0.0)

@@ -117,3 +117,45 @@ def test_a_built_memory_scenario_watches_the_map_with_the_inflation_and_runs() -
     assert log.frames["camera"].max() >= 8  # 30 frames/s for 0.3 s, all fused
     assert not np.isnan(log.distance).any()  # inf: beyond the monitor range, no risk
     assert log.first_collision is None
+
+
+def test_the_feed_leaves_the_robots_body_out_of_the_map_and_keeps_its_state() -> None:
+    """A person seen in front of a robot part shadows the part's volume; handed over
+    with the part's pose, no voxel centre within the inflation of the part's surface
+    (nor inside it) is in the scene's cloud, the voxels stay shadow, and without the
+    pose (or once the part moved away) they are obstacles again."""
+    from reachwise.sim.contact import solid_of_mesh
+    from reachwise.sim.memory_feed import body_pieces
+    from reachwise.sim.sensors import BodySurface
+
+    cam = DepthCamera(Intrinsics.from_fov(64, 48, 1.0), near=0.2, far=6.0)
+    person = trimesh.creation.box(
+        [0.6, 0.6, 0.3], trimesh.transformations.translation_matrix([0, 0, 1.5])
+    )
+    part = trimesh.creation.cylinder(radius=0.06, height=0.4)  # along z in its frame
+    surface = (np.asarray(part.vertices, float), np.asarray(part.faces, np.int64))
+    link = BodySurface("arm/link", "arm", "link", 2, surface, solid_of_mesh(part))
+    (piece,) = body_pieces([link])
+    assert np.all(surface[0] @ piece.normals.T <= piece.offsets + 1e-12)  # holds the part
+    spec = MemorySpec(
+        name="cell", box={"lower": [-1.0, -1.0, 0.5], "upper": [1.0, 1.0, 2.5]}, sensors=["cam"],
+        voxel=0.05, shadow_depth=0.5,
+    )  # fmt: skip
+    feed = MemoryFeed(spec, [piece])
+    feed.fuse(cam, cam.frame([person], np.eye(4)), 0.0)
+    pose = trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0])
+    pose[:3, 3] = [0.05, 0.0, 1.8]  # lying across the person's shadow
+    frames = {"arm": np.stack([np.eye(4), np.eye(4), pose])}
+    everything = feed.cloud().points
+    kept = feed.cloud(frames).points
+    placed = trimesh.Trimesh(surface[0] @ pose[:3, :3].T + pose[:3, 3], surface[1])
+    near_part = trimesh.proximity.signed_distance(placed, everything) > -feed.inflation
+    assert near_part.sum() >= 10  # the shadow reached into the part
+    kept_set = {tuple(p) for p in np.round(kept, 9)}
+    assert not kept_set & {tuple(p) for p in np.round(everything[near_part], 9)}
+    assert len(kept) >= len(everything) - 3 * near_part.sum()  # only near the part
+    states = [feed.memory.state[feed.memory.voxel_of(p)] for p in everything[near_part]]
+    assert set(states) <= {2, 3}  # occupied or shadow: not free
+    away = {"arm": frames["arm"].copy()}
+    away["arm"][2, :3, 3] = [0.0, 0.0, 0.3]  # moved out of the box
+    assert len(feed.cloud(away).points) == len(everything)

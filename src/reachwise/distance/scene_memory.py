@@ -21,6 +21,16 @@ self-filter) only free the space in front of the robot, when their depth is give
 space the robot hides from a camera keeps what that camera saw there before, and the
 robot never enters its own map.
 
+**The robot never collides with its own map.** A camera that saw a person in front of
+the arm shadows the volume behind the person, the arm's own included, and the arm then
+hides that volume from the camera: the shadow would sit on the arm for good. So the
+voxels the robot's body occupies *now* are left out of the obstacles: those whose
+centre lies within :attr:`~SceneMemory.inflation` of one of its convex pieces (the
+``body`` of :meth:`~SceneMemory.obstacles`, at the current joint state), i.e. every
+voxel the body reaches into. They cannot hold a person: the robot is there. Their state
+does not change — they are not free (no camera saw through them), and once the robot
+moves on they are obstacles again until a camera sees them free.
+
 **The distance answer.** The occupied and shadow voxels enter the distance scene as
 their centres; every observed point lies in an occupied voxel, within ``inflation`` =
 half the voxel's diagonal of its centre, so a distance to the centres minus
@@ -47,6 +57,7 @@ nothing here reads a clock.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -235,17 +246,43 @@ class SceneMemory:
         mark_points(self.state, self.seen_at, code, camera, T, self._grid, tt)
         self._stamp = max(self._stamp, tt)
 
-    def obstacles(self, t: float | None = None) -> NDArray[np.float64]:
+    def obstacles(
+        self, t: float | None = None, *, body: Sequence[ArrayLike] = ()
+    ) -> NDArray[np.float64]:
         """The centres (``(k, 3)``, m, world) of the occupied and shadow voxels at time
         ``t`` (default: the newest frame's), after occupied voxels older than
-        ``memory_s`` faded to shadow."""
+        ``memory_s`` faded to shadow, leaving out the voxels of the robot's ``body``
+        (module docstring): each item is one convex piece of it now, its ``(m, 4)``
+        world half-spaces ``n · x ≤ d`` (rows ``nx, ny, nz, d``, unit normals)."""
         tt = self._stamp if t is None else float(t)
-        out = np.empty((max(1024, int(np.count_nonzero(self.state >= OCCUPIED))), 3))
+        out = np.empty((max(1, int(np.count_nonzero(self.state >= OCCUPIED))), 3))
+        # decay only turns occupied into shadow: the count above is enough room
         n = decay_and_collect(self.state, self.seen_at, self._grid, tt, self.config.memory_s, out)
-        if n > len(out):  # cannot happen: decay only turns occupied into shadow
-            out = np.empty((n, 3))
-            decay_and_collect(self.state, self.seen_at, self._grid, tt, self.config.memory_s, out)
-        return out[:n].copy()
+        centres = out[:n]
+        pieces = [_halfspaces(h, i) for i, h in enumerate(body)]
+        if pieces and n:
+            centres = centres[~self._in_body(centres, pieces)]
+        return centres.copy()
+
+    def _in_body(
+        self, centres: NDArray[np.float64], pieces: list[NDArray[np.float64]]
+    ) -> NDArray[np.bool_]:
+        """Which ``centres`` lie within :attr:`inflation` of a convex piece: their
+        largest signed distance to its planes is at most the inflation (a lower bound
+        of the distance to the piece, so every voxel that the piece reaches into is
+        among them)."""
+        r = self.inflation
+        inside = np.zeros(len(centres), dtype=np.bool_)
+        for h in pieces:
+            rows = np.flatnonzero(~inside)
+            for start in range(0, len(h), 6):  # six planes at a time rule rows out
+                block = h[start : start + 6]
+                gap = centres[rows] @ block[:, :3].T - block[None, :, 3]
+                rows = rows[gap.max(axis=1) <= r]
+                if rows.size == 0:
+                    break
+            inside[rows] = True
+        return inside
 
     def counts(self) -> MemoryCounts:
         """How many voxels hold each state now."""
@@ -273,6 +310,18 @@ def _vector(value: ArrayLike, name: str) -> NDArray[np.float64]:
     if v.shape != (3,) or not np.isfinite(v).all():
         raise InputError(_SRC, name, f"expected three finite numbers, got {value!r}")
     return v
+
+
+def _halfspaces(value: ArrayLike, i: int) -> NDArray[np.float64]:
+    try:
+        h = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(_SRC, f"body[{i}]", "expected (m, 4) half-space rows") from None
+    if h.ndim != 2 or h.shape[1] != 4 or len(h) < 4 or not np.isfinite(h).all():
+        raise InputError(_SRC, f"body[{i}]", f"expected (m ≥ 4, 4) finite rows, got {h.shape}")
+    if not np.allclose(np.linalg.norm(h[:, :3], axis=1), 1.0, atol=1e-6):
+        raise InputError(_SRC, f"body[{i}]", "the normals n of its rows must be unit vectors")
+    return h
 
 
 def _pose(pose: ArrayLike) -> NDArray[np.float64]:

@@ -9,6 +9,15 @@ shadow voxels' centres to the scene object of the memory's ``name`` once, stampe
 the newest frame's capture time (so ``SafetyConfig.max_cloud_age`` applies). The robots'
 pixels are the cameras' self-filter: the robot never enters its own map.
 
+The robots never collide with the map either: at each hand-over the voxels their bodies
+occupy at the joint state of that tick are left out (``body`` of
+:meth:`~reachwise.distance.scene_memory.SceneMemory.obstacles`). Each connected piece of
+a link's collision surface is bounded by its 26-DOP (:func:`body_pieces`: the planes
+normal to the 26 directions of the cube's faces, edges and corners, pushed out to its
+farthest vertex), a convex superset of the piece at most a few millimetres wider than a
+round link. Robot–robot pairs are watched on the robots' own link clouds, so every
+robot's body is left out of the one map.
+
 Pairs watched against a memory keep their margin plus the memory's inflation (half a
 voxel's diagonal): an observed point lies that close to its voxel's centre, so the
 controller keeps the scenario's margin from what the cameras saw.
@@ -16,9 +25,14 @@ controller keeps the scenario's margin from what the cameras saw.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Iterable
+from itertools import product
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
+from numpy.typing import NDArray
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from reachwise.distance.scene_memory import MemoryConfig, SceneMemory, ViewIntrinsics
 from reachwise.geometry.cloud import PointCloud
@@ -27,16 +41,63 @@ if TYPE_CHECKING:
     from reachwise.distance.scene import SceneLike
     from reachwise.geometry.depth_camera import DepthCamera, DepthFrame
     from reachwise.sim.scenarios import MemorySpec
+    from reachwise.sim.sensors import BodySurface
 
-__all__ = ["MemoryFeed"]
+__all__ = ["BodyPiece", "MemoryFeed", "body_pieces"]
+
+F64 = NDArray[np.float64]
+
+
+def _dop_directions() -> F64:
+    """The 26 unit directions of a 26-DOP, the three axes' six first."""
+    dirs = [np.array(v, dtype=np.float64) for v in product((-1, 0, 1), repeat=3) if any(v)]
+    dirs.sort(key=lambda v: int(np.count_nonzero(v)))
+    return np.array([v / np.linalg.norm(v) for v in dirs])
+
+
+_DOP = _dop_directions()
+
+
+class BodyPiece(NamedTuple):
+    """One convex piece around a part of a robot link: the half-spaces ``n · x ≤ d``
+    (``normals`` ``(m, 3)``, ``offsets`` ``(m,)``) in the frame ``frame`` of robot
+    ``robot``'s ``fk_all``."""
+
+    robot: str
+    frame: int
+    normals: F64
+    offsets: F64
+
+    def placed(self, pose: F64) -> F64:
+        """The half-spaces in the world (rows ``nx, ny, nz, d``) at the frame's ``pose``."""
+        n = self.normals @ pose[:3, :3].T
+        return np.column_stack([n, self.offsets + n @ pose[:3, 3]])
+
+
+def body_pieces(bodies: Iterable[BodySurface]) -> tuple[BodyPiece, ...]:
+    """The 26-DOP of each connected piece of each link surface in ``bodies``."""
+    out = []
+    for b in bodies:
+        v, f = b.mesh
+        if len(f) == 0:
+            continue
+        edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]]])
+        graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), (len(v), len(v)))
+        _, label = connected_components(graph, directed=False)
+        used = np.unique(f)
+        for c in np.unique(label[used]):
+            pts = v[used[label[used] == c]]
+            out.append(BodyPiece(b.robot, b.index, _DOP, (pts @ _DOP.T).max(axis=0)))
+    return tuple(out)
 
 
 class MemoryFeed:
     """One scene memory of a run: the map, and the frames fused since its last
     hand-over to the scene."""
 
-    def __init__(self, spec: MemorySpec) -> None:
+    def __init__(self, spec: MemorySpec, body: Iterable[BodyPiece] = ()) -> None:
         self.spec = spec
+        self.body = tuple(body)
         self.name = spec.name
         config = MemoryConfig(
             voxel=spec.voxel,
@@ -45,7 +106,7 @@ class MemoryFeed:
             free_hold_s=spec.free_hold_s,
         )
         self.memory = SceneMemory(spec.box.lower, spec.box.upper, config)
-        self._dirty = False
+        self.dirty = False  # a frame was fused since the last hand-over
         self._added = False
 
     @property
@@ -61,14 +122,16 @@ class MemoryFeed:
         if frame.body is not None and frame.body_depth is not None:
             depth = np.where(frame.body, frame.body_depth, frame.depth)
         self.memory.integrate(depth, frame.pose, view, stamp, frame.body)
-        self._dirty = True
+        self.dirty = True
 
-    def flush(self, scene: SceneLike) -> None:
+    def flush(self, scene: SceneLike, frames: dict[str, F64] | None = None) -> None:
         """Hand the map's obstacles to the scene when a frame was fused since the last
-        hand-over (the first call adds the object)."""
-        if self._added and not self._dirty:
+        hand-over (the first call adds the object), without the voxels of the robots'
+        bodies at their frame poses ``frames`` (each robot's ``fk_all``; None: every
+        voxel)."""
+        if self._added and not self.dirty:
             return
-        cloud = self.cloud()
+        cloud = self.cloud(frames)
         if not self._added:
             scene.add_object(self.name, cloud)
             self._added = True
@@ -76,12 +139,16 @@ class MemoryFeed:
         scene.replace_cloud(
             self.name, cloud, block=True, stamp=stamp if np.isfinite(stamp) else None
         )
-        self._dirty = False
+        self.dirty = False
 
-    def cloud(self) -> PointCloud:
-        """The occupied and shadow voxels' centres, or, while there are none, one point
-        far above the box (a cloud has at least one point; it says "nothing here")."""
-        pts = self.memory.obstacles()
+    def cloud(self, frames: dict[str, F64] | None = None) -> PointCloud:
+        """The occupied and shadow voxels' centres (without the robots' bodies at their
+        frame poses ``frames``), or, while there are none, one point far above the box
+        (a cloud has at least one point; it says "nothing here")."""
+        body = []
+        if frames is not None:
+            body = [p.placed(frames[p.robot][p.frame]) for p in self.body if p.robot in frames]
+        pts = self.memory.obstacles(body=body)
         if len(pts) == 0:
             lo, hi = self.memory.origin, np.asarray(self.spec.box.upper, dtype=np.float64)
             pts = (0.5 * (lo + hi) + [0.0, 0.0, 1.0e3])[None]

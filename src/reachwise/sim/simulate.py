@@ -359,8 +359,10 @@ def _sense(world: World, seen: SceneLike, t: float) -> tuple[SceneResult, SceneR
         qs = {a.name: a.plant.q for a in world.agents}
         for sensor in world.sensors:
             sensor.step(scene, tick, world.sight, qs)
-        for feed in world.memories:
-            feed.flush(scene)
+        if any(feed.dirty for feed in world.memories):
+            fk = world.sight.frames(qs)  # the robots' bodies leave the map
+            for feed in world.memories:
+                feed.flush(scene, fk)
     res = scene.query_all()
     if seen is scene:
         return res, res, twists

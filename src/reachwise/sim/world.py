@@ -21,7 +21,7 @@ from reachwise.errors import InputError, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.kinematics.robot import Robot
 from reachwise.sim.contact import Solid
-from reachwise.sim.memory_feed import MemoryFeed
+from reachwise.sim.memory_feed import MemoryFeed, body_pieces
 from reachwise.sim.motion import Trajectory
 from reachwise.sim.plant import PLANT_NAMES, Plant, PlantConfig, PlantName
 from reachwise.sim.resolve import (
@@ -228,7 +228,8 @@ def _add_sensors(
         bodies[name] = BodySurface(name, rname, link, index, mesh, solid)
     sight = Sight(robots, objects, bodies)
     qs = {rs.name: np.asarray(rs.start, dtype=float) for rs in spec.robots}
-    feeds = {m.name: MemoryFeed(m) for m in spec.memory}
+    pieces = body_pieces(sight.bodies.values()) if spec.memory else ()
+    feeds = {m.name: MemoryFeed(m, pieces) for m in spec.memory}
     feed_of = {s: feeds[m.name] for m in spec.memory for s in m.sensors}
     sensors = []
     for i, ss in enumerate(spec.sensors):
@@ -243,8 +244,9 @@ def _add_sensors(
         _check_outside(sc, i, sensor, sight, qs)
         sensor.start(scene, sight, qs)
         sensors.append(sensor)
+    fk = sight.frames(qs)
     for feed in feeds.values():
-        feed.flush(scene)
+        feed.flush(scene, fk)
     return sight, sensors, list(feeds.values())
 
 
@@ -273,13 +275,17 @@ def _watch_pairs(
     control: dict[tuple[str, str], float] = {}
     for i, w in enumerate(spec.watch):
         listed = res.self_pairs.get(i)
-        made = _watch_rule(scene, res.scenario, listed, w, w.margin + spec.monitor, f"watch[{i}]")
+        made = _watch_rule(
+            scene, res.scenario, listed, w, w.margin + spec.monitor, f"watch[{i}]", inflation
+        )
         for pair in made:
-            extra = inflation.get(pair.b, 0.0) + inflation.get(pair.a, 0.0)
-            if extra > 0.0:
-                scene.watch(pair.a, pair.b, w.margin + spec.monitor + extra, kind=pair.kind)
-            control[(pair.a, pair.b)] = w.margin + extra
+            control[(pair.a, pair.b)] = w.margin + _extra(inflation, pair.a, pair.b)
     return control
+
+
+def _extra(inflation: dict[str, float], a: str, b: str) -> float:
+    """What a pair adds to its margins: the inflation of the scene memories in it."""
+    return inflation.get(a, 0.0) + inflation.get(b, 0.0)
 
 
 def _watch_rule(
@@ -289,10 +295,11 @@ def _watch_rule(
     w: WatchSpec,
     qm: float,
     where: str,
+    inflation: dict[str, float],
 ) -> list[WatchedPair]:
     """The pairs one ``watch`` entry makes (self: the resolved link pairs ``listed``,
     or every non-adjacent pair; robot-environment or robot-robot), watched with
-    margin ``qm``."""
+    margin ``qm`` (plus the ``inflation`` of a scene memory in the pair)."""
     made = []
     if w.self_ is not None:
         if listed is not None:
@@ -313,7 +320,8 @@ def _watch_rule(
         mine = _robot_objects(scene, w.robot, w.links, sc.source, where)
         for o in mine:
             for e in w.environment:
-                made.append(scene.watch(o, e, qm, kind="robot-environment"))
+                qe = qm + _extra(inflation, o, e)
+                made.append(scene.watch(o, e, qe, kind="robot-environment"))
     elif w.robots is not None:
         ra, rb = w.robots
         for o in _robot_objects(scene, ra, w.links, sc.source, where):
