@@ -1,8 +1,8 @@
-"""Seeded fuzzing of every file loader: robot, task (YAML and CSV) and scenario files and
-PLY, PCD, NPY, XYZ and CSV clouds, each mutated many ways (bytes flipped, inserted or
-cut, non-UTF-8 bytes, values swapped for booleans, nulls, strings, huge numbers, deep
-nesting, keys deleted). Every case gives either a valid object or a ReachwiseError whose
-message names the file — never another exception."""
+"""Seeded fuzzing of every file loader: robot, task (YAML and CSV), scenario and
+self-collision pair files and PLY, PCD, NPY, XYZ and CSV clouds, each mutated many ways
+(bytes flipped, inserted or cut, non-UTF-8 bytes, values swapped for booleans, nulls,
+strings, huge numbers, deep nesting, keys deleted). Every case gives either a valid
+object or a ReachwiseError whose message names the file — never another exception."""
 
 from __future__ import annotations
 
@@ -15,10 +15,12 @@ import numpy as np
 import pytest
 import yaml
 
+from reachwise.distance.self_pairs import PairRule, SelfPairs
 from reachwise.errors import ReachwiseError
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io._builtin import builtin_text
 from reachwise.io.clouds import load_cloud, save_cloud
+from reachwise.io.pairs_file import load_pairs, save_pairs
 from reachwise.io.robot_file import load_robot
 from reachwise.io.task_file import load_task, save_task
 from reachwise.sim.scenarios import load_scenario
@@ -118,12 +120,25 @@ def _task_text(tmp_path: Path, suffix: str) -> bytes:
     return path.read_bytes()
 
 
+def _pairs_text(tmp_path: Path) -> bytes:
+    rules = (
+        PairRule("link_0", "link_3", "watched", "within the margin", 0.2),
+        PairRule("link_1", "link_3", "watched", "review", 0.01, True),
+        PairRule("link_0", "link_1", "adjacent", "joined by one joint"),
+        PairRule("link_1", "link_2", "adjacent", "joined by one joint"),
+        PairRule("link_0", "link_2", "never", "never within 0.05 m"),
+    )
+    pairs = SelfPairs("arm", 0.05, 100, 3, np.array([0.0, 0.5, -0.25]), rules)
+    return save_pairs(pairs, tmp_path / "base-pairs.yaml", source="arm.urdf").read_bytes()
+
+
 TEXT_FILES: dict[str, tuple[str, Callable[[Path], bytes], Callable[[str], Any]]] = {
     "robot": (".yaml", lambda _: _robot_text().encode(), load_robot),
     "task-yaml": (".yaml", lambda p: _task_text(p, ".yaml"), load_task),
     "task-csv": (".csv", lambda p: _task_text(p, ".csv"), load_task),
     "scenario": (".yaml", lambda _: builtin_text("scenarios", "p3-self-collision").encode(),
                  load_scenario),
+    "pairs": (".yaml", _pairs_text, load_pairs),
 }  # fmt: skip
 
 

@@ -164,19 +164,23 @@ def link_cloud(
     where = f"geometry.{link}"
     given = [x for x in (points, density, resolution) if x is not None]
     if len(given) > 1:
-        raise InputError(robot.name, where, "give one of points, density and resolution")
+        raise InputError(
+            robot.source or robot.name, where, "give one of points, density and resolution"
+        )
     mesh = link_mesh(robot, link, base_dir)
     if resolution is not None:
         pts = covering_points(mesh, resolution, source=robot.source or robot.name, field=where)
         return PointCloud(pts, frame=robot.frame_of(link), name=f"{robot.name}/{link}")
     if density is not None:
         if isinstance(density, bool) or not math.isfinite(density) or not density > 0:
-            raise InputError(robot.name, "density", f"must be finite and > 0, got {density!r}")
+            raise InputError(
+                robot.source or robot.name, "density", f"must be finite and > 0, got {density!r}"
+            )
         n = max(1, math.ceil(float(mesh.area) * float(density)))
     else:
         n = max(g.points for g in shapes) if points is None else int(points)
     if n <= 0:
-        raise InputError(robot.name, f"{where}.points", f"must be > 0, got {n}")
+        raise InputError(robot.source or robot.name, f"{where}.points", f"must be > 0, got {n}")
     k = robot.body_names.index(link)
     rng = np.random.default_rng([int(seed), k])
     frame = robot.frame_of(link)
