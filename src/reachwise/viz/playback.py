@@ -20,8 +20,6 @@ poses as the run, so the same answer).
 from __future__ import annotations
 
 import math
-import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -39,6 +37,7 @@ from reachwise.viz.scene_data import (
     polyline_segments,
     wxyz_position,
 )
+from reachwise.viz.timeline import Timeline
 
 if TYPE_CHECKING:
     from reachwise.distance.scene import SceneResult
@@ -300,12 +299,6 @@ class _Points:
         return {k: _Points(np.asarray(v)) for k, v in clouds.items()}
 
 
-def _icon(name: str) -> Any:
-    import viser
-
-    return getattr(viser.Icon, name)
-
-
 def _place(points: ArrayLike, T: ArrayLike) -> NDArray[np.float64]:
     P = np.asarray(points, dtype=float)
     M = np.asarray(T, dtype=float)
@@ -319,10 +312,9 @@ def status_text(sim: SimScene, t: float, md: float, states: dict[str, str]) -> s
     return f"t = {t:.2f} s · min distance {d}  \n{st}"
 
 
-class Playback:
-    """Replay of a simulation log in ``viewer`` (see the module doc)."""
-
-    SPEEDS = ("0.25x", "0.5x", "1x", "2x", "4x")
+class Playback(Timeline):
+    """Replay of a simulation log in ``viewer`` (see the module doc; the controls are
+    :class:`~reachwise.viz.timeline.Timeline`'s)."""
 
     def __init__(self, viewer: Canvas, log: SimulationLog, world: World, fps: float = 30.0):
         for r in log.robots:
@@ -333,38 +325,14 @@ class Playback:
                 )
         if log.t.size == 0:
             raise InputError(f"log of {log.scenario}", "t", "the log has no ticks")
-        self.viewer, self.log, self.world = viewer, log, world
+        super().__init__(viewer, log.t, fps)
+        self.log, self.world = log, world
         self.sim = SimScene(viewer, world)
         for r in log.robots:
             self.sim.set_path(r, log.tool[r][:, :3, 3])
         self.reached_at = goal_reached_at(log, self.sim.goals)
         self.min_distance = log.min_distance
-        self.T = int(log.t.size)
-        self.fps = fps
-        self.index = -1
-        self.playing = False
-        self.speed = 1.0
-        self._k0, self._t0 = 0, time.monotonic()
-        self._halt = threading.Event()
-        self._seek_lock = threading.Lock()
-        gui = viewer.server.gui
-        end = float(log.t[-1])
-        with viewer.add_gui(gui.add_folder("Playback", order=5)):
-            self.button = gui.add_button("Play", icon=_icon("PLAYER_PLAY"))
-            self.slider = gui.add_slider(
-                "time (s)",
-                min=0.0,
-                max=max(end, log.dt),
-                step=log.dt,
-                initial_value=0.0,
-                disabled=self.T < 2,
-            )
-            self.speed_box = gui.add_dropdown("speed", self.SPEEDS, initial_value="1x")
-            self.loop = gui.add_checkbox("loop", initial_value=False)
-            self.status = gui.add_markdown("")
-        self.button.on_click(lambda _: self.toggle())
-        self.slider.on_update(self._slid)
-        self.speed_box.on_update(lambda ev: self._set_speed(str(ev.target.value)))
+        self.add_controls(log.dt)
         self.seek(0)
         coll = (
             f", first overlap at {log.first_collision:.2f} s ({log.first_collision_pair})"
@@ -379,80 +347,24 @@ class Playback:
             + legend(("unreached", "reached"))
             + "; closest-point lines: red within the margin, amber monitored"
         )
-        viewer.mode = "playback"
-        viewer.activate(self)
-        self._thread = threading.Thread(target=self._run, name="reachwise-playback", daemon=True)
-        self._thread.start()
+        self.start()
 
-    # ------------------------------------------------------------------ controls
-    def tick_of(self, t: float) -> int:
-        return int(np.clip(round(float(t) / self.log.dt), 0, self.T - 1))
-
-    def seek(self, k: int) -> None:
-        """Show tick ``k``: robots, moving objects, lines, goal colours, status."""
-        k = int(np.clip(k, 0, self.T - 1))
+    def show(self, k: int) -> None:
+        """Tick ``k``: robots, moving objects, lines, goal colours, status."""
         log = self.log
-        with self._seek_lock, self.viewer.locked(self._halt) as ok:
-            if not ok or k == self.index:
-                return
-            t = float(log.t[k])
-            for r in log.robots:
-                self.sim.set_robot_q(r, log.q[r][k])
-            poses = {n: p[k] for n, p in getattr(log, "object_poses", {}).items()}
-            self.sim.set_objects_at(t, poses)
-            self.sim.set_sensor_frames(k, self._q_at)
-            self.sim.update_lines()
-            self.sim.set_goal_status(self.reached_at <= t + 1e-9)
-            states = {r: str(log.state[r][k]) for r in log.robots}
-            self.status.content = status_text(self.sim, t, float(self.min_distance[k]), states)
-            self.index = k
+        t = float(log.t[k])
+        for r in log.robots:
+            self.sim.set_robot_q(r, log.q[r][k])
+        poses = {n: p[k] for n, p in getattr(log, "object_poses", {}).items()}
+        self.sim.set_objects_at(t, poses)
+        self.sim.set_sensor_frames(k, self._q_at)
+        self.sim.update_lines()
+        self.sim.set_goal_status(self.reached_at <= t + 1e-9)
+        states = {r: str(log.state[r][k]) for r in log.robots}
+        self.status.content = status_text(self.sim, t, float(self.min_distance[k]), states)
 
     def _q_at(self, k: int) -> dict[str, NDArray[np.float64]] | None:
         """The robots' logged joint states at tick ``k`` (None outside the log)."""
         if not 0 <= k < self.T:
             return None
         return {r: self.log.q[r][k] for r in self.log.robots}
-
-    def _slid(self, ev: Any) -> None:
-        k = self.tick_of(ev.target.value)
-        if getattr(ev, "client", None) is not None:  # the user dragged: re-anchor
-            self._k0, self._t0 = k, time.monotonic()
-        self.seek(k)
-
-    def _set_speed(self, label: str) -> None:
-        self._k0, self._t0 = max(self.index, 0), time.monotonic()
-        self.speed = float(label.rstrip("x"))
-
-    def play(self) -> None:
-        if self.index >= self.T - 1:
-            self.slider.value = 0.0  # type: ignore[misc]  # (viser: settable, mypy: not)
-        self._k0, self._t0 = max(self.index, 0), time.monotonic()
-        self.playing = True
-        self.button.label, self.button.icon = "Pause", _icon("PLAYER_PAUSE")
-
-    def pause(self) -> None:
-        self.playing = False
-        self.button.label, self.button.icon = "Play", _icon("PLAYER_PLAY")
-
-    def toggle(self) -> None:
-        self.pause() if self.playing else self.play()
-
-    def _run(self) -> None:
-        while not self._halt.wait(1.0 / self.fps):
-            if not self.playing:
-                continue
-            k = self._k0 + int((time.monotonic() - self._t0) * self.speed / self.log.dt)
-            if k >= self.T - 1:
-                if self.loop.value:
-                    self._k0, self._t0, k = 0, time.monotonic(), 0
-                else:
-                    k = self.T - 1
-                    self.pause()
-            if k != self.index:
-                self.slider.value = float(self.log.t[k])  # type: ignore[misc]  # → seek
-
-    def stop(self) -> None:
-        self.playing = False
-        self._halt.set()
-        if self._thread is not threading.current_thread():
-            self._thread.join(timeout=5.0)

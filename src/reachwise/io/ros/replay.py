@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from itertools import groupby
 from pathlib import Path
@@ -58,7 +58,7 @@ from reachwise.io.ros.stamps import header_frame, header_stamp
 from reachwise.io.ros.transform_tree import TransformTree
 from reachwise.kinematics.robot import Robot
 
-__all__ = ["ReplayResult", "ReplaySpec", "replay_recording"]
+__all__ = ["CloudHook", "ReplayResult", "ReplaySpec", "replay_recording"]
 
 F64 = NDArray[np.float64]
 POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
@@ -71,6 +71,8 @@ TF_TOPICS = ("/tf", "/tf_static")
 _NOWHERE = np.full((1, 3), 1.0e6)
 #: The scene object of the scene memory.
 MEMORY = "memory"
+#: ``on_cloud(object, stamp, points)``: told of each cloud handed to the scene.
+CloudHook = Callable[[str, float, NDArray[np.float64]], None]
 #: The far limit given to the scene memory: the image's own invalid pixels are NaN or 0.
 _FAR = 1.0e3
 
@@ -132,13 +134,15 @@ class ReplayResult:
     the scene memory), ``point_a``,
     ``point_b`` (F, P, 3; the closest points in the fixed frame); ``margin``;
     ``clouds`` (per topic, the number of clouds handed over) and ``swapped`` (how many
-    of them some frame used); ``ros1``: the recording is a ROS 1 bag."""
+    of them some frame used); ``q`` (F, n): the robot's joint positions queried;
+    ``ros1``: the recording is a ROS 1 bag."""
 
     bag: str
     robot: str
     frame: str
     pairs: tuple[str, ...]
     t: F64
+    q: F64
     distance: F64
     cloud_stamp: F64
     point_a: F64
@@ -305,9 +309,13 @@ def replay_recording(
     spec: ReplaySpec,
     *,
     link_clouds: Mapping[str, PointCloud],
+    on_cloud: CloudHook | None = None,
 ) -> ReplayResult:
     """Replay recording ``bag`` (see the module docstring) with ``robot``, whose links
-    carry ``link_clouds`` (link name → cloud in the link frame)."""
+    carry ``link_clouds`` (link name → cloud in the link frame). ``on_cloud(object,
+    stamp, points)`` is called with each cloud handed to the scene (its object: the
+    topic, or ``memory``; its stamp, s; its points in the fixed frame, read-only), e.g.
+    to keep them for a viewer."""
     matcher = JointMatcher(robot_joint_names(robot))
     with Recording(bag) as rec:
         ros1 = rec.ros1
@@ -321,18 +329,19 @@ def replay_recording(
                 objects.append(MEMORY)
             scene, pairs = _scene(robot, link_clouds, spec, objects)
             try:
-                rows = _drive(rec, spec, sources, tree, scene, pairs, matcher, robot.name)
+                rows = _drive(rec, spec, sources, tree, scene, pairs, matcher, robot.name, on_cloud)
             finally:
                 scene.close()
         except RecordingError as exc:
             raise exc.in_bag(rec.source) from None
-    t, dist, stamp, pa, pb, used = rows
+    t, q, dist, stamp, pa, pb, used = rows
     return ReplayResult(
         bag=str(bag),
         robot=robot.name,
         frame=spec.frame,
         pairs=tuple(f"{a}|{b}" for a, b in pairs),
         t=t,
+        q=q,
         distance=dist,
         cloud_stamp=stamp,
         point_a=pa,
@@ -353,13 +362,15 @@ def _drive(
     pairs: list[tuple[str, str]],
     matcher: JointMatcher,
     robot: str,
-) -> tuple[F64, F64, F64, F64, F64, dict[str, int]]:
+    on_cloud: CloudHook | None,
+) -> tuple[F64, F64, F64, F64, F64, F64, dict[str, int]]:
     """The replay loop: joint states and clouds in recording order, a frame per joint
     state (at most every ``spec.every`` s)."""
     infos = {s.info_topic: s for s in sources.values() if s.info_topic is not None}
     topics: list[str] = [spec.joints, *sources, *infos]
     cloud_of = [b for _, b in pairs]
     ts: list[float] = []
+    qs: list[F64] = []
     dist: list[F64] = []
     stamps: list[F64] = []
     pa: list[F64] = []
@@ -382,9 +393,15 @@ def _drive(
             if memory is not None and src.msgtype == IMAGE:
                 voxels, stamp = src.fuse(memory, m.msg, m.t, tree, spec.frame)
                 scene.replace_cloud(MEMORY, voxels, block=spec.block, stamp=stamp)
+                if on_cloud is not None:
+                    on_cloud(MEMORY, stamp, voxels)
             else:
                 cloud, stamp = src.points(m.msg, m.t, tree, spec.frame)
                 scene.replace_cloud(m.topic, cloud, block=spec.block, stamp=stamp)
+                if on_cloud is not None:
+                    on_cloud(
+                        m.topic, stamp, cloud.points if isinstance(cloud, PointCloud) else cloud
+                    )
         else:
             q = matcher.positions(m.msg, topic=m.topic)
             t = _joint_time(m.msg, m.t)
@@ -397,6 +414,7 @@ def _drive(
             versions = res.versions
             fresh = np.array([versions.get(c, 0) > 0 for c in cloud_of])
             ts.append(t)
+            qs.append(q)
             dist.append(np.where(fresh, r[:, 0], np.nan))
             stamps.append(
                 np.array([res.cloud_stamps.get(c, math.nan) if f else math.nan
@@ -415,6 +433,7 @@ def _drive(
 
     return (
         np.array(ts, dtype=np.float64),
+        np.array(qs, dtype=np.float64).reshape(len(ts), len(matcher.names)),
         stack(dist, P),
         stack(stamps, P),
         stack(pa, P, 3),

@@ -1,0 +1,92 @@
+"""A replayed recording in the viewer: scrubbing to a frame puts the robot at the joint
+positions that frame queried, shows the cloud whose stamp the frame reports and the
+closest-point lines of the replay's answers; and the clouds kept for display are the
+handed-over ones, thinned."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from reachwise.errors import InputError
+from reachwise.io.ros.replay import ReplaySpec, replay_recording
+from reachwise.viz.replay_view import ROBOT, ReplayClouds, ReplayPlayback
+from reachwise.viz.viewer import Viewer
+from tests.io.ros import _cell
+from tests.viz.test_viewer import assert_robot_at, our_threads
+
+
+@pytest.fixture(scope="module")
+def cell(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return _cell.write_cell(tmp_path_factory.mktemp("cell") / "cell.mcap")
+
+
+@pytest.fixture
+def viewer() -> Iterator[Viewer]:
+    v = Viewer(port=0)
+    try:
+        yield v
+    finally:
+        v.stop()
+
+
+def test_replay_playback_shows_each_frames_answers(viewer: Viewer, cell: Path) -> None:
+    robot = _cell.panda()
+    link_clouds = _cell.link_clouds(robot)
+    spec = ReplaySpec(joints="/joint_states", clouds=("/points", "/depth/image"), margin=0.3)
+    kept = ReplayClouds(max_points=50)
+    res = replay_recording(cell, robot, spec, link_clouds=link_clouds, on_cloud=kept)
+    # each handed-over cloud kept once, thinned to at most 50 points
+    assert {o: len(c) for o, c in kept.clouds.items()} == res.clouds
+    assert all(len(p) <= 50 for c in kept.clouds.values() for p in c.values())
+    for k, t in enumerate(res.t):  # the frames' joint positions are the recorded ones
+        np.testing.assert_allclose(res.q[k], _cell.joint_path(t), atol=1e-12)
+    pb = ReplayPlayback(viewer, res, robot, link_clouds, kept)
+    assert viewer.active is pb and viewer.mode == "playback"
+    depth = res.pairs.index("link_3|/depth/image")
+    for k in (res.t.size - 1, 30, 0):
+        pb.slider.value = float(res.t[k])
+        assert pb.index == k
+        assert_robot_at(viewer, ROBOT, res.q[k])
+        lines = np.asarray(viewer.nodes["/distance/lines"].points)
+        ok = np.isfinite(res.distance[k])
+        if not ok.any():  # before the first cloud: no line to show
+            assert not viewer.nodes["/distance/lines"].visible
+            continue
+        expected = np.stack([res.point_a[k][ok], res.point_b[k][ok]], axis=1)
+        np.testing.assert_allclose(lines, expected, atol=1e-6)
+        red = (np.asarray(viewer.nodes["/distance/lines"].colors)[:, 0, 1] < 100).tolist()  # G
+        assert red == (res.distance[k][ok] <= 0.3).tolist()
+        shown = np.asarray(viewer.nodes[pb.cloud_node("/depth/image")].points)
+        np.testing.assert_array_equal(shown, kept.at("/depth/image", res.cloud_stamp[k, depth]))
+    # the kept depth cloud holds every k-th of the frame's points
+    last = kept.at("/depth/image", res.cloud_stamp[-1, depth])
+    stamp = float(res.cloud_stamp[-1, depth])
+    full = _cell.depth_world_points(round((stamp - 0.05) / 0.1), stamp)
+    step = int(np.ceil(len(full) / 50))
+    assert last is not None and len(last) == len(full[::step])
+    from scipy.spatial.distance import cdist
+
+    assert cdist(last, full).min(axis=1).max() < 1e-6  # each one a point of the frame
+    pb.stop()
+    assert "reachwise-playback" not in our_threads()
+
+
+def test_a_replay_without_frames_or_of_another_robot_is_refused(viewer: Viewer, cell: Path) -> None:
+    robot = _cell.panda()
+    spec = ReplaySpec(joints="/joint_states", clouds=("/points",))
+    res = replay_recording(cell, robot, spec, link_clouds=_cell.link_clouds(robot))
+    import dataclasses
+
+    import reachwise
+
+    with pytest.raises(InputError, match="not"):
+        ReplayPlayback(viewer, res, reachwise.load_robot("puma560"), {}, ReplayClouds())
+    empty = dataclasses.replace(res, t=res.t[:0], q=res.q[:0])
+    with pytest.raises(InputError, match="no frames"):
+        ReplayPlayback(viewer, empty, robot, {}, ReplayClouds())
+    with pytest.raises(InputError, match="max_points"):
+        ReplayClouds(max_points=0)
