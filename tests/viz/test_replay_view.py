@@ -15,6 +15,7 @@ from reachwise.errors import InputError
 from reachwise.io.ros.replay import ReplaySpec, replay_recording
 from reachwise.viz.replay_view import ROBOT, ReplayClouds, ReplayPlayback
 from reachwise.viz.viewer import Viewer
+from tests._real_arms import arm_path, needs_erd
 from tests.io.ros import _cell
 from tests.viz.test_viewer import assert_robot_at, our_threads
 
@@ -90,3 +91,57 @@ def test_a_replay_without_frames_or_of_another_robot_is_refused(viewer: Viewer, 
         ReplayPlayback(viewer, empty, robot, {}, ReplayClouds())
     with pytest.raises(InputError, match="max_points"):
         ReplayClouds(max_points=0)
+
+
+@needs_erd
+def test_reachwise_replay_view_serves_until_ctrl_c(tmp_path: Path) -> None:
+    """``reachwise replay … --view`` writes its files, prints the viewer's URL, serves
+    the page, and Ctrl-C ends it cleanly with the port freed."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    import urllib.request
+
+    from tests.cli.test_replay import UR5
+    from tests.conftest import sigint_default
+    from tests.viz.test_viewer import port_open
+
+    bag = _cell.write_cell(tmp_path / "cell.mcap", seconds=0.3, joints=UR5)
+    args = ["replay", str(bag), "--robot", str(arm_path("ur5")), "--tip", "tool0",
+            "--clouds", "/points", "--points", "100", "--out", str(tmp_path / "out"),
+            "--view", "--port", "0"]  # fmt: skip
+    env = dict(os.environ, PYTHONUNBUFFERED="1", COLUMNS="200")
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "from reachwise.cli import main; main()", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env=env,
+        preexec_fn=sigint_default,
+    )
+    try:
+        assert proc.stdout is not None
+        seen: list[str] = []
+        end = time.monotonic() + 120
+        while not any("viewer at" in x for x in seen) and time.monotonic() < end:
+            line = proc.stdout.readline()
+            if not line and proc.poll() is not None:
+                break
+            seen.append(line)
+        text = "".join(seen)
+        assert "viewer at" in text, text
+        assert (tmp_path / "out" / "distances.csv").exists()
+        url = next(w for x in seen if "viewer at" in x for w in x.split() if "http" in w)
+        port = int(url.rstrip(":").rsplit(":", 1)[1])
+        with urllib.request.urlopen(url, timeout=10) as r:
+            assert r.status == 200 and b"<html" in r.read().lower()
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=30) == 0
+        assert not port_open(port)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=10)

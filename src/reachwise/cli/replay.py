@@ -5,11 +5,20 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 from rich.console import Console
 
 from reachwise.cli._robot_options import LENIENT, PACKAGE_DIRS, TIP, load_with_options
+
+if TYPE_CHECKING:
+    from collections.abc import Mapping
+
+    from reachwise.geometry.cloud import PointCloud
+    from reachwise.io.ros.replay import ReplayResult
+    from reachwise.kinematics.robot import Robot
+    from reachwise.viz.replay_view import ReplayClouds
 
 
 def replay(
@@ -106,6 +115,15 @@ def replay(
         "'auto': results.bag for a ROS 1 recording, else results.mcap; 'none': none.",
     ),
     json_out: bool = typer.Option(False, "--json", help="Print the summary as JSON."),
+    view: bool = typer.Option(
+        False,
+        "--view",
+        help="Then play the replay back in the browser viewer (robot, clouds, closest-point "
+        "lines) until Ctrl-C.",
+    ),
+    port: int = typer.Option(
+        8080, "--port", min=0, max=65535, help="With --view: the viewer's port (or the next free)."
+    ),
 ) -> None:
     """Replay a recorded cell: per frame the smallest distance of every watched pair
     (distances.csv, near.csv, summary.json, report.html, a results bag)."""
@@ -158,7 +176,12 @@ def replay(
         raise InputError("reachwise replay", "--robot", "give --robot or --scenario")
     console = Console(stderr=True)
     console.print(f"replaying {bag} with {model.name} …")
-    result = replay_recording(bag, model, spec, link_clouds=carried)
+    kept = None
+    if view:
+        from reachwise.viz.replay_view import ReplayClouds
+
+        kept = ReplayClouds()
+    result = replay_recording(bag, model, spec, link_clouds=carried, on_cloud=kept)
     inputs = {
         "joints": joints,
         "clouds": list(clouds),
@@ -171,9 +194,33 @@ def replay(
     )
     if json_out:
         typer.echo(json.dumps(summary, indent=2))
-        return
-    console.print(
-        f"{summary['frames']} frames, smallest distance "
-        f"{summary['min_distance'] if summary['min_distance'] is not None else '–'} m, "
-        f"{summary['near_frames']} frames closer than {margin:g} m; results in {out}/"
-    )
+    else:
+        console.print(
+            f"{summary['frames']} frames, smallest distance "
+            f"{summary['min_distance'] if summary['min_distance'] is not None else '–'} m, "
+            f"{summary['near_frames']} frames closer than {margin:g} m; results in {out}/"
+        )
+    if view and kept is not None:
+        _view(result, model, carried, kept, port, console)
+
+
+def _view(
+    result: ReplayResult,
+    robot: Robot,
+    link_clouds: Mapping[str, PointCloud],
+    kept: ReplayClouds,
+    port: int,
+    console: Console,
+) -> None:
+    """Play ``result`` back in the viewer until Ctrl-C."""
+    from reachwise.viz.replay_view import ReplayPlayback
+    from reachwise.viz.viewer import Viewer
+
+    viewer = Viewer(port=port)
+    try:
+        ReplayPlayback(viewer, result, robot, link_clouds, kept)
+    except BaseException:
+        viewer.stop()
+        raise
+    console.print(f"viewer at {viewer.url} (Ctrl-C to stop)")
+    viewer.wait()
