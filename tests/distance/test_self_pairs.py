@@ -17,6 +17,7 @@ from scipy.spatial import cKDTree
 
 import reachwise
 from reachwise.distance.self_pairs import (
+    ALWAYS_FRACTION,
     adjacent_reason,
     bounding_capsule,
     capsule_distances,
@@ -129,20 +130,24 @@ def test_panda_pairs_recall_on_a_separate_set(tmp_path: Path) -> None:
     assert all({a, b} <= rigid for a, b in set(adjacent) - set(joined))
     assert ("panda_link6", "panda_hand") not in adjacent
     assert not set(adjacent) & set(found.watched)
-    others = [(p.a, p.b) for p in found.pairs if p.rule != "adjacent"]
-    hits = pair_hits(robot, clouds, others, MARGIN, random_configurations(robot, 10_000, 777))
+    always = [(p.a, p.b) for p in found.always]  # within the margin (nearly) everywhere
+    others = [(p.a, p.b) for p in found.pairs if p.rule not in ("adjacent", "always")]
+    Q = random_configurations(robot, 10_000, 777)
+    share = pair_hits(robot, clouds, always, MARGIN, Q).mean(axis=0)
+    assert np.all(share >= ALWAYS_FRACTION - 0.01), dict(zip(always, share, strict=True))
+    hits = pair_hits(robot, clouds, others, MARGIN, Q)
     events = hits.sum(axis=0)
     watched = set(found.watched)
     caught = sum(int(e) for p, e in zip(others, events, strict=True) if p in watched)
     assert caught / events.sum() >= 0.999  # recall over (configuration, pair) events
     close = {p for p, e in zip(others, events, strict=True) if e > 0}
     assert len(close & watched) / len(close) >= 0.999  # and over pairs: all of them
-    assert {p.rule for p in found.excluded} == {"adjacent", "never"}
+    assert {p.rule for p in found.excluded} <= {"adjacent", "always", "never"}
 
     path = save_pairs(found, tmp_path / "pairs.yaml", source=robot.source or "")
     data = yaml.safe_load(path.read_text())
     assert data["rules"] == RULES and data["margin"] == MARGIN and data["samples"] == 10_000
-    assert all(e["rule"] in ("adjacent", "never") and e["detail"] for e in data["excluded"])
+    assert all(e["rule"] in RULES and e["detail"] for e in data["excluded"])
     assert {(e["a"], e["b"]) for e in data["watched"]} == watched
     back, _ = load_pairs(path)
     assert set(back.watched) == watched and len(back.excluded) == len(found.excluded)
@@ -169,3 +174,82 @@ def test_scenario_pairs_are_cached_in_the_results_folder(
     assert again.watched == first.watched
     with pytest.raises(AssertionError, match="computed again"):  # another margin: not cached
         sp.auto_self_pairs(r, clouds, 0.06, home=home, samples=200, cache_dir=tmp_path)
+
+
+def _kd_distances(
+    robot: Robot, clouds: dict[str, PointCloud], a: str, b: str, Q: np.ndarray
+) -> np.ndarray:
+    """The cloud distance of links ``a``, ``b`` at each configuration, by k-d tree."""
+    F = robot.fk_all(Q)
+    ia, ib = robot.link_index(a), robot.link_index(b)
+    out = np.empty(len(Q))
+    for s in range(len(Q)):
+        pa = clouds[a].points @ F[s, ia, :3, :3].T + F[s, ia, :3, 3]
+        pb = clouds[b].points @ F[s, ib, :3, :3].T + F[s, ib, :3, 3]
+        out[s] = cKDTree(pb).query(pa)[0].min()
+    return out
+
+
+@needs_erd
+def test_ur5_wrist_pairs_always_within_2cm_are_excluded_as_always(tmp_path: Path) -> None:
+    """At a 2 cm margin the UR5's wrist_1-wrist_3 and wrist_2-ee pairs are within it in
+    (nearly) every configuration: excluded as ``always``, with their clearance band, in
+    the file and the SRDF (MoveIt's ``Always``). Checked on a separate sample set by
+    k-d tree: each is within the margin in at least 95 % of it; and every watched pair
+    leaves the margin somewhere (it could never be excluded as ``always``)."""
+    from reachwise.io.srdf import read_srdf, write_srdf
+
+    robot = reachwise.load_robot(arm_path("ur5"), tip="tool0")
+    clouds = reachwise.link_clouds(robot)
+    found = self_collision_pairs(robot, clouds, 0.02, samples=4000, seed=0)
+    always = {(p.a, p.b) for p in found.always}
+    assert always == {("wrist_1_link", "wrist_3_link"), ("wrist_2_link", "ee_link")}
+    assert all("always within 0.02 m" in p.detail and "clearance" in p.detail
+               for p in found.always)  # fmt: skip
+    Q = random_configurations(robot, 400, 99)
+    for a, b in always:
+        d = _kd_distances(robot, clouds, a, b, Q)
+        assert np.mean(d <= 0.02) >= ALWAYS_FRACTION, (a, b)
+    for a, b in found.watched:
+        d = _kd_distances(robot, clouds, a, b, Q)
+        assert np.mean(d <= 0.02) < ALWAYS_FRACTION, (a, b)
+    data = yaml.safe_load(save_pairs(found, tmp_path / "p.yaml").read_text())
+    assert {(e["a"], e["b"]) for e in data["excluded"] if e["rule"] == "always"} == always
+    assert "always" in data["rules"]
+    srdf = read_srdf(write_srdf(found, tmp_path / "ur5.srdf"))
+    assert {(p.link1, p.link2) for p in srdf.disabled if p.reason == "Always"} == always
+
+
+def test_always_needs_the_share_of_samples_within_the_margin() -> None:
+    """The ``always`` test against a pair whose distance is known at each sample: a
+    query that answers from a table, 96 of 100 samples within the margin (always), then
+    6 of 100 beyond it (not)."""
+    from reachwise.distance.self_pairs import always_within
+
+    class Table:
+        margin = 0.02
+
+        def __init__(self, d: np.ndarray) -> None:
+            self.d = d
+
+        def __call__(self, Ta: np.ndarray, Tb: np.ndarray) -> object:
+            s = int(Ta[0, 0])
+            near = self.d[s] <= self.margin
+
+            class R:
+                no_risk = not near
+                distance = float(self.d[s]) if near else np.inf
+
+            return R()
+
+    F = np.zeros((100, 2, 4, 4))
+    F[:, 0, 0, 0] = np.arange(100)
+    d = np.full(100, 0.015)
+    d[:4] = 0.03
+    d[50] = 0.004
+    got = always_within(Table(d), F, 0, 1, np.zeros(100))  # type: ignore[arg-type]
+    assert got is not None and got[0] == pytest.approx(0.96)
+    assert got[1] == pytest.approx(0.004) and got[2] == pytest.approx(0.02)
+    d[4:6] = 0.05
+    assert always_within(Table(d), F, 0, 1, np.zeros(100)) is None  # type: ignore[arg-type]
+    assert always_within(Table(d * 0), F, 0, 1, np.full(100, 0.03)) is None  # type: ignore[arg-type]

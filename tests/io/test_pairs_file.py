@@ -25,6 +25,7 @@ def _pairs() -> SelfPairs:
         PairRule("a", "d", "watched", "review", 0.01, True),
         PairRule("a", "b", "adjacent", "joined by one joint"),
         PairRule("b", "d", "never", "never within 0.05 m"),
+        PairRule("c", "d", "always", "always within 0.05 m: in 97.0 % of 100 …"),
     )
     return SelfPairs("arm", 0.05, 100, 3, np.array([0.0, 0.5, -0.25]), rules)
 

@@ -21,6 +21,7 @@ def test_round_trip_of_our_pairs(tmp_path: Path) -> None:
         PairRule("a", "b", "adjacent", "joined by one joint"),
         PairRule("a", "c", "watched", "close", 0.1),
         PairRule("b", "d", "never", "never within 0.05 m"),
+        PairRule("c", "d", "always", "always within 0.05 m"),
     )
     pairs = SelfPairs("arm", 0.05, 100, 0, np.zeros(3), rules)
     back = read_srdf(write_srdf(pairs, tmp_path / "arm.srdf"))
@@ -28,6 +29,7 @@ def test_round_trip_of_our_pairs(tmp_path: Path) -> None:
     assert [(p.link1, p.link2, p.reason) for p in back.disabled] == [
         ("a", "b", "Adjacent"),
         ("b", "d", "Never"),
+        ("c", "d", "Always"),
     ]
     assert frozenset(("a", "c")) not in back.disabled_pairs()  # watched: MoveIt checks it
 

@@ -167,8 +167,9 @@ def pairs(
     """Pick a robot's self-collision pairs (MoveIt Setup Assistant method, exact distances).
 
     Adjacent links are excluded; pairs within the margin at the home configuration (0,
-    moved into the limits) are kept and listed for review; pairs never within the
-    margin in any of the random configurations are excluded; the rest are watched. The
+    moved into the limits) are kept and listed for review; pairs within the margin in
+    at least 95 % of the random configurations (structurally close) and pairs never
+    within it are excluded; the rest are watched. The
     file lists the rule behind each exclusion. Use it in a scenario with
     ``watch: [{self: {robot: NAME, pairs: auto}, margin: …}]``."""
     import time
@@ -220,3 +221,5 @@ def pairs(
             f"  review: {p.a} - {p.b} is {p.home_distance * 100:.1f} cm apart at home "
             f"(margin {margin * 100:.1f} cm): watched; check whether they touch by design"
         )
+    for p in found.always:
+        typer.echo(f"  always: {p.a} - {p.b} excluded, {p.detail}")

@@ -9,16 +9,26 @@ margin instead of a contact test:
    joined only through links without shapes; and links rigidly joined (no moving joint
    between their frames: their distance cannot change): excluded. A hand fixed to a
    flange is thus checked against the wrist links beyond the joint that moves it.
-2. **home** — every other pair is measured at the home (start) configuration; a pair
+2. **always** — a pair within the margin in at least :data:`ALWAYS_FRACTION` (95 %) of
+   the ``samples`` random joint vectors (its clearance hardly ever exceeds the margin:
+   structurally close, like the two wrist links of a UR arm) is excluded, with that
+   share and the range of its clearance over the samples in its detail, so a pair
+   that can still close in shows its smallest clearance. This is MoveIt's ``Always``
+   (a pair in collision in nearly every sample is disabled): such a pair would repel
+   in every configuration, pushing the arm away from any goal, while its own geometry
+   holds its clearance in a narrow band. We exclude it rather than give it a smaller
+   margin of its own: a margin below its smallest clearance would never act, and one
+   above it would still repel in most of the joint space.
+3. **home** — every other pair is measured at the home (start) configuration; a pair
    within the margin there is reported for review (MoveIt disables such pairs as
    "default" collisions; a collision tool keeps them watched and lets the user
    decide).
-3. **never** — ``samples`` (≥ 10 000 by default) random joint vectors, uniform within
+4. **never** — ``samples`` (≥ 10 000 by default) random joint vectors, uniform within
    the joint limits: a pair that never comes within the margin in any of them, nor in a
    local search that descends its distance from the 5 closest of them, is excluded
    (the local search is ours: sampling alone misses pairs that come close only in a
    small region of the joint space).
-4. the rest is **watched**.
+5. the rest is **watched**.
 
 It is pure maths (robot, clouds and a random generator in, a :class:`SelfPairs` out)
 and fast: the forward kinematics of all samples is one batched call, each link cloud is
@@ -46,10 +56,12 @@ from reachwise.geometry.cloud import PointCloud
 from reachwise.kinematics.bodies import Body, adjacent_bodies
 
 __all__ = [
+    "ALWAYS_FRACTION",
     "Capsule",
     "PairRule",
     "SelfPairs",
     "adjacent_reason",
+    "always_within",
     "bounding_capsule",
     "capsule_distances",
     "pair_hits",
@@ -57,7 +69,7 @@ __all__ = [
     "self_collision_pairs",
 ]
 
-Rule = Literal["adjacent", "never", "watched"]
+Rule = Literal["adjacent", "always", "never", "watched"]
 
 
 class ChainLike(Protocol):
@@ -94,7 +106,8 @@ class ChainLike(Protocol):
 
 @dataclass(frozen=True)
 class PairRule:
-    """One link pair: ``rule`` is ``adjacent`` or ``never`` (excluded) or ``watched``;
+    """One link pair: ``rule`` is ``adjacent``, ``always`` or ``never`` (excluded) or
+    ``watched``;
     ``detail`` says why in words; ``home_distance`` (m) is the exact distance at the
     home configuration (``inf`` for adjacent pairs, which are not measured);
     ``review`` marks a watched pair within the margin at home."""
@@ -129,6 +142,11 @@ class SelfPairs:
     @property
     def review(self) -> tuple[PairRule, ...]:
         return tuple(p for p in self.pairs if p.review)
+
+    @property
+    def always(self) -> tuple[PairRule, ...]:
+        """The pairs excluded as always within the margin (module docstring)."""
+        return tuple(p for p in self.pairs if p.rule == "always")
 
 
 @dataclass(frozen=True)
@@ -276,6 +294,50 @@ def pair_hits(
     return out
 
 
+#: The share of the random configurations a pair must be within the margin in to be
+#: excluded as ``always`` (MoveIt's Setup Assistant disables a pair as "always in
+#: collision" from the same share of its samples, 0.95 by default).
+ALWAYS_FRACTION = 0.95
+
+
+def always_within(
+    query: PairQuery, F: NDArray[np.float64], ia: int, ib: int, bounds: NDArray[np.float64]
+) -> tuple[float, float, float] | None:
+    """``(share, smallest, largest)``: the share of the configurations ``F`` in which a
+    pair is within ``query.margin`` and the smallest and largest clearance over them,
+    when that share is at least :data:`ALWAYS_FRACTION`, else ``None``. ``bounds`` are
+    its capsule lower bounds: too many bounds beyond the margin settle "not always" at
+    once, and the samples are queried farthest bound first, so a pair that often
+    leaves the margin does so within the first queries. The largest clearance is
+    exact for the samples within the margin and ``≥`` the margin otherwise."""
+    m = len(bounds)
+    allowed = math.floor((1.0 - ALWAYS_FRACTION) * m + 1e-9)
+    if int(np.count_nonzero(bounds > query.margin)) > allowed:
+        return None
+    out, lo, hi = 0, math.inf, 0.0
+    for s in np.argsort(-bounds, kind="stable"):
+        r = query(F[s, ia], F[s, ib])
+        if r.no_risk:
+            out += 1
+            hi = max(hi, query.margin)
+            if out > allowed:
+                return None
+            continue
+        lo, hi = min(lo, r.distance), max(hi, r.distance)
+    return (m - out) / m, lo, hi
+
+
+def _always_rule(
+    a: str, b: str, band: tuple[float, float, float], margin: float, samples: int, home: float
+) -> PairRule:
+    """The ``always`` rule of a pair with :func:`always_within`'s ``band``."""
+    detail = (
+        f"always within {margin:g} m: in {100 * band[0]:.1f} % of {samples} random "
+        f"configurations (clearance {band[1]:.4f} to {band[2]:.4f} m)"
+    )
+    return PairRule(a, b, "always", detail, home)
+
+
 #: Local search: how many closest samples it starts from, perturbations per step, and its
 #: step sizes (fraction of each joint's range).
 _SEEDS = 5
@@ -390,6 +452,10 @@ def self_collision_pairs(
             d_home = query(F_home[idx[la]], F_home[idx[lb]]).distance
             query = PairQuery(clouds[la], clouds[lb], margin=margin)
             bounds = placer.bounds(F, la, lb)
+            band = always_within(query, F, idx[la], idx[lb], bounds)
+            if band is not None:
+                out.append(_always_rule(la, lb, band, margin, len(Q), d_home))
+                continue
             order = np.argsort(bounds, kind="stable")
             order = order[bounds[order] <= margin]
             hit = -1

@@ -13,6 +13,7 @@
     key: 3f1c…                   # fingerprint of robot, clouds, settings and the pairs
     rules:                       # what each rule means
       adjacent: …
+      always: …
       never: …
     watched:                     # pairs to watch, with their distance at home
       - {a: link_0, b: link_5, home_distance: 0.636, detail: within the margin in …}
@@ -21,6 +22,7 @@
     excluded:                    # every pair not watched, with its rule
       - {a: link_0, b: link_1, rule: adjacent, detail: joined by one joint}
       - {a: link_0, b: link_2, rule: never, detail: never within 0.05 m in 10000 …}
+      - {a: wrist_1_link, b: wrist_3_link, rule: always, detail: always within 0.02 m: …}
 
 Every field is checked when the file is read (:func:`load_pairs`): a string robot
 name, a finite margin > 0, integer ``samples`` ≥ 1 and ``seed`` ≥ 0 (a boolean is not a
@@ -57,6 +59,8 @@ __all__ = ["RULES", "load_pairs", "pairs_to_dict", "save_pairs", "seal"]
 RULES = {
     "adjacent": "excluded: joined by one joint, rigidly connected, or no link with shapes "
     "between them (MoveIt's 'adjacent')",
+    "always": "excluded: within the margin in every one of the random joint vectors (its "
+    "clearance never exceeds the margin: structurally close; MoveIt's 'always in collision')",
     "never": "excluded: never within the margin in any of the random joint vectors inside the "
     "limits (MoveIt's 'never in collision')",
     "review": "watched, but already within the margin at the home configuration: check "
@@ -80,7 +84,7 @@ class _Excluded(BaseModel):
     model_config = _STRICT
     a: str = _Name
     b: str = _Name
-    rule: Literal["adjacent", "never"]
+    rule: Literal["adjacent", "always", "never"]
     detail: str = ""
 
 

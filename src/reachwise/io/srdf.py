@@ -9,10 +9,10 @@ Reasons are ``Adjacent`` (one joint joins them), ``Never`` (never in collision o
 random configurations), ``Always`` (always in collision), ``Default`` (in collision at
 the default pose) and ``User``. :func:`write_srdf` hands reachwise's excluded pairs
 (:class:`~reachwise.distance.self_pairs.SelfPairs`) to MoveIt: ``adjacent`` →
-``Adjacent``, ``never`` → ``Never``; watched pairs are not written (MoveIt checks every
-pair it is not told to disable). :func:`read_srdf` reads the disabled pairs and the
-``group_state`` poses (named joint values). Every problem is an
-:class:`~reachwise.errors.InputError` naming the file, the element and its line.
+``Adjacent``, ``always`` → ``Always``, ``never`` → ``Never``; watched pairs are not
+written (MoveIt checks every pair it is not told to disable). :func:`read_srdf` reads
+the disabled pairs and the ``group_state`` poses (named joint values). Every problem
+is an :class:`~reachwise.errors.InputError` naming the file, the element and its line.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ __all__ = ["REASONS", "DisabledPair", "Srdf", "read_srdf", "srdf_text", "write_s
 Reason = Literal["Adjacent", "Never", "Always", "Default", "User"]
 #: The reasons MoveIt's Setup Assistant writes.
 REASONS: tuple[str, ...] = ("Adjacent", "Never", "Always", "Default", "User")
-_OURS = {"adjacent": "Adjacent", "never": "Never"}
+_OURS = {"adjacent": "Adjacent", "always": "Always", "never": "Never"}
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,9 @@ set by ``reachwise simulate --out DIR``), it is written there as
 with the same fingerprint. The file's ``key`` seals the fingerprint together with every
 field of the pairs (:func:`reachwise.io.pairs_file.seal`): a cached file that fails its
 checks, or whose content no longer matches its key (a pair deleted, a margin edited), is
-recomputed and rewritten, and the log says so.
+recomputed and rewritten, and the log says so. Every load logs (``reachwise.sim``,
+INFO) the pairs excluded as always within the margin, each with its clearance, and
+warns of the watched pairs already within it at home.
 """
 
 from __future__ import annotations
@@ -86,7 +88,23 @@ def auto_self_pairs(
     if file is not None and stored is None:
         file.parent.mkdir(parents=True, exist_ok=True)
         save_pairs(hit, file, source=robot.source or "", key=key)
+    _report(hit, label or robot.name)
     return hit
+
+
+def _report(pairs: SelfPairs, label: str) -> None:
+    """Log the pairs excluded as always within the margin and the watched pairs
+    within it at home."""
+    for p in pairs.always:
+        log.info(
+            "%s: self pair %s-%s excluded, always within the %g m margin (%s)",
+            label, p.a, p.b, pairs.margin, p.detail,
+        )  # fmt: skip
+    for p in pairs.review:
+        log.warning(
+            "%s: self pair %s-%s is %.4f m apart at home, within its %g m margin",
+            label, p.a, p.b, p.home_distance, pairs.margin,
+        )  # fmt: skip
 
 
 def _cached(file: Path, key: str) -> SelfPairs | None:
