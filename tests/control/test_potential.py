@@ -103,6 +103,44 @@ def test_damper_bounds_closed_form() -> None:
     assert np.isfinite(damper_bound(0.03, 0.04, 0.04, xi))
 
 
+def test_a_margin_inside_the_stop_distance_stops_at_half_the_margin() -> None:
+    """A 2 cm margin against a 3 cm stop distance: the damper stops at 1 cm (half the
+    margin), so a pair inside the margin may still approach (slower the closer it
+    is) instead of being held everywhere within it; margins beyond twice the stop
+    distance keep it."""
+    xi = 0.15
+    assert potential.stop_within(0.02, 0.03) == pytest.approx(0.01)
+    assert potential.stop_within(0.3, 0.04) == 0.04
+    assert damper_bound(0.02, 0.02, 0.03, xi) == pytest.approx(-xi)
+    assert damper_bound(0.015, 0.02, 0.03, xi) == pytest.approx(-0.5 * xi)
+    assert damper_bound(0.01, 0.02, 0.03, xi) == 0.0
+    assert damper_bound(0.005, 0.02, 0.03, xi) == 0.0
+    assert moving_damper_bound(0.01, 0.02, 0.03, xi, 0.1) == pytest.approx(0.1)
+
+
+def test_push_out_keeps_every_bound_or_leaves_the_velocity_alone() -> None:
+    """The guard's fallback instead of a freeze: cyclic projections onto the half-spaces
+    ``g_i q̇ ≥ lo_i`` end with every active bound kept, the velocity changed only along
+    the rows; the inactive row is ignored; an infeasible set (two opposite rows that
+    must both open) leaves the velocity as it was and says so."""
+    rng = np.random.default_rng(4)
+    for _ in range(50):
+        g = rng.normal(size=(3, 7))
+        lo = np.array([0.0, 0.0, -0.05])
+        qd = rng.normal(size=7)
+        before = qd.copy()
+        active = np.array([True, True, False])
+        assert guard.push_out(qd, g, lo, active)
+        assert np.all(g[:2] @ qd >= lo[:2] - 1e-12)
+        # the change lies in the span of the active rows
+        coef, *_ = np.linalg.lstsq(g[:2].T, qd - before, rcond=None)
+        np.testing.assert_allclose(g[:2].T @ coef, qd - before, atol=1e-12)
+    g = np.array([[1.0, 0.0], [-1.0, 0.0]])
+    qd = np.array([0.3, 0.2])
+    assert not guard.push_out(qd, g, np.array([0.1, 0.1]), np.array([True, True]))
+    np.testing.assert_array_equal(qd, [0.3, 0.2])
+
+
 def test_joint_velocity_interval() -> None:
     lo, hi = velocity_bounds([0.0, 0.95, -2.0, 2.0], -1.0, 1.0, 0.5, 2.0)
     np.testing.assert_allclose(hi, [0.5, 0.1, 0.5, 0.0])

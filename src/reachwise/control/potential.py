@@ -10,7 +10,9 @@ robot's (the distance query's ``direction``).
 
 The velocity damper (Faverjon & Tournassoud 1987, not in the thesis) bounds the rate
 at which the distance may shrink: ``ρ̇ ≥ −ξ (ρ − ρ_s) / (ρ_O − ρ_s)``; at the margin
-the pair may approach at ``ξ``, at the stop distance ``ρ_s`` not at all. The
+the pair may approach at ``ξ``, at the stop distance ``ρ_s`` not at all (a pair whose
+margin is not beyond twice the stop distance uses half its margin,
+:func:`stop_within`). The
 controller uses it as a guard on top of Eq. 3.18 (see ``controller``).
 
 Each formula is written once, as a compiled scalar function that the controller's
@@ -33,6 +35,7 @@ __all__ = [
     "moving_damper_bound",
     "repulsive_potential",
     "repulsive_speed",
+    "stop_within",
 ]
 
 #: Smallest distance (m) the repulsive speed is evaluated at: a touching or
@@ -60,6 +63,16 @@ def khatib_speed(rho, rho0, mu, v_max):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
+def stop_within(rho0, rho_stop):  # type: ignore[no-untyped-def]
+    """The stop distance the damper of a pair with margin ``ρ_O`` uses:
+    ``min(ρ_s, ρ_O / 2)``. A margin at or inside the configured stop distance (a self
+    pair's 2 cm margin against a 3 cm stop distance) would otherwise forbid any
+    approach anywhere within the margin, so a pair that starts inside it holds the
+    whole arm still instead of being pushed out by its repulsion."""
+    return min(rho_stop, 0.5 * rho0)
+
+
+@njit(cache=True)
 def damper_bound(rho, rho0, rho_stop, xi):  # type: ignore[no-untyped-def]
     """Lowest allowed distance rate ``ρ̇_min = −ξ (ρ − ρ_s)/(ρ_O − ρ_s)`` (m/s, ≤ 0) of
     the velocity damper: ``−ξ`` at the margin ``ρ_O``, 0 at and below the stop
@@ -67,8 +80,9 @@ def damper_bound(rho, rho0, rho_stop, xi):  # type: ignore[no-untyped-def]
     approach speed allowed at the margin."""
     if rho > rho0:
         return -np.inf
-    span = max(rho0 - rho_stop, _SPAN_FLOOR)
-    frac = min(max((rho - rho_stop) / span, 0.0), 1.0)
+    rs = stop_within(rho0, rho_stop)
+    span = max(rho0 - rs, _SPAN_FLOOR)
+    frac = min(max((rho - rs) / span, 0.0), 1.0)
     return -xi * frac
 
 
@@ -79,8 +93,9 @@ def moving_damper_bound(rho, rho0, rho_stop, xi, u):  # type: ignore[no-untyped-
     rate, ``u − ξ (ρ − ρ_s)/(ρ_O − ρ_s)``, continued below ``ρ_s`` (down to ``u + ξ`` at
     ``2ρ_s − ρ_O``) so that a point the obstacle pushed inside ``ρ_s`` must open the
     gap again, not only hold it."""
-    span = max(rho0 - rho_stop, _SPAN_FLOOR)
-    frac = min(max((rho - rho_stop) / span, -1.0), 1.0)
+    rs = stop_within(rho0, rho_stop)
+    span = max(rho0 - rs, _SPAN_FLOOR)
+    frac = min(max((rho - rs) / span, -1.0), 1.0)
     return u - xi * frac
 
 

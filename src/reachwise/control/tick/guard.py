@@ -3,7 +3,10 @@ thesis): every active pair's distance rate must stay above the velocity damper
 ``−ξ (ρ − ρ_s)/(ρ_O − ρ_s)`` (plus a moving obstacle's approach speed). Tool parts
 deflect the goal velocity; then the goal part of the task is scaled by the largest
 ``s ∈ [0, 1]`` that keeps every pair within its bound, and if even ``s = 0`` does not,
-the whole motion is slowed down. The bounds are
+the whole motion is slowed down; where that would stop it (a pair that may not close
+at all, closed by the repulsion that pushes another pair out), the closing part is
+projected out instead (:func:`push_out`), so pairs that start inside their margins
+are pushed out rather than frozen. The bounds are
 :func:`~reachwise.control.potential.damper_bound` and
 :func:`~reachwise.control.potential.moving_damper_bound`."""
 
@@ -170,4 +173,40 @@ def guard_scales(sol, joints, task, limits, rows, pts, gains, settings):  # type
         if rate < lo_static[i]:
             f = lo_static[i] / rate if rate < 0.0 else 0.0
             guard = min(guard, max(f, 0.0))
+    if guard == 0.0 and push_out(qd1, g, lo_static, active):
+        guard = 1.0
     return s, guard, qd1
+
+
+@njit(cache=True)
+def push_out(qd, g, lo, active):  # type: ignore[no-untyped-def]
+    """Instead of freezing, remove from the joint velocity ``qd`` (in place) what closes
+    a pair that may not close at all: a pair inside its margin and the stop distance
+    (static damper bound 0) whose rate ``g_i q̇`` is below its bound ``lo_i``, while
+    the repulsion of another pair inside its margin (Eq. 3.17) pushes that one out.
+    Cyclic projections onto the half-spaces ``g_i q̇ ≥ lo_i`` of the active rows
+    (each adds motion along ``g_iᵀ``: it only opens the pair it corrects); returns
+    True when ``qd`` then keeps every bound, else restores ``qd`` and returns False
+    (the guard then stops the motion)."""
+    n = qd.shape[0]
+    keep = qd.copy()
+    for _ in range(50):
+        worst = 0.0
+        for i in range(g.shape[0]):
+            if not active[i]:
+                continue
+            rate = 0.0
+            gg = 0.0
+            for k in range(n):
+                rate += g[i, k] * qd[k]
+                gg += g[i, k] * g[i, k]
+            if rate < lo[i] and gg > 1e-24:
+                worst = max(worst, lo[i] - rate)
+                step = (lo[i] - rate) / gg
+                for k in range(n):
+                    qd[k] += step * g[i, k]
+        if worst <= 1e-12:
+            return True
+    for k in range(n):
+        qd[k] = keep[k]
+    return False
