@@ -26,6 +26,7 @@ exact distance to them (:func:`reachwise.sim.contact.true_clearance`) is logged
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable
 from dataclasses import replace
@@ -69,6 +70,9 @@ class SimulationInterrupted(KeyboardInterrupt):
         super().__init__("simulation interrupted")
         #: The log of the ticks finished before the interruption.
         self.log = log
+
+
+log = logging.getLogger("reachwise.sim")
 
 
 class RunRecorder(Protocol):
@@ -179,6 +183,8 @@ def run_world(
             if recorder is not None:
                 recorder.tick(k, t, world)
             _check_contact(world, pair_objs, res, k, t, rec, goals.events)
+            if k == 0:
+                _note_inside_margins(world, rec.distance[0], goals.events)
             all_done = True
             for a in world.agents:
                 rec.robot_state(k, a)
@@ -406,6 +412,23 @@ def _check_contact(
     for sensor in world.sensors:
         rec.frames[sensor.name][k] = sensor.in_use
     _check_truth(world, k, t, rec, events)
+
+
+def _note_inside_margins(world: World, d: NDArray[np.float64], events: list[Event]) -> None:
+    """At the start of a run, name every watched pair already within its collision
+    margin ρ_O (distances ``d``), with its distance and margin, in an ``inside margin``
+    event and a warning: its repulsion (Eq. 3.17) acts from the first tick and pushes
+    it out (the guard's damper stops it at half its margin at the latest,
+    :func:`reachwise.control.potential.stop_within`)."""
+    for i, pair in enumerate(world.pairs):
+        if d[i] < world.margins[i]:
+            robot = pair.split("/", 1)[0] if "/" in pair else ""
+            text = (
+                f"{pair} starts {d[i]:.4f} m apart, within its {world.margins[i]:g} m margin: "
+                "its repulsion pushes it out"
+            )
+            events.append(Event(0.0, robot, "inside margin", text))
+            log.warning("%s: %s", world.scenario.spec.name, text)
 
 
 def _check_truth(world: World, k: int, t: float, rec: _Recorder, events: list[Event]) -> None:
