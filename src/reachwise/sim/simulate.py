@@ -72,7 +72,7 @@ class SimulationInterrupted(KeyboardInterrupt):
         self.log = log
 
 
-log = logging.getLogger("reachwise.sim")
+logger = logging.getLogger("reachwise.sim")
 
 
 class RunRecorder(Protocol):
@@ -428,7 +428,7 @@ def _note_inside_margins(world: World, d: NDArray[np.float64], events: list[Even
                 "its repulsion pushes it out"
             )
             events.append(Event(0.0, robot, "inside margin", text))
-            log.warning("%s: %s", world.scenario.spec.name, text)
+            logger.warning("%s: %s", world.scenario.spec.name, text)
 
 
 def _check_truth(world: World, k: int, t: float, rec: _Recorder, events: list[Event]) -> None:
