@@ -14,6 +14,7 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeElapsedColumn
 
 from reachwise.cli._help import builtins
+from reachwise.cli._options import cli, typed_command
 from reachwise.io.atomic import atomic_write
 
 if TYPE_CHECKING:
@@ -23,66 +24,139 @@ if TYPE_CHECKING:
     from reachwise.sim.world import SceneFactory
 
 
-def simulate(
-    scenario: str = typer.Argument(
-        ...,
-        help=f"Built-in scenario ({builtins('scenarios')}) or a scenario YAML file.",
-    ),
-    baseline: bool = typer.Option(
-        False, "--baseline", help="Also run the same controller without avoidance."
-    ),
-    out: Path | None = typer.Option(
-        None, "--out", help="Folder for log.npz, log.csv, summary.json and figures."
-    ),
-    duration: float | None = typer.Option(None, "--duration", min=0.0, help="Override (s)."),
-    figures: bool = typer.Option(True, "--figures/--no-figures", help="Write PNG figures."),
-    json_out: bool = typer.Option(False, "--json", help="Print the summary as JSON."),
-    plant: str = typer.Option(
+@dataclass(frozen=True)
+class ScenarioRun:
+    """The runs to make: the ``scenario`` (a built-in name or a file), also without
+    avoidance (``baseline``), for ``duration`` seconds (``None``: the scenario's), on
+    which ``plant``, with the ``escape`` planner on, off or as the scenario says."""
+
+    #: Built-in scenario name or scenario file path.
+    scenario: str = cli(
+        typer.Argument(
+            ...,
+            help=f"Built-in scenario ({builtins('scenarios')}) or a scenario YAML file.",
+        )
+    )
+    #: Also run without avoidance.
+    baseline: bool = cli(
+        typer.Option(False, "--baseline", help="Also run the same controller without avoidance.")
+    )
+    #: Simulated time (s); ``None``: the scenario's.
+    duration: float | None = cli(typer.Option(None, "--duration", min=0.0, help="Override (s)."))
+    #: ``"scenario"`` or ``"mujoco"``.
+    plant: str = cli(
+        typer.Option(
+            "scenario",
+            "--plant",
+            help="scenario (each robot's own kinematic/hydraulic plant) or mujoco (rigid-body "
+            "dynamics with velocity servos; the sim extra), compared with the scenario's plant.",
+        )
+    )
+    #: Escape planning on or off; ``None``: the scenario's.
+    escape: bool | None = cli(
+        typer.Option(
+            None,
+            "--escape/--no-escape",
+            help="When a robot stalls in a local minimum, plan a way out with OMPL RRT-Connect "
+            "(the plan extra) and follow it, then resume (default: the scenario's escape: "
+            "setting).",
+        )
+    )
+
+
+@dataclass(frozen=True)
+class ServerLink:
+    """Where the distance queries run: in process (``server`` ``None``) or on the
+    collision server at address ``server``, with a per-tick reply deadline (s), a
+    timeout (s) to wait for it to be ready and its CURVE key folder."""
+
+    #: Collision server address, e.g. tcp://127.0.0.1:5590; ``None``: in process.
+    server: str | None = cli(
+        typer.Option(
+            None,
+            "--server",
+            help="Run the distance queries on the collision server at this address (`reachwise "
+            "serve`), e.g. tcp://127.0.0.1:5590; its scene is replaced by the scenario's. A "
+            "reply later than --server-deadline is missing data: the robots stop safely.",
+        )
+    )
+    #: Per-tick reply deadline (s).
+    server_deadline: float = cli(
+        typer.Option(
+            0.1, "--server-deadline", min=0.0001, help="Per-tick reply deadline on --server (s)."
+        )
+    )
+    #: How long to wait for the server to be ready (s).
+    server_timeout: float = cli(
+        typer.Option(
+            30.0,
+            "--server-timeout",
+            min=0.0,
+            help="How long to wait for --server to be ready (s); then exit code 4.",
+        )
+    )
+    #: CURVE key folder; ``None``: no encryption.
+    server_keys: Path | None = cli(
+        typer.Option(
+            None, "--server-keys", help="CURVE key folder (`reachwise serve keygen`) for --server."
+        )
+    )
+
+
+@dataclass(frozen=True)
+class SimulationOutput:
+    """What the command writes and shows: the ``out`` folder (logs, summary,
+    figures, report), PNG ``figures``, JSON on stdout (``json_out``), a live browser
+    viewer (``view``) and a ROS 2 ``bag`` of the avoidance run."""
+
+    #: Output folder; ``None``: nothing written.
+    out: Path | None = cli(
+        typer.Option(None, "--out", help="Folder for log.npz, log.csv, summary.json and figures.")
+    )
+    #: Write PNG figures.
+    figures: bool = cli(typer.Option(True, "--figures/--no-figures", help="Write PNG figures."))
+    #: Print the summary as JSON.
+    json_out: bool = cli(typer.Option(False, "--json", help="Print the summary as JSON."))
+    #: Watch the runs live in the browser viewer.
+    view: bool = cli(
+        typer.Option(
+            False,
+            "--view",
+            help="Watch each run live in the browser viewer (127.0.0.1:8080 or the next free "
+            "port), in real time, then replay the logs there; Ctrl-C stops it.",
+        )
+    )
+    #: ROS 2 bag file of the avoidance run; ``None``: none.
+    bag: Path | None = cli(
+        typer.Option(
+            None,
+            "--bag",
+            help="Also write the avoidance run (joint states, the cameras' depth images, "
+            "CameraInfo and clouds, TF) as a bag: .bag for ROS 1, .mcap for MCAP, else ROS 2 "
+            "sqlite3 (the ros extra); `reachwise replay BAG --scenario SCENARIO` reads it back.",
+        )
+    )
+
+
+@typed_command(
+    order=(
         "scenario",
-        "--plant",
-        help="scenario (each robot's own kinematic/hydraulic plant) or mujoco (rigid-body "
-        "dynamics with velocity servos; the sim extra), compared with the scenario's plant.",
-    ),
-    server: str | None = typer.Option(
-        None,
-        "--server",
-        help="Run the distance queries on the collision server at this address (`reachwise "
-        "serve`), e.g. tcp://127.0.0.1:5590; its scene is replaced by the scenario's. A "
-        "reply later than --server-deadline is missing data: the robots stop safely.",
-    ),
-    server_deadline: float = typer.Option(
-        0.1, "--server-deadline", min=0.0001, help="Per-tick reply deadline on --server (s)."
-    ),
-    server_timeout: float = typer.Option(
-        30.0,
-        "--server-timeout",
-        min=0.0,
-        help="How long to wait for --server to be ready (s); then exit code 4.",
-    ),
-    server_keys: Path | None = typer.Option(
-        None, "--server-keys", help="CURVE key folder (`reachwise serve keygen`) for --server."
-    ),
-    view: bool = typer.Option(
-        False,
-        "--view",
-        help="Watch each run live in the browser viewer (127.0.0.1:8080 or the next free "
-        "port), in real time, then replay the logs there; Ctrl-C stops it.",
-    ),
-    bag: Path | None = typer.Option(
-        None,
-        "--bag",
-        help="Also write the avoidance run (joint states, the cameras' depth images, "
-        "CameraInfo and clouds, TF) as a bag: .bag for ROS 1, .mcap for MCAP, else ROS 2 "
-        "sqlite3 (the ros extra); `reachwise replay BAG --scenario SCENARIO` reads it back.",
-    ),
-    escape: bool | None = typer.Option(
-        None,
-        "--escape/--no-escape",
-        help="When a robot stalls in a local minimum, plan a way out with OMPL RRT-Connect "
-        "(the plan extra) and follow it, then resume (default: the scenario's escape: "
-        "setting).",
-    ),
-) -> None:
+        "baseline",
+        "out",
+        "duration",
+        "figures",
+        "json_out",
+        "plant",
+        "server",
+        "server_deadline",
+        "server_timeout",
+        "server_keys",
+        "view",
+        "bag",
+        "escape",
+    )
+)
+def simulate(run: ScenarioRun, link: ServerLink, output: SimulationOutput) -> None:
     """Simulate a scenario with collision avoidance (thesis §3.3, P-III/P-IV/P-V).
 
     Ctrl-C (once or more) ends the run between two ticks: the ticks finished so far are
@@ -94,42 +168,44 @@ def simulate(
     from reachwise.sim.plant import PLANT_NAMES
     from reachwise.sim.scenarios import load_scenario
 
-    plant_name = check_choice(plant, PLANT_NAMES, source="--plant", kind="plant")
+    plant_name = check_choice(run.plant, PLANT_NAMES, source="--plant", kind="plant")
     if plant_name == "mujoco":
         from reachwise.sim.mujoco_model import require_mujoco
 
         require_mujoco()  # a clear error naming the missing extra, before any work
-    if bag is not None and bag.exists():
-        raise InputError(str(bag), "--bag", "exists already; not overwriting a recording")
+    if output.bag is not None and output.bag.exists():
+        raise InputError(str(output.bag), "--bag", "exists already; not overwriting a recording")
     console = Console(stderr=True)
     with deferred_interrupts() as interrupts:
-        sc = load_scenario(scenario)
-        if out is not None:  # computed helpers (automatic self-collision pairs) cached there
-            sc.cache_dir = out
+        sc = load_scenario(run.scenario)
+        if output.out is not None:  # computed helpers (automatic self-collision pairs) cached there
+            sc.cache_dir = output.out
         make_scene = None
-        if server is not None:
+        if link.server is not None:
             from reachwise.server.client import ServerOptions
 
-            link = ServerOptions(
-                server, deadline=server_deadline, keys=server_keys, ready_timeout=server_timeout
-            )
-            make_scene = _server_scene(link)
+            make_scene = _server_scene(
+                ServerOptions(
+                    link.server, deadline=link.server_deadline, keys=link.server_keys,
+                    ready_timeout=link.server_timeout,
+                )
+            )  # fmt: skip
         live = None
-        if view:
+        if output.view:
             from reachwise.viz.live import LiveSession
 
             live = LiveSession(sc, echo=console.print)
-        modes = [True, False] if baseline else [True]
+        modes = [True, False] if run.baseline else [True]
         runs: list[tuple[bool, PlantName]] = [(m, plant_name) for m in modes]
         if plant_name == "mujoco":
             runs.append((True, "scenario"))
-        opts = _RunOptions(duration, make_scene, escape, bag, live, json_out)
+        opts = _RunOptions(run.duration, make_scene, run.escape, output.bag, live, output.json_out)
         logs, stopped = _run_all(sc, runs, opts, console, interrupts.check)
         if stopped is not None:
-            _keep_interrupted(sc, logs, stopped, out, console, json_out)
+            _keep_interrupted(sc, logs, stopped, output.out, console, output.json_out)
             raise typer.Exit(130)
-        data = _write(sc, logs, out, figures)
-    if json_out:
+        data = _write(sc, logs, output.out, output.figures)
+    if output.json_out:
         typer.echo(json.dumps(data, indent=2))
     else:
         _print(data, console)
