@@ -23,6 +23,7 @@ from collections.abc import Callable
 from dataclasses import MISSING, field, fields, is_dataclass
 from typing import Any, TypeVar, get_type_hints
 
+import typer
 from typer.models import ParameterInfo
 
 __all__ = ["cli", "typed_command"]
@@ -44,7 +45,8 @@ def typed_command(
     frozen dataclass group of :func:`cli` fields: the command's signature lists every
     field of every group (the options typer sees, in the groups' order, or in
     ``order`` where given: the command line's help order), and calling it builds each
-    group from those values and calls the function with the groups."""
+    group from those values and calls the function with the groups. A parameter
+    annotated :class:`typer.Context` is passed through as it is."""
     return functools.partial(_typed_command, order=order)
 
 
@@ -53,8 +55,15 @@ def _typed_command(func: Callable[..., R], order: tuple[str, ...]) -> Callable[.
     groups: list[tuple[str, type]] = []
     params: list[inspect.Parameter] = []
     annotations: dict[str, Any] = {}
+    passed: list[str] = []  # a typer.Context parameter, passed as it is
     for name in inspect.signature(func).parameters:
         group = hints[name]
+        if group is typer.Context:
+            passed.append(name)
+            kind = inspect.Parameter.POSITIONAL_OR_KEYWORD
+            params.insert(len(passed) - 1, inspect.Parameter(name, kind))
+            annotations[name] = group
+            continue
         if not (is_dataclass(group) and isinstance(group, type)):
             raise TypeError(f"{func.__name__}: {name} is not a dataclass group")
         types = get_type_hints(group)
@@ -68,16 +77,16 @@ def _typed_command(func: Callable[..., R], order: tuple[str, ...]) -> Callable[.
     if len(annotations) != len(params):
         raise TypeError(f"{func.__name__}: two groups share a field name")
     if order:
-        if sorted(order) != sorted(annotations):
+        if sorted(order) != sorted(set(annotations) - set(passed)):
             raise TypeError(f"{func.__name__}: order must name every field once")
-        params.sort(key=lambda p: order.index(p.name))
+        params[len(passed) :] = sorted(params[len(passed) :], key=lambda p: order.index(p.name))
 
     @functools.wraps(func)
     def command(**values: Any) -> R:
         built = {
             name: group(**{f.name: values[f.name] for f in fields(group)}) for name, group in groups
         }
-        return func(**built)
+        return func(**{name: values[name] for name in passed}, **built)
 
     command.__signature__ = inspect.Signature(  # type: ignore[attr-defined]
         [p.replace(annotation=annotations[p.name]) for p in params]
