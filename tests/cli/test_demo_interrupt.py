@@ -18,6 +18,7 @@ from typer.testing import CliRunner
 from reachwise.cli import app
 from reachwise.io.task_file import load_task
 from reachwise.kinematics.robot import Robot
+from tests.cli.sigint import restored_sigint
 
 
 @pytest.mark.parametrize("signals", [1, 2])
@@ -38,7 +39,8 @@ def test_ctrl_c_in_a_stage_keeps_the_finished_stages(
 
     monkeypatch.setattr(Robot, "ik", ik)
     out = tmp_path / "demo"
-    res = CliRunner().invoke(app, ["demo", "--quick", "--out", str(out), "--json"])
+    with restored_sigint():
+        res = CliRunner().invoke(app, ["demo", "--quick", "--out", str(out), "--json"])
     assert res.exit_code == 130, res.output
     assert calls[0] == at  # honoured before the next IK call
     data = json.loads(res.stdout)

@@ -19,6 +19,7 @@ import reachwise.sim.scenarios as scenarios
 import reachwise.sim.simulate as sim_mod
 from reachwise.cli import app
 from reachwise.sim.log import load_log
+from tests.cli.sigint import restored_sigint
 
 SCENARIO = "p3-self-collision"
 DURATION = "1.5"
@@ -62,7 +63,7 @@ def test_ctrl_c_keeps_the_finished_ticks_as_a_valid_log(
     for run, label in ((0, "avoidance"), (1, "baseline")):
         tick = int(rng.integers(1, n_full - 1))
         out = tmp_path / f"int-{label}"
-        with monkeypatch.context() as m:
+        with monkeypatch.context() as m, restored_sigint():
             _sigint_at(m, run, tick)
             res = CliRunner().invoke(app, _args(out, "--baseline"))
         assert res.exit_code == 130, res.output
@@ -99,7 +100,8 @@ def test_ctrl_c_before_the_first_tick_writes_nothing(
 
     monkeypatch.setattr(scenarios, "load_scenario", sigint_first)
     out = tmp_path / "none"
-    res = CliRunner().invoke(app, _args(out))
+    with restored_sigint():
+        res = CliRunner().invoke(app, _args(out))
     assert res.exit_code == 130, res.output
     assert "before its first tick: nothing written" in " ".join(res.stderr.split())
     assert not (out / "summary.json").exists()

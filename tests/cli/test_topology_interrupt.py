@@ -17,6 +17,7 @@ from typer.testing import CliRunner
 
 from reachwise.cli import app
 from reachwise.results.sweep_store import SweepStore
+from tests.cli.sigint import restored_sigint
 from tests.cli.test_topology_cli import task_file
 
 SPECS = ["RRPRRR", "PRRRRR", "RRRRRR"]
@@ -44,7 +45,7 @@ def test_ctrl_c_keeps_every_stored_run_and_resumes(
                 os.kill(os.getpid(), signal.SIGINT)  # recorded; honoured after this run
         return stored
 
-    with monkeypatch.context() as m:
+    with monkeypatch.context() as m, restored_sigint():
         m.setattr(SweepStore, "write", write)
         res = CliRunner().invoke(app, args)
     assert res.exit_code == 130, res.output
