@@ -13,6 +13,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 from reachwise.cli._help import builtins
+from reachwise.cli._options import cli, typed_command
 
 
 def _bounds(text: str, option: str) -> tuple[float, float]:
@@ -27,93 +28,80 @@ def _bounds(text: str, option: str) -> tuple[float, float]:
     return lo, hi
 
 
-def topology(
-    task: str = typer.Option(
-        ..., "--task", help=f"Task file or built-in task ({builtins('tasks')})."
-    ),
-    set_name: str | None = typer.Option(
-        None, "--set", help="Built-in topology set: p2 (the six P-II configurations)."
-    ),
-    rules: str | None = typer.Option(
-        None,
-        "--enumerate",
-        help="Enumerate topologies under rules, e.g. 'joints=6 prismatic=0-2 first=vertical "
-        "sample=40' (see reachwise.synthesis.topology.parse_rules).",
-    ),
-    specs: list[str] = typer.Option(
-        [], "--spec", help="A topology spec, e.g. 'RRPRRR' or 'R(0) R(90) P(90) …' (repeat)."
-    ),
-    db: Path = typer.Option(..., "--db", help="SQLite results database (created or resumed)."),
-    out: Path = typer.Option(..., "--out", help="Report folder."),
-    subset: int | None = typer.Option(
-        None, "--subset", min=1, help="Round 1 on N descriptive task points (default: none)."
-    ),
-    top: int = typer.Option(3, "--top", min=1, help="Feasible topologies taken to round 2."),
-    runs: int = typer.Option(3, "--runs", min=1, help="Multi-start runs per topology."),
-    seed: int = typer.Option(0, "--seed", help="Seed of run 0; run i uses seed+i."),
-    rank_key: str = typer.Option(
-        "mean",
-        "--rank",
-        help="mean, gci, kci, manipulability, length, prismatic, or an objective: size, "
-        "limits, bounds.",
-    ),
-    objective: str | None = typer.Option(
-        None,
-        "--objective",
-        help="Improve every reaching run for weighted objectives, e.g. gci:1,size:0.2.",
-    ),
-    workers: int | None = typer.Option(
-        None, "--workers", min=0, help="Worker processes (default all cores; 0 = in process)."
-    ),
-    dask: str | None = typer.Option(
-        None, "--dask", help="Dask scheduler tcp://HOST:8786, or 'local' (LocalCluster)."
-    ),
-    batch: int = typer.Option(1, "--batch", min=1, help="Runs per submitted batch."),
-    lengths: str = typer.Option("-2:2", "--lengths", help="Bounds of every free a, d (m)."),
-    stroke: str = typer.Option("0:3", "--stroke", help="Prismatic joint stroke (m)."),
-    base_box: str = typer.Option("-2:2", "--base-box", help="Bounds of base x, y, z (m)."),
-    tunnel: bool = typer.Option(
-        True, "--tunnel/--no-tunnel", help="Keep links inside the task's tunnel envelope."
-    ),
-    figures: bool = typer.Option(True, "--figures/--no-figures", help="Write PNG figures."),
-    list_only: bool = typer.Option(False, "--list", help="Only list the topologies."),
-    json_out: bool = typer.Option(False, "--json", help="Print the report as JSON."),
-) -> None:
-    """Optimize many topologies and rank them by GCI, KCI and more (P-II Fig. 1, Table 2).
+@dataclass(frozen=True)
+class SweepSettings:
+    """The sweep: the ``task`` (a file or built-in name), round 1 on ``subset``
+    descriptive points (``None``: none), the ``top`` topologies to round 2, ``runs``
+    multi-start runs per topology from ``seed``, the ranking key, the objective every
+    reaching run is improved for (``None``: none), runs per submitted ``batch`` and
+    the task's tunnel envelope kept (``tunnel``)."""
 
-    Every finished run is stored in --db at once; running the same command again skips
-    what is done. Ctrl-C (once or more) stops submitting, waits for the running runs,
-    stores them and exits (130); a killed sweep loses nothing it stored.
-    """
-    from reachwise.io.task_file import load_task
-    from reachwise.synthesis.objectives import parse_objective
-    from reachwise.synthesis.rank import check_key
-    from reachwise.synthesis.sweep import SweepConfig
-    from reachwise.synthesis.topology import TemplateOptions
-
-    source = TopologySource(set_name, rules, tuple(specs))
-    place = SweepPlace(workers, dask)
-    output = SweepOutput(db, out, figures, json_out)
-    source.check()
-    key = check_key(rank_key)
-    place.check()
-    t = load_task(task)
-    lo, hi = _bounds(base_box, "--base-box")
-    options = TemplateOptions(
-        length_bounds=_bounds(lengths, "--lengths"),
-        prismatic_limits=_bounds(stroke, "--stroke"),
-        base_bounds={c: (lo, hi) for c in "xyz"},
+    #: Task file or built-in task name.
+    task: str = cli(
+        typer.Option(..., "--task", help=f"Task file or built-in task ({builtins('tasks')}).")
     )
-    topos = source.topologies(t, options)
-    if list_only:
-        _list(topos, json_out)
-        return
-    cfg = SweepConfig(
-        subset=subset, top=top, runs=runs, seed=seed, rank_key=key, workspace=tunnel,
-        batch_size=batch, objective=parse_objective(objective) if objective else None,
-    )  # fmt: skip
-    result = _sweep(t, topos, cfg, place, output)
-    _report(result, output)
+    #: Round-1 descriptive task points; ``None``: the whole task.
+    subset: int | None = cli(
+        typer.Option(
+            None, "--subset", min=1, help="Round 1 on N descriptive task points (default: none)."
+        )
+    )
+    #: Feasible topologies taken to round 2.
+    top: int = cli(typer.Option(3, "--top", min=1, help="Feasible topologies taken to round 2."))
+    #: Multi-start runs per topology.
+    runs: int = cli(typer.Option(3, "--runs", min=1, help="Multi-start runs per topology."))
+    #: Seed of run 0; run i uses seed + i.
+    seed: int = cli(typer.Option(0, "--seed", help="Seed of run 0; run i uses seed+i."))
+    #: Ranking key (reachwise.synthesis.rank).
+    rank_key: str = cli(
+        typer.Option(
+            "mean",
+            "--rank",
+            help="mean, gci, kci, manipulability, length, prismatic, or an objective: size, "
+            "limits, bounds.",
+        )
+    )
+    #: Weighted objectives, e.g. gci:1,size:0.2; ``None``: reach only.
+    objective: str | None = cli(
+        typer.Option(
+            None,
+            "--objective",
+            help="Improve every reaching run for weighted objectives, e.g. gci:1,size:0.2.",
+        )
+    )
+    #: Runs per submitted batch.
+    batch: int = cli(typer.Option(1, "--batch", min=1, help="Runs per submitted batch."))
+    #: Keep links inside the task's tunnel envelope.
+    tunnel: bool = cli(
+        typer.Option(
+            True, "--tunnel/--no-tunnel", help="Keep links inside the task's tunnel envelope."
+        )
+    )
+
+
+@dataclass(frozen=True)
+class TemplateBounds:
+    """Bounds of the templates' free parameters, each ``LO:HI``: every free a, d
+    (``lengths``, m), the prismatic stroke (``stroke``, m) and the base x, y, z
+    (``base_box``, m)."""
+
+    #: Bounds of every free a, d (m), LO:HI.
+    lengths: str = cli(typer.Option("-2:2", "--lengths", help="Bounds of every free a, d (m)."))
+    #: Prismatic joint stroke (m), LO:HI.
+    stroke: str = cli(typer.Option("0:3", "--stroke", help="Prismatic joint stroke (m)."))
+    #: Bounds of base x, y, z (m), LO:HI.
+    base_box: str = cli(typer.Option("-2:2", "--base-box", help="Bounds of base x, y, z (m)."))
+
+    def options(self) -> Any:
+        """The :class:`~reachwise.synthesis.topology.TemplateOptions` of the bounds."""
+        from reachwise.synthesis.topology import TemplateOptions
+
+        lo, hi = _bounds(self.base_box, "--base-box")
+        return TemplateOptions(
+            length_bounds=_bounds(self.lengths, "--lengths"),
+            prismatic_limits=_bounds(self.stroke, "--stroke"),
+            base_bounds={c: (lo, hi) for c in "xyz"},
+        )
 
 
 @dataclass(frozen=True)
@@ -121,9 +109,25 @@ class TopologySource:
     """Which topologies to sweep: exactly one of a built-in set (``--set``),
     enumeration rules (``--enumerate``) or specs (``--spec``)."""
 
-    set_name: str | None
-    rules: str | None
-    specs: tuple[str, ...]
+    #: Built-in topology set (p2).
+    set_name: str | None = cli(
+        typer.Option(None, "--set", help="Built-in topology set: p2 (the six P-II configurations).")
+    )
+    #: Enumeration rules (reachwise.synthesis.topology.parse_rules).
+    rules: str | None = cli(
+        typer.Option(
+            None,
+            "--enumerate",
+            help="Enumerate topologies under rules, e.g. 'joints=6 prismatic=0-2 first=vertical "
+            "sample=40' (see reachwise.synthesis.topology.parse_rules).",
+        )
+    )
+    #: Topology specs, e.g. RRPRRR.
+    specs: list[str] = cli(
+        typer.Option(
+            [], "--spec", help="A topology spec, e.g. 'RRPRRR' or 'R(0) R(90) P(90) …' (repeat)."
+        )
+    )
 
     def check(self) -> None:
         given = (self.set_name, self.rules, self.specs or None)
@@ -161,8 +165,18 @@ class SweepPlace:
     """Where the runs execute: ``workers`` processes (``None`` all cores, 0 in
     process), or a dask scheduler (``tcp://HOST:8786`` or ``local``)."""
 
-    workers: int | None
-    dask: str | None
+    #: Worker processes; ``None``: all cores, 0: in process.
+    workers: int | None = cli(
+        typer.Option(
+            None, "--workers", min=0, help="Worker processes (default all cores; 0 = in process)."
+        )
+    )
+    #: Dask scheduler tcp://HOST:8786 or 'local'; ``None``: no dask.
+    dask: str | None = cli(
+        typer.Option(
+            None, "--dask", help="Dask scheduler tcp://HOST:8786, or 'local' (LocalCluster)."
+        )
+    )
 
     def check(self) -> None:
         if self.dask is not None and self.workers == 0:
@@ -172,12 +186,77 @@ class SweepPlace:
 @dataclass(frozen=True)
 class SweepOutput:
     """Where the sweep goes: the results database ``db``, the report folder ``out``,
-    whether to draw PNG ``figures``, and JSON (``json_out``) or a table on stdout."""
+    whether to draw PNG ``figures``, only list the topologies (``list_only``), and JSON
+    (``json_out``) or a table on stdout."""
 
-    db: Path
-    out: Path
-    figures: bool
-    json_out: bool
+    #: SQLite results database (created or resumed).
+    db: Path = cli(typer.Option(..., "--db", help="SQLite results database (created or resumed)."))
+    #: Report folder.
+    out: Path = cli(typer.Option(..., "--out", help="Report folder."))
+    #: Write PNG figures.
+    figures: bool = cli(typer.Option(True, "--figures/--no-figures", help="Write PNG figures."))
+    #: Only list the topologies.
+    list_only: bool = cli(typer.Option(False, "--list", help="Only list the topologies."))
+    #: Print the report as JSON.
+    json_out: bool = cli(typer.Option(False, "--json", help="Print the report as JSON."))
+
+
+@typed_command(
+    order=(
+        "task",
+        "set_name",
+        "rules",
+        "specs",
+        "db",
+        "out",
+        "subset",
+        "top",
+        "runs",
+        "seed",
+        "rank_key",
+        "objective",
+        "workers",
+        "dask",
+        "batch",
+        "lengths",
+        "stroke",
+        "base_box",
+        "tunnel",
+        "figures",
+        "list_only",
+        "json_out",
+    )
+)
+def topology(
+    sweep: SweepSettings, source: TopologySource, bounds: TemplateBounds, place: SweepPlace,
+    output: SweepOutput,
+) -> None:  # fmt: skip
+    """Optimize many topologies and rank them by GCI, KCI and more (P-II Fig. 1, Table 2).
+
+    Every finished run is stored in --db at once; running the same command again skips
+    what is done. Ctrl-C (once or more) stops submitting, waits for the running runs,
+    stores them and exits (130); a killed sweep loses nothing it stored.
+    """
+    from reachwise.io.task_file import load_task
+    from reachwise.synthesis.objectives import parse_objective
+    from reachwise.synthesis.rank import check_key
+    from reachwise.synthesis.sweep import SweepConfig
+
+    source.check()
+    key = check_key(sweep.rank_key)
+    place.check()
+    t = load_task(sweep.task)
+    topos = source.topologies(t, bounds.options())
+    if output.list_only:
+        _list(topos, output.json_out)
+        return
+    cfg = SweepConfig(
+        subset=sweep.subset, top=sweep.top, runs=sweep.runs, seed=sweep.seed, rank_key=key,
+        workspace=sweep.tunnel, batch_size=sweep.batch,
+        objective=parse_objective(sweep.objective) if sweep.objective else None,
+    )  # fmt: skip
+    result = _sweep(t, topos, cfg, place, output)
+    _report(result, output)
 
 
 def _sweep(t: Any, topos: list[Any], cfg: Any, place: SweepPlace, output: SweepOutput) -> Any:
