@@ -142,7 +142,10 @@ def _axis_frame(i, classic):  # type: ignore[no-untyped-def]
 
 @njit(cache=True)
 def _screw(J, col, revolute, ax, ay, az, ox, oy, oz, px, py, pz):  # type: ignore[no-untyped-def]
-    """Column of a unit screw: rotation about axis a through o, or translation along a."""
+    """Column ``col`` of ``J``: the unit screw of a rotation about axis a through o (at
+    point p), or of a translation along a (a geometric Jacobian column). Compiled and
+    called per joint inside the loop: numba passes the vectors' components as scalars,
+    which keeps the innermost call free of array allocation."""
     if revolute:
         rx = px - ox
         ry = py - oy
