@@ -39,42 +39,31 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise.distance.index import INDICES, index_of_ordered
 from reachwise.distance.scene import Scene
-from reachwise.distance.scene_memory import MemoryConfig, SceneMemory, ViewIntrinsics
+from reachwise.distance.scene_memory import MemoryConfig, SceneMemory
 from reachwise.errors import InputError, UnknownName
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.ros.bag import BagMessage, Recording
-from reachwise.io.ros.depth_image import (
-    DepthProjector,
-    camera_from_info,
-    depth_image_metres,
-    depth_points,
-)
+from reachwise.io.ros.cloud_topic import IMAGE, NOWHERE, POINTCLOUD2, CloudTopic
 from reachwise.io.ros.joint_state import JointMatcher, robot_joint_names
-from reachwise.io.ros.pointcloud2 import pointcloud2_points
 from reachwise.io.ros.recording_error import RecordingError
-from reachwise.io.ros.stamps import header_frame, header_stamp
+from reachwise.io.ros.stamps import header_stamp
 from reachwise.io.ros.transform_tree import TransformTree
 from reachwise.kinematics.robot import Robot
 
 __all__ = ["CloudHook", "ReplayResult", "ReplaySpec", "replay_recording"]
 
 F64 = NDArray[np.float64]
-POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
-IMAGE = "sensor_msgs/msg/Image"
 CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
 JOINT_STATE = "sensor_msgs/msg/JointState"
 TF_TOPICS = ("/tf", "/tf_static")
-#: Where a cloud topic's object sits until its first message: far from everything; its
-#: pairs' answers are not reported until then.
-_NOWHERE = np.full((1, 3), 1.0e6)
+#: Where a cloud topic's object sits until its first message (far from everything);
+#: its pairs' answers are not reported until then.
+_NOWHERE = NOWHERE
 #: The scene object of the scene memory.
 MEMORY = "memory"
 #: ``on_cloud(object, stamp, points)``: told of each cloud handed to the scene.
 CloudHook = Callable[[str, float, NDArray[np.float64]], None]
-#: The far limit given to the scene memory: the image's own invalid pixels are NaN or 0.
-_FAR = 1.0e3
 
 
 @dataclass(frozen=True)
@@ -166,91 +155,8 @@ class ReplayResult:
             return np.asarray(self.distance < self.margin)
 
 
-class _CloudTopic:
-    """One cloud topic: decodes its messages to points in the fixed frame."""
-
-    def __init__(self, topic: str, msgtype: str, info_topic: str | None) -> None:
-        self.topic = topic
-        self.msgtype = msgtype
-        self.info_topic = info_topic
-        self.projector: DepthProjector | None = None
-        self._info_key: tuple[Any, ...] | None = None
-        self.count = 0
-
-    def set_info(self, msg: Any) -> None:
-        k = getattr(msg, "k", None)
-        key = (int(msg.width), int(msg.height), tuple(np.asarray(k if k is not None else msg.K)))
-        if key != self._info_key:
-            self.projector = DepthProjector(camera_from_info(msg, topic=self.info_topic or ""))
-            self._info_key = key
-
-    def pose(self, msg: Any, t: float, tree: TransformTree, frame: str) -> tuple[F64 | None, float]:
-        """Where the message's frame is in ``frame`` at its stamp (None: it is ``frame``),
-        and the stamp (s; the bag time when the header has none)."""
-        stamp = header_stamp(msg) or t
-        source = header_frame(msg)
-        if not source:
-            raise RecordingError(self.topic, stamp, "header.frame_id", "is empty")
-        if source == frame:
-            return None, stamp
-        try:
-            return tree.lookup(frame, source, stamp), stamp
-        except InputError as exc:
-            raise RecordingError(self.topic, stamp, "header.frame_id", str(exc)) from None
-
-    def _projector(self, stamp: float) -> DepthProjector:
-        if self.projector is None:
-            raise RecordingError(
-                self.topic, stamp, "camera_info", f"no CameraInfo on {self.info_topic} yet"
-            )
-        return self.projector
-
-    def points(
-        self, msg: Any, t: float, tree: TransformTree, frame: str
-    ) -> tuple[F64 | PointCloud, float]:
-        """The message's points in ``frame`` and their stamp (s). A depth image's come
-        as a cloud already indexed (over its pixels' Z-order, no sort:
-        :func:`~reachwise.distance.index.index_of_ordered`), which the scene takes as
-        it is."""
-        T, stamp = self.pose(msg, t, tree, frame)
-        if self.msgtype == POINTCLOUD2:
-            pts = pointcloud2_points(msg, topic=self.topic)
-            if T is not None:
-                pts = pts @ T[:3, :3].T + T[:3, 3]
-        else:
-            proj = self._projector(stamp)
-            pose = np.eye(4) if T is None else T
-            pts, codes, centroid = proj.ordered_points(msg, pose, topic=self.topic)
-            if len(pts):
-                index = index_of_ordered(pts, codes, centroid)
-                # the cloud and its index share the points (a read-only view for the
-                # cloud; the compiled queries take the index's arrays as writable)
-                cloud = PointCloud.of_checked(pts.view(), name=self.topic)
-                INDICES.put(cloud, index)
-                return cloud, stamp
-        if len(pts) == 0:  # nothing returned: the frame says "nothing near"
-            pts = _NOWHERE
-        return np.ascontiguousarray(pts, dtype=np.float64), stamp
-
-    def fuse(
-        self, memory: SceneMemory, msg: Any, t: float, tree: TransformTree, frame: str
-    ) -> tuple[F64, float]:
-        """Fuse the depth image ``msg`` into ``memory``; its obstacles (voxel centres in
-        ``frame``) and the image's stamp."""
-        T, stamp = self.pose(msg, t, tree, frame)
-        cam = self._projector(stamp).camera
-        z = depth_image_metres(msg, topic=self.topic)
-        if z.shape != cam.shape:
-            depth_points(msg, cam, topic=self.topic)  # raises the size error
-        i = cam.intrinsics
-        view = ViewIntrinsics(i.fx, i.fy, i.cx, i.cy, 0.0, _FAR)
-        memory.integrate(z, np.eye(4) if T is None else T, view, stamp)
-        pts = memory.obstacles(stamp)
-        return (pts if len(pts) else _NOWHERE), stamp
-
-
 def _read_tf_and_info(
-    rec: Recording, spec: ReplaySpec, sources: dict[str, _CloudTopic]
+    rec: Recording, spec: ReplaySpec, sources: dict[str, CloudTopic]
 ) -> TransformTree:
     """Every TF message into one tree, and the first CameraInfo of each depth topic."""
     tree = TransformTree(tolerance=spec.tf_tolerance)
@@ -269,14 +175,14 @@ def _read_tf_and_info(
     return tree
 
 
-def _sources(rec: Recording, spec: ReplaySpec) -> dict[str, _CloudTopic]:
+def _sources(rec: Recording, spec: ReplaySpec) -> dict[str, CloudTopic]:
     out = {}
     for topic in spec.clouds:
         msgtype = rec.check_topic(topic, (POINTCLOUD2, IMAGE))
         info = spec.info_topic(topic) if msgtype == IMAGE else None
         if info is not None:
             rec.check_topic(info, (CAMERA_INFO,))
-        out[topic] = _CloudTopic(topic, msgtype, info)
+        out[topic] = CloudTopic(topic, msgtype, info)
     return out
 
 
@@ -356,7 +262,7 @@ def replay_recording(
 def _drive(
     rec: Recording,
     spec: ReplaySpec,
-    sources: dict[str, _CloudTopic],
+    sources: dict[str, CloudTopic],
     tree: TransformTree,
     scene: Scene,
     pairs: list[tuple[str, str]],
