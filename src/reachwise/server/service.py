@@ -61,7 +61,7 @@ from reachwise._version import __version__
 from reachwise.distance._common import NO_RISK, check_pose
 from reachwise.distance.engine import STRATEGIES, StrategyName
 from reachwise.distance.index import cloud_index
-from reachwise.distance.scene import Fixed, OnLink, Scene, SceneResult
+from reachwise.distance.scene import Fixed, OnLink, Scene, SceneObject, SceneResult
 from reachwise.errors import InputError, UnknownName, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_file import robot_from_dict
@@ -90,6 +90,9 @@ BLOCK_LIMIT = 120.0
 
 ALWAYS_ALLOWED = frozenset({"hello", "health", "metrics"})
 
+#: Where an object's pose comes from: kind, pose, robot and link.
+_Source = tuple[Literal["fixed", "link", "runtime"], NDArray[np.float64], str | None, str | None]
+
 
 def _err(code: P.ErrorCode, field: str, message: str) -> P.ProtocolError:
     return P.ProtocolError(code, field, message)
@@ -108,11 +111,9 @@ def _protocol_error(exc: Exception, op: str) -> P.ProtocolError:
     return _err(P.ErrorCode.INTERNAL, "", P.failure_text(exc))
 
 
-def _names(names: Iterable[str], shown: int = 10) -> str:
-    """A short sorted list of names for an error message."""
-    all_ = sorted(names)
-    more = f" … ({len(all_)} in all)" if len(all_) > shown else ""
-    return f"{all_[:shown]}{more}"
+def _unknown(kind: str, name: str, valid: Iterable[str], where: str) -> P.ProtocolError:
+    """An unknown robot or object, told as the scene tells it (with the closest name)."""
+    return _err(P.ErrorCode.UNKNOWN_ID, where, UnknownName("server", kind, name, valid).reason)
 
 
 @dataclass(frozen=True)
@@ -224,16 +225,12 @@ class SceneService:
     def _robot(self, name: str, where: str) -> Robot:
         r = self._robots.get(name)
         if r is None:
-            raise _err(
-                P.ErrorCode.UNKNOWN_ID, where, f"no robot {name!r}; robots: {_names(self._robots)}"
-            )
+            raise _unknown("robot", name, self._robots, where)
         return r
 
     def _object(self, name: str, where: str) -> None:
         if name not in self._meta:
-            raise _err(
-                P.ErrorCode.UNKNOWN_ID, where, f"no object {name!r}; objects: {_names(self._meta)}"
-            )
+            raise _unknown("object", name, self._meta, where)
 
     def _check_q(self, robot: Robot, q: NDArray[np.float64], where: str) -> None:
         if q.shape != (robot.n,):
@@ -535,26 +532,20 @@ class SceneService:
     def _describe(self, req: P.Describe) -> P.Reply:
         with self.lock:
             self.scene.swap_in()  # the clouds in use: those indexed so far
-            objects = []
-            for name, obj in self.scene.objects.items():
-                src = obj.source
-                cloud = obj.cloud.points if req.clouds else None
-                if isinstance(src, Fixed):
-                    info = P.ObjectInfo(name, len(obj.cloud), "fixed", src.pose, cloud=cloud)
-                elif isinstance(src, OnLink):
-                    info = P.ObjectInfo(
-                        name, len(obj.cloud), "link", src.offset, src.robot, src.link, cloud
-                    )
-                else:
-                    info = P.ObjectInfo(
-                        name, len(obj.cloud), "runtime", self._runtime[name][0], cloud=cloud
-                    )
-                objects.append(info)
+            objects = tuple(
+                P.ObjectInfo(
+                    name,
+                    len(obj.cloud),
+                    *self._source(name, obj),
+                    cloud=obj.cloud.points if req.clouds else None,
+                )
+                for name, obj in self.scene.objects.items()
+            )
             return P.DescribeReply(
                 self.strategy,
                 dict(self._models),
                 {k: v[0] for k, v in self._joints.items()},
-                tuple(objects),
+                objects,
                 tuple(P.PairInfo(p.a, p.b, p.margin, p.kind) for p in self.scene.pairs),
                 self.sequence.last,
             )
@@ -784,15 +775,8 @@ class SceneService:
             return None
         objects = []
         for name, obj in self.scene.objects.items():
-            src = obj.source
             meta = self._meta[name]
-            source: Literal["fixed", "link", "runtime"]
-            if isinstance(src, Fixed):
-                source, pose, robot, link = "fixed", src.pose, None, None
-            elif isinstance(src, OnLink):
-                source, pose, robot, link = "link", src.offset, src.robot, src.link
-            else:
-                source, pose, robot, link = "runtime", self._runtime[name][0], None, None
+            source, pose, robot, link = self._source(name, obj)
             objects.append(
                 ObjectState(
                     name=name,
@@ -814,6 +798,16 @@ class SceneService:
                 PairState(a=p.a, b=p.b, margin=p.margin, kind=p.kind) for p in self.scene.pairs
             ),
         )
+
+    def _source(self, name: str, obj: SceneObject) -> _Source:
+        """Where object ``name``'s pose comes from: ``fixed`` (its world pose), ``link``
+        (its offset, robot and link) or ``runtime`` (its current pose)."""
+        src = obj.source
+        if isinstance(src, Fixed):
+            return "fixed", src.pose, None, None
+        if isinstance(src, OnLink):
+            return "link", src.offset, src.robot, src.link
+        return "runtime", self._runtime[name][0], None, None
 
     def _persist(self, manifest: Manifest | None) -> None:
         """Write the manifest; the change is applied already, so a failure is reported

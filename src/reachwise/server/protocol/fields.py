@@ -457,12 +457,6 @@ def omit_none(body: Body) -> Body:
     return {k: v for k, v in body.items() if v is not None}
 
 
-def pose_or_none(r: Reader, key: str) -> NDArray[np.float64] | None:
-    """The optional 4×4 pose field ``key``."""
-    v = r.opt(key)
-    return None if v is None else check_array(v, r.path(key), shape=(4, 4))
-
-
 def stamp_of(r: Reader) -> float | None:
     """The optional ``stamp`` field (seconds on the sender's clock)."""
     v = r.opt("stamp")

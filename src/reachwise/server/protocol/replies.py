@@ -1,16 +1,19 @@
 """The bodies of the server's replies, one frozen dataclass per kind, and the
-typed error reply."""
+typed error reply. A reply's body is encoded and checked from its fields' type hints
+(:mod:`~reachwise.server.protocol.typed`) unless it writes its own: the query reply,
+on the per-tick path, does."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Self
+from typing import Annotated, Any, Literal, Self
 
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise.distance.engine import STRATEGIES, StrategyName
+from reachwise.distance.engine import StrategyName
 from reachwise.distance.scene import PAIR_KINDS, PairKind
+from reachwise.distance.scene_ops import ArrayShape
 from reachwise.server.protocol.fields import (
     MAX_NAME_LENGTH,
     Body,
@@ -18,21 +21,19 @@ from reachwise.server.protocol.fields import (
     ProtocolError,
     Reader,
     check_array,
-    check_bool,
     check_choice,
     check_float,
     check_int,
     check_list,
-    check_map,
-    check_model,
     check_name,
     check_text,
     encode_array,
     omit_none,
 )
-from reachwise.server.protocol.requests import (
-    _array_map,
-)
+from reachwise.server.protocol.typed import Count, Name, decode_fields, encode_fields
+
+#: A 4x4 pose, finite.
+_Pose = Annotated[NDArray[np.float64], ArrayShape((4, 4))]
 
 
 @dataclass(frozen=True)
@@ -40,11 +41,13 @@ class Reply:
     """Base of every reply body."""
 
     def body(self) -> Body:
-        return {}
+        """The wire form: every field encoded from its type hint."""
+        return encode_fields(self)
 
     @classmethod
     def parse(cls, r: Reader) -> Self:
-        return cls()
+        """The reply read from ``r``, every field checked against its type hint."""
+        return decode_fields(cls, r)
 
 
 @dataclass(frozen=True)
@@ -54,30 +57,13 @@ class Ack(Reply):
 
 @dataclass(frozen=True)
 class HelloReply(Reply):
+    """The server's name, version, protocol, ``instance`` and readiness."""
+
     server: str
     version: str
     protocol: int
     instance: str
     ready: bool
-
-    def body(self) -> Body:
-        return {
-            "server": self.server,
-            "version": self.version,
-            "protocol": self.protocol,
-            "instance": self.instance,
-            "ready": self.ready,
-        }
-
-    @classmethod
-    def parse(cls, r: Reader) -> Self:
-        return cls(
-            check_text(r.get("server"), r.path("server")),
-            check_text(r.get("version"), r.path("version")),
-            check_int(r.get("protocol"), r.path("protocol")),
-            check_text(r.get("instance"), r.path("instance")),
-            check_bool(r.get("ready"), r.path("ready")),
-        )
 
 
 @dataclass(frozen=True)
@@ -90,29 +76,12 @@ class HealthReply(Reply):
     ready: bool
     state: str
     reason: str
-    sequence: int
+    sequence: Count
     instance: str
     uptime: float
-    robots: int
-    objects: int
-    pairs: int
-
-    def body(self) -> Body:
-        return dict(self.__dict__)
-
-    @classmethod
-    def parse(cls, r: Reader) -> Self:
-        return cls(
-            check_bool(r.get("ready"), r.path("ready")),
-            check_text(r.get("state"), r.path("state")),
-            check_text(r.get("reason"), r.path("reason")),
-            check_int(r.get("sequence"), r.path("sequence"), minimum=0),
-            check_text(r.get("instance"), r.path("instance")),
-            check_float(r.get("uptime"), r.path("uptime")),
-            check_int(r.get("robots"), r.path("robots"), minimum=0),
-            check_int(r.get("objects"), r.path("objects"), minimum=0),
-            check_int(r.get("pairs"), r.path("pairs"), minimum=0),
-        )
+    robots: Count
+    objects: Count
+    pairs: Count
 
 
 @dataclass(frozen=True)
@@ -123,71 +92,21 @@ class MetricsReply(Reply):
     the distance computation alone, ``query_handling`` from receipt to reply."""
 
     uptime: float
-    sequence: int
-    requests: dict[str, int]
-    errors: dict[str, int]
+    sequence: Count
+    requests: dict[str, Count]
+    errors: dict[str, Count]
     edges_us: tuple[float, ...]
-    query_compute: tuple[int, ...]
-    query_handling: tuple[int, ...]
-
-    def body(self) -> Body:
-        return {
-            "uptime": self.uptime,
-            "sequence": self.sequence,
-            "requests": dict(self.requests),
-            "errors": dict(self.errors),
-            "edges_us": list(self.edges_us),
-            "query_compute": list(self.query_compute),
-            "query_handling": list(self.query_handling),
-        }
-
-    @classmethod
-    def parse(cls, r: Reader) -> Self:
-        def counts(key: str) -> dict[str, int]:
-            m = check_map(r.get(key), r.path(key))
-            return {
-                check_text(k, r.path(key)): check_int(v, f"{r.path(key)}.{k}", minimum=0)
-                for k, v in m.items()
-            }
-
-        def ints(key: str) -> tuple[int, ...]:
-            return tuple(
-                check_int(v, r.path(key), minimum=0) for v in check_list(r.get(key), r.path(key))
-            )
-
-        return cls(
-            check_float(r.get("uptime"), r.path("uptime")),
-            check_int(r.get("sequence"), r.path("sequence"), minimum=0),
-            counts("requests"),
-            counts("errors"),
-            tuple(
-                check_float(v, r.path("edges_us"))
-                for v in check_list(r.get("edges_us"), r.path("edges_us"))
-            ),
-            ints("query_compute"),
-            ints("query_handling"),
-        )
+    query_compute: tuple[Count, ...]
+    query_handling: tuple[Count, ...]
 
 
 @dataclass(frozen=True)
 class RobotReply(Reply):
     """A registered robot: its frame names (``link_0`` … ``tool``) and joint count."""
 
-    name: str
-    links: tuple[str, ...]
-    dof: int
-
-    def body(self) -> Body:
-        return {"name": self.name, "links": list(self.links), "dof": self.dof}
-
-    @classmethod
-    def parse(cls, r: Reader) -> Self:
-        links = check_list(r.get("links"), r.path("links"))
-        return cls(
-            check_name(r.get("name"), r.path("name")),
-            tuple(check_name(v, r.path("links")) for v in links),
-            check_int(r.get("dof"), r.path("dof"), minimum=0),
-        )
+    name: Name
+    links: tuple[Name, ...]
+    dof: Count
 
 
 @dataclass(frozen=True)
@@ -195,20 +114,9 @@ class ObjectReply(Reply):
     """An object after ``add_object`` (``version`` 0) or ``replace_cloud`` (the version
     the server gave the handed-over cloud: 1, 2, … per object): its point count."""
 
-    name: str
-    points: int
-    version: int = 0
-
-    def body(self) -> Body:
-        return {"name": self.name, "points": self.points, "version": self.version}
-
-    @classmethod
-    def parse(cls, r: Reader) -> Self:
-        return cls(
-            check_name(r.get("name"), r.path("name")),
-            check_int(r.get("points"), r.path("points"), minimum=1),
-            check_int(r.get("version"), r.path("version"), minimum=0),
-        )
+    name: Name
+    points: Count
+    version: Count = 0
 
 
 @dataclass(frozen=True)
@@ -384,47 +292,13 @@ class ObjectInfo:
     (``pose`` the offset from ``robot``'s ``link``) or ``runtime`` (``pose`` the current
     world pose); ``cloud`` only when asked for."""
 
-    name: str
-    points: int
-    source: str
-    pose: NDArray[np.float64]
-    robot: str | None = None
-    link: str | None = None
-    cloud: NDArray[np.float64] | None = None
-
-    def wire(self) -> Body:
-        return omit_none(
-            {
-                "name": self.name,
-                "points": self.points,
-                "source": self.source,
-                "pose": encode_array(self.pose),
-                "robot": self.robot,
-                "link": self.link,
-                "cloud": None if self.cloud is None else encode_array(self.cloud),
-            }
-        )
-
-    @classmethod
-    def parse(cls, value: object, where: str) -> ObjectInfo:
-        r = Reader(value, where)
-        source = r.get("source")
-        if source not in ("fixed", "link", "runtime"):
-            raise ProtocolError(
-                ErrorCode.WRONG_TYPE, r.path("source"), "expected fixed, link or runtime"
-            )
-        robot, link, cloud = r.opt("robot"), r.opt("link"), r.opt("cloud")
-        out = cls(
-            check_name(r.get("name"), r.path("name")),
-            check_int(r.get("points"), r.path("points"), minimum=1),
-            source,
-            check_array(r.get("pose"), r.path("pose"), shape=(4, 4)),
-            None if robot is None else check_name(robot, r.path("robot")),
-            None if link is None else check_name(link, r.path("link")),
-            None if cloud is None else check_array(cloud, r.path("cloud"), shape=(None, 3)),
-        )
-        r.done()
-        return out
+    name: Name
+    points: Count
+    source: Literal["fixed", "link", "runtime"]
+    pose: _Pose
+    robot: Name | None = None
+    link: Name | None = None
+    cloud: Annotated[NDArray[np.float64], ArrayShape((None, 3))] | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -434,37 +308,10 @@ class DescribeReply(Reply):
 
     strategy: StrategyName
     robots: dict[str, dict[str, Any]]
-    joints: dict[str, NDArray[np.float64]]
+    joints: dict[str, Annotated[NDArray[np.float64], ArrayShape((None,))]]
     objects: tuple[ObjectInfo, ...]
     pairs: tuple[PairInfo, ...]
-    sequence: int
-
-    def body(self) -> Body:
-        return {
-            "strategy": self.strategy,
-            "robots": dict(self.robots),
-            "joints": {k: encode_array(v) for k, v in self.joints.items()},
-            "objects": [o.wire() for o in self.objects],
-            "pairs": [p.wire() for p in self.pairs],
-            "sequence": self.sequence,
-        }
-
-    @classmethod
-    def parse(cls, r: Reader) -> Self:
-        robots = check_map(r.get("robots"), r.path("robots"))
-        models = {
-            check_name(k, r.path("robots")): check_model(v, f"{r.path('robots')}.{k}")
-            for k, v in robots.items()
-        }
-        objs = check_list(r.get("objects"), r.path("objects"))
-        return cls(
-            check_choice(r.get("strategy"), STRATEGIES, r.path("strategy")),
-            models,
-            _array_map(r, "joints", (None,)) or {},
-            tuple(ObjectInfo.parse(o, f"{r.path('objects')}[{i}]") for i, o in enumerate(objs)),
-            _pairs(r),
-            check_int(r.get("sequence"), r.path("sequence"), minimum=0),
-        )
+    sequence: Count
 
 
 @dataclass(frozen=True, eq=False)

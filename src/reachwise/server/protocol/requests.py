@@ -1,15 +1,20 @@
 """The requests a client sends the collision server, one frozen dataclass per ``op``
-(P-V Table 1: the initialization phase, then the calculation phase)."""
+(P-V Table 1: the initialization phase, then the calculation phase). A request's body
+is encoded and checked from its fields' type hints
+(:mod:`~reachwise.server.protocol.typed`) unless it writes its own: the per-tick
+requests and the streamed cloud do, and so does ``add_object``, whose cloud is
+bounded by the server's limits."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar, Self
+from typing import Annotated, Any, ClassVar, Self
 
 import numpy as np
 from numpy.typing import NDArray
 
+from reachwise.distance.scene_ops import ArrayShape
 from reachwise.server.protocol.fields import (
     FLOAT,
     MAX_LIST,
@@ -26,17 +31,23 @@ from reachwise.server.protocol.fields import (
     check_int,
     check_list,
     check_map,
-    check_model,
     check_name,
     check_name_pair,
     check_text,
     encode_array,
     omit_none,
-    pose_or_none,
     safe_repr,
     stamp_of,
 )
-from reachwise.server.protocol.typed import decode_value, encode_value, operation
+from reachwise.server.protocol.typed import (
+    Name,
+    Stamp,
+    decode_fields,
+    decode_value,
+    encode_fields,
+    encode_value,
+    operation,
+)
 
 
 @dataclass(frozen=True)
@@ -57,7 +68,8 @@ class Request:
         return self.STRUCTURAL
 
     def body(self) -> Body:
-        return {}
+        """The wire form: every field encoded from its type hint."""
+        return encode_fields(self)
 
     def data(self) -> list[Buffer]:
         """The raw frames after the envelope (:attr:`DATA_FRAMES` of them)."""
@@ -65,7 +77,8 @@ class Request:
 
     @classmethod
     def parse(cls, r: Reader, limits: Limits) -> Self:
-        return cls()
+        """The request read from ``r``, every field checked against its type hint."""
+        return decode_fields(cls, r)
 
     @classmethod
     def parse_frames(cls, r: Reader, limits: Limits, data: Sequence[Buffer]) -> Self:
@@ -81,16 +94,6 @@ class Hello(Request):
     OP: ClassVar[str] = "hello"
     client: str = "reachwise"
     versions: tuple[int, ...] = SUPPORTED_VERSIONS
-
-    def body(self) -> Body:
-        return {"client": self.client, "versions": list(self.versions)}
-
-    @classmethod
-    def parse(cls, r: Reader, limits: Limits) -> Self:
-        client = check_text(r.get("client"), r.path("client"), MAX_NAME_LENGTH)
-        vs = check_list(r.get("versions"), r.path("versions"), 64)
-        versions = tuple(check_int(v, f"{r.path('versions')}[{i}]") for i, v in enumerate(vs))
-        return cls(client, versions)
 
 
 @dataclass(frozen=True)
@@ -114,24 +117,8 @@ class AddRobot(Request):
     OP: ClassVar[str] = "add_robot"
     STRUCTURAL: ClassVar[bool] = True
     robot: dict[str, Any]
-    q: NDArray[np.float64] | None = None
-    stamp: float | None = None
-
-    def body(self) -> Body:
-        return omit_none(
-            {
-                "robot": self.robot,
-                "q": None if self.q is None else encode_array(self.q),
-                "stamp": self.stamp,
-            }
-        )
-
-    @classmethod
-    def parse(cls, r: Reader, limits: Limits) -> Self:
-        robot = check_model(r.get("robot"), r.path("robot"))
-        q = r.opt("q")
-        qa = None if q is None else check_array(q, r.path("q"), shape=(None,))
-        return cls(robot, qa, stamp_of(r))
+    q: Annotated[NDArray[np.float64], ArrayShape((None,))] | None = None
+    stamp: Stamp | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,45 +129,25 @@ class AddObject(Request):
 
     OP: ClassVar[str] = "add_object"
     STRUCTURAL: ClassVar[bool] = True
-    name: str
-    cloud: NDArray[np.float64]
-    pose: NDArray[np.float64] | None = None
-    robot: str | None = None
-    link: str | None = None
+    name: Name
+    cloud: Annotated[NDArray[np.float64], ArrayShape((None, 3))]
+    pose: Annotated[NDArray[np.float64], ArrayShape((4, 4))] | None = None
+    robot: Name | None = None
+    link: Name | None = None
     dynamic: bool = False
-
-    def body(self) -> Body:
-        return omit_none(
-            {
-                "name": self.name,
-                "cloud": encode_array(self.cloud),
-                "pose": None if self.pose is None else encode_array(self.pose),
-                "robot": self.robot,
-                "link": self.link,
-                "dynamic": self.dynamic or None,
-            }
-        )
 
     @classmethod
     def parse(cls, r: Reader, limits: Limits) -> Self:
-        name = check_name(r.get("name"), r.path("name"))
-        cloud = check_array(
-            r.get("cloud"), r.path("cloud"), shape=(None, 3), max_rows=limits.max_cloud_points
-        )
-        if cloud.shape[0] == 0:
-            raise ProtocolError(ErrorCode.WRONG_SHAPE, r.path("cloud"), "the cloud is empty")
-        pose = pose_or_none(r, "pose")
-        robot = r.opt("robot")
-        link = r.opt("link")
-        dyn = r.opt("dynamic")
-        return cls(
-            name,
-            cloud,
-            pose,
-            None if robot is None else check_name(robot, r.path("robot")),
-            None if link is None else check_name(link, r.path("link")),
-            False if dyn is None else check_bool(dyn, r.path("dynamic")),
-        )
+        """The request as its hints check it, its cloud within ``limits``."""
+        req = decode_fields(cls, r)
+        n = req.cloud.shape[0]
+        if not 0 < n <= limits.max_cloud_points:
+            raise ProtocolError(
+                ErrorCode.OVERSIZED_CLOUD if n else ErrorCode.WRONG_SHAPE,
+                r.path("cloud"),
+                f"{n} points; a cloud holds 1 to {limits.max_cloud_points}",
+            )
+        return req
 
 
 #: Element types a streamed cloud may travel in: little-endian float32 or float64.
@@ -394,13 +361,6 @@ class Describe(Request):
 
     OP: ClassVar[str] = "describe"
     clouds: bool = False
-
-    def body(self) -> Body:
-        return {"clouds": self.clouds}
-
-    @classmethod
-    def parse(cls, r: Reader, limits: Limits) -> Self:
-        return cls(check_bool(r.get("clouds"), r.path("clouds")))
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,14 +1,22 @@
 """Messages derived from type hints: the wire form of a registered scene operation's
 arguments and result (:mod:`reachwise.distance.scene_ops`), so that a new query needs
-no encoder, decoder, service method or client method of its own.
+no encoder, decoder, service method or client method of its own; and the bodies of the
+protocol's own requests and replies, frozen dataclasses whose fields are encoded and
+checked from their hints (:func:`encode_fields`, :func:`decode_fields`) unless the
+message writes its own (the per-tick messages, whose speed matters).
 
 :func:`encode_value` turns a value of a hinted type into plain msgpack data and
 :func:`decode_value` checks received data against the hint, field by field, into a
 typed :class:`~reachwise.server.protocol.fields.ProtocolError` naming the offending
 path. The forms follow the rest of the protocol: a float64 array travels as
 ``[dtype, shape, bytes]``, a frozen dataclass as a map of its fields (strict: unknown
-fields are errors), tuples, lists and other iterables as lists, ``dict[str, X]`` as a map. The hints
-are finite, so decoding recurses at most as deep as the hint nests.
+fields are errors; a None field that defaults to None is left out), tuples, lists and
+other iterables as lists, ``dict[str, X]`` as a map; ``dict[str, Any]`` is a map of
+plain data (a robot's YAML mapping,
+:func:`~reachwise.server.protocol.fields.check_model`); a class with its own
+``wire()`` and ``parse(value, where)`` (a pair's compact list) travels in its own
+form. ``Annotated[float, Bound(...)]`` (or ``int``) bounds a number. The hints are
+finite, so decoding recurses at most as deep as the hint nests.
 
 The request is ``call``
 (:class:`~reachwise.server.protocol.requests.OperationCall`, body ``{"operation",
@@ -20,9 +28,11 @@ from __future__ import annotations
 
 import collections.abc
 import dataclasses
+import functools
 import types
 import typing
-from typing import Any, Literal
+from dataclasses import dataclass
+from typing import Annotated, Any, Literal, TypeVar
 
 import numpy as np
 
@@ -40,13 +50,42 @@ from reachwise.server.protocol.fields import (
     check_int,
     check_list,
     check_map,
+    check_model,
     check_name,
     check_text,
     encode_array,
     safe_repr,
 )
 
-__all__ = ["decode_value", "encode_value", "operation"]
+__all__ = [
+    "Bound",
+    "Count",
+    "Name",
+    "Stamp",
+    "decode_fields",
+    "decode_value",
+    "encode_fields",
+    "encode_value",
+    "operation",
+]
+
+_T = TypeVar("_T")
+
+
+@dataclass(frozen=True)
+class Bound:
+    """The check of a number field on the wire: ``finite`` (no inf) and ``minimum``."""
+
+    finite: bool = True
+    minimum: float | None = None
+
+
+#: A name an object or robot is addressed by (:func:`~reachwise.server.protocol.fields.check_name`).
+Name = Annotated[str, "name"]
+#: A time stamp (s, the sender's clock): a finite number.
+Stamp = Annotated[float, Bound()]
+#: A count: an integer >= 0.
+Count = Annotated[int, Bound(minimum=0)]
 
 #: Most dimensions of an array an operation takes or gives.
 MAX_ARRAY_DIMS = 4
@@ -67,12 +106,44 @@ def _strip(hint: Any) -> Any:
     return hint
 
 
+@functools.cache
+def _field_hints(cls: Any) -> tuple[tuple[dataclasses.Field[Any], Any], ...]:
+    """The fields of dataclass ``cls`` with their resolved hints."""
+    hints = typing.get_type_hints(cls, include_extras=True)
+    return tuple((f, hints[f.name]) for f in dataclasses.fields(cls))
+
+
+def encode_fields(value: Any) -> dict[str, Any]:
+    """The frozen dataclass ``value`` as a map of its encoded fields (a None field that
+    defaults to None left out)."""
+    return {
+        f.name: encode_value(v, hint)
+        for f, hint in _field_hints(typing.cast(Any, type(value)))
+        if (v := getattr(value, f.name)) is not None or f.default is not None
+    }
+
+
+def decode_fields(cls: type[_T], r: Reader) -> _T:
+    """An instance of the frozen dataclass ``cls`` from the fields ``r`` reads, each
+    checked against its hint (a field with a default may be absent; the caller's
+    ``r.done()`` refuses unknown fields)."""
+    fields = {}
+    for f, hint in _field_hints(typing.cast(Any, cls)):
+        optional = f.default is not dataclasses.MISSING
+        got = r.get(f.name, optional=optional)
+        if not optional or f.name in r.body:
+            fields[f.name] = decode_value(got, hint, r.path(f.name))
+    return cls(**fields)
+
+
 def encode_value(value: Any, hint: Any) -> Any:
     """``value`` (of type ``hint``) as plain msgpack data."""
     hint = _strip(hint)
     origin = typing.get_origin(hint)
-    if value is None:
-        return None
+    if value is None or hint is Any:
+        return value
+    if hasattr(hint, "wire"):
+        return value.wire()
     if _is_array(hint):
         return encode_array(np.asarray(value, dtype=np.float64))
     if origin in (typing.Union, types.UnionType):
@@ -92,11 +163,7 @@ def encode_value(value: Any, hint: Any) -> Any:
     if origin is dict:
         return {str(k): encode_value(v, typing.get_args(hint)[1]) for k, v in value.items()}
     if dataclasses.is_dataclass(hint) and isinstance(hint, type):
-        hints = typing.get_type_hints(hint, include_extras=True)
-        return {
-            f.name: encode_value(getattr(value, f.name), hints[f.name])
-            for f in dataclasses.fields(hint)
-        }
+        return encode_fields(value)
     raise TypeError(f"the wire carries no values of type {hint}")
 
 
@@ -117,9 +184,16 @@ def decode_value(raw: Any, hint: Any, where: str) -> Any:
     """Check received ``raw`` against ``hint`` and build the value; a mismatch is a
     :class:`ProtocolError` naming ``where`` (or the path below it)."""
     if typing.get_origin(hint) is typing.Annotated:
-        shapes = [m for m in hint.__metadata__ if isinstance(m, ArrayShape)]
-        if shapes and _is_array(_strip(hint)):
-            return check_array(raw, where, shape=shapes[0].shape, finite=shapes[0].finite)
+        for m in hint.__metadata__:
+            if isinstance(m, ArrayShape) and _is_array(_strip(hint)):
+                return check_array(raw, where, shape=m.shape, finite=m.finite)
+            if m == "name" and _strip(hint) is str:
+                return check_name(raw, where)
+            if isinstance(m, Bound) and _strip(hint) is float:
+                return check_float(raw, where, finite=m.finite, minimum=m.minimum)
+            if isinstance(m, Bound) and _strip(hint) is int:
+                low = None if m.minimum is None else int(m.minimum)
+                return check_int(raw, where, minimum=low)
     hint = _strip(hint)
     origin = typing.get_origin(hint)
     if hint is type(None) or hint is None:
@@ -133,6 +207,8 @@ def decode_value(raw: Any, hint: Any, where: str) -> Any:
         return decode_value(raw, inner[0], where)
     if _is_array(hint):
         return _decode_array(raw, where)
+    if hasattr(hint, "wire"):
+        return hint.parse(raw, where)
     if hint is bool:
         return check_bool(raw, where)
     if hint is int:
@@ -162,6 +238,8 @@ def decode_value(raw: Any, hint: Any, where: str) -> Any:
             )
         out = [decode_value(v, args[0], f"{where}[{i}]") for i, v in enumerate(items)]
         return out if origin is list else tuple(out)
+    if origin is dict and typing.get_args(hint)[1] is Any:
+        return check_model(raw, where)
     if origin is dict:
         entries = check_map(raw, where)
         if len(entries) > MAX_LIST:
@@ -173,18 +251,9 @@ def decode_value(raw: Any, hint: Any, where: str) -> Any:
         }
     if dataclasses.is_dataclass(hint) and isinstance(hint, type):
         r = Reader(raw, where)
-        hints = typing.get_type_hints(hint, include_extras=True)
-        fields = {}
-        for f in dataclasses.fields(hint):
-            optional = f.default is not dataclasses.MISSING
-            got = r.get(f.name, optional=optional)
-            fields[f.name] = (
-                f.default
-                if optional and f.name not in r.body
-                else decode_value(got, hints[f.name], r.path(f.name))
-            )
+        value: Any = decode_fields(typing.cast(Any, hint), r)
         r.done()
-        return hint(**fields)
+        return value
     raise ProtocolError(ErrorCode.INVALID, where, "the wire carries no values of this type")
 
 
