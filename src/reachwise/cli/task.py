@@ -8,12 +8,14 @@ built-in stand-in for the thesis's 87-point task; ``show`` summarizes any task.
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import typer
 
 from reachwise.cli._help import builtins
+from reachwise.cli._options import cli, typed_command
 
 app = typer.Typer(help="Generate drilling tasks and inspect task files.", no_args_is_help=True)
 generate_app = typer.Typer(help="Generate a task file.", no_args_is_help=True)
@@ -128,33 +130,106 @@ def _write(task: Any, out: Path, json_out: bool, comment: str | None = None) -> 
         _print_summary(task_summary(task))
 
 
+@dataclass(frozen=True)
+class TunnelShape:
+    """The tunnel's profile: ``width`` (m; with several plans the largest), floor to
+    crown ``height`` (m) and the arched roof's rise ``arch`` (m, at most width / 2)."""
+
+    #: Tunnel width (m).
+    width: float = cli(
+        typer.Option(6.0, "--width", help="Tunnel width (m); with --plans, the largest.")
+    )
+    #: Floor to crown (m).
+    height: float = cli(typer.Option(5.5, "--height", help="Floor to crown (m)."))
+    #: Rise of the arched roof (m).
+    arch: float = cli(typer.Option(1.8, "--arch", help="Rise of the arched roof (m), ≤ width/2."))
+
+
+@dataclass(frozen=True)
+class DrillPlan:
+    """One drill plan's settings: the face distance ``face_x`` (m) and contour
+    look-out ``lookout_deg`` (deg; ``None``: 7 m and 3 deg), ``hole_depth`` (m),
+    ``contour_spacing`` (m), the ``cut`` (``v`` or ``parallel``), the pose ``dims``
+    (5 or 6), the ``seed`` and the collar ``jitter`` (m)."""
+
+    #: Face distance ahead of the machine (m); ``None``: 7 m.
+    face_x: float | None = cli(
+        typer.Option(
+            None,
+            "--face-x",
+            help="Face distance ahead of the machine (m, default 7; one plan only).",
+        )
+    )
+    #: Contour look-out angle (deg); ``None``: 3 deg.
+    lookout_deg: float | None = cli(
+        typer.Option(
+            None, "--lookout-deg", help="Contour look-out angle (deg, default 3; one plan only)."
+        )
+    )
+    #: Hole depth (m).
+    hole_depth: float = cli(typer.Option(4.5, "--hole-depth", help="Hole depth (m)."))
+    #: Contour spacing (m).
+    contour_spacing: float = cli(
+        typer.Option(0.7, "--contour-spacing", help="Contour spacing (m).")
+    )
+    #: Cut type: v or parallel.
+    cut: str = cli(typer.Option("v", "--cut", help="Cut type: v (angled V-cut) or parallel."))
+    #: Pose dimensions: 5 or 6.
+    dims: int = cli(typer.Option(5, "--dims", help="5 (collar + hole axis) or 6 (+ feed roll)."))
+    #: Seed of the collar jitter and the plan variation.
+    seed: int = cli(typer.Option(0, "--seed", help="Seed for collar jitter and plan variation."))
+    #: Collar jitter (m).
+    jitter: float = cli(typer.Option(0.0, "--jitter", help="Collar jitter (m), one plan only."))
+
+
+@dataclass(frozen=True)
+class PlanFamily:
+    """Several plans combined: ``plans`` plans of 20 m² up to the profile (1: one
+    plan), down-selected to ``points`` points (``None``: all)."""
+
+    #: Plans combined (1: one plan).
+    plans: int = cli(
+        typer.Option(1, "--plans", help="Combine N plans of 20 m² up to this profile (thesis: 10).")
+    )
+    #: Points kept by down-selection; ``None``: all.
+    points: int | None = cli(
+        typer.Option(None, "--points", help="Down-select the combined plans to this many points.")
+    )
+
+
+@dataclass(frozen=True)
+class TaskOutput:
+    """Where the task goes: the file ``out`` and a JSON summary on stdout
+    (``json_out``)."""
+
+    #: Task file to write (.yaml, .json or .csv).
+    out: Path = cli(typer.Option(..., "--out", help="Task file to write (.yaml, .json or .csv)."))
+    #: Print a JSON summary.
+    json_out: bool = cli(typer.Option(False, "--json", help="Print a JSON summary."))
+
+
 @generate_app.command("tunnel")
+@typed_command(
+    order=(
+        "out",
+        "width",
+        "height",
+        "arch",
+        "face_x",
+        "lookout_deg",
+        "hole_depth",
+        "contour_spacing",
+        "cut",
+        "dims",
+        "seed",
+        "jitter",
+        "plans",
+        "points",
+        "json_out",
+    )
+)
 def generate_tunnel(
-    out: Path = typer.Option(..., "--out", help="Task file to write (.yaml, .json or .csv)."),
-    width: float = typer.Option(
-        6.0, "--width", help="Tunnel width (m); with --plans, the largest."
-    ),
-    height: float = typer.Option(5.5, "--height", help="Floor to crown (m)."),
-    arch: float = typer.Option(1.8, "--arch", help="Rise of the arched roof (m), ≤ width/2."),
-    face_x: float | None = typer.Option(
-        None, "--face-x", help="Face distance ahead of the machine (m, default 7; one plan only)."
-    ),
-    lookout_deg: float | None = typer.Option(
-        None, "--lookout-deg", help="Contour look-out angle (deg, default 3; one plan only)."
-    ),
-    hole_depth: float = typer.Option(4.5, "--hole-depth", help="Hole depth (m)."),
-    contour_spacing: float = typer.Option(0.7, "--contour-spacing", help="Contour spacing (m)."),
-    cut: str = typer.Option("v", "--cut", help="Cut type: v (angled V-cut) or parallel."),
-    dims: int = typer.Option(5, "--dims", help="5 (collar + hole axis) or 6 (+ feed roll)."),
-    seed: int = typer.Option(0, "--seed", help="Seed for collar jitter and plan variation."),
-    jitter: float = typer.Option(0.0, "--jitter", help="Collar jitter (m), one plan only."),
-    plans: int = typer.Option(
-        1, "--plans", help="Combine N plans of 20 m² up to this profile (thesis: 10)."
-    ),
-    points: int | None = typer.Option(
-        None, "--points", help="Down-select the combined plans to this many points."
-    ),
-    json_out: bool = typer.Option(False, "--json", help="Print a JSON summary."),
+    shape: TunnelShape, plan: DrillPlan, family: PlanFamily, output: TaskOutput
 ) -> None:
     """Generate a tunnel-face drilling task (public stand-in for customer drill plans)."""
     import math
@@ -163,36 +238,39 @@ def generate_tunnel(
     from reachwise.tasks.drilling import combine_plans, drilling_pattern, tunnel_plans
     from reachwise.tasks.workspace import TunnelEnvelope, TunnelProfile
 
-    profile = TunnelProfile(width, height, arch)
-    if plans > 1:
-        if face_x is not None or lookout_deg is not None or jitter:
+    profile = TunnelProfile(shape.width, shape.height, shape.arch)
+    if family.plans > 1:
+        if plan.face_x is not None or plan.lookout_deg is not None or plan.jitter:
             raise TaskError(
                 "--plans",
                 "",
                 "with several plans face distance, look-out and jitter are drawn "
                 "per plan from --seed; drop --face-x, --lookout-deg and --jitter",
             )
-        family = tunnel_plans(plans, largest=profile, seed=seed, dims=dims)
+        plans = tunnel_plans(family.plans, largest=profile, seed=plan.seed, dims=plan.dims)
         task = combine_plans(
-            family, points, name=f"tunnel-{plans}-plans", envelope=TunnelEnvelope(profile)
+            plans,
+            family.points,
+            name=f"tunnel-{family.plans}-plans",
+            envelope=TunnelEnvelope(profile),
         )
     else:
-        if points is not None:
+        if family.points is not None:
             raise TaskError("--points", "", "down-selection needs --plans > 1")
-        if cut not in ("v", "parallel"):
-            raise TaskError("--cut", "", f"must be v or parallel, got {cut!r}")
+        if plan.cut not in ("v", "parallel"):
+            raise TaskError("--cut", "", f"must be v or parallel, got {plan.cut!r}")
         task = drilling_pattern(
             profile,
-            face_x=7.0 if face_x is None else face_x,
-            lookout_angle=math.radians(3.0 if lookout_deg is None else lookout_deg),
-            hole_depth=hole_depth,
-            contour_spacing=contour_spacing,
-            cut_type="v" if cut == "v" else "parallel",
-            jitter=jitter,
-            seed=seed,
-            dims=dims,
+            face_x=7.0 if plan.face_x is None else plan.face_x,
+            lookout_angle=math.radians(3.0 if plan.lookout_deg is None else plan.lookout_deg),
+            hole_depth=plan.hole_depth,
+            contour_spacing=plan.contour_spacing,
+            cut_type="v" if plan.cut == "v" else "parallel",
+            jitter=plan.jitter,
+            seed=plan.seed,
+            dims=plan.dims,
         )
-    _write(task, out, json_out)
+    _write(task, output.out, output.json_out)
 
 
 @generate_app.command("tunnel-87")
