@@ -38,6 +38,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
+from reachwise.cli._options import cli, typed_command
 from reachwise.io.atomic import atomic_write
 
 SCENARIOS = ("p3-self-collision", "p5-crane-obstacle")
@@ -117,29 +118,75 @@ class Stage:
         return out / self.folder / "stage.json" if self.folder else out / f"{self.key}.json"
 
 
-def demo(
-    out: Path = typer.Option(Path("reachwise-demo"), "--out", help="Folder for the results."),
-    runs: int = typer.Option(
-        10, "--runs", min=1, help="Synthesis runs (multi-start; P-I Table 4 used 10)."
-    ),
-    topology_runs: int = typer.Option(
-        2, "--topology-runs", min=1, help="Runs per topology and sweep round."
-    ),
-    subset: int = typer.Option(
-        20, "--subset", min=2, help="Descriptive task points of the topology round 1."
-    ),
-    top: int = typer.Option(3, "--top", min=1, help="Topologies taken to the complete task."),
-    workers: int | None = typer.Option(
-        None, "--workers", min=0, help="Sweep worker processes (default all cores; 0 = none)."
-    ),
-    seed: int = typer.Option(0, help="Seed of every random draw."),
-    fresh: bool = typer.Option(False, "--fresh", help="Redo stages already complete on disk."),
-    view: bool = typer.Option(False, "--view", help="Open the viewer on the results."),
-    json_out: bool = typer.Option(False, "--json", help="Print the key figures as JSON."),
-    quick: bool = typer.Option(
-        False, "--quick", hidden=True, help="Tiny demo for tests: 8 task points, short runs."
-    ),
-) -> None:
+@dataclass(frozen=True)
+class DemoSettings:
+    """How much the demo does: synthesis ``runs``, ``topology_runs`` per topology and
+    round, the round-1 ``subset`` of descriptive points, the ``top`` topologies to the
+    complete task, sweep ``workers`` (``None``: all cores, 0: in process), the
+    ``seed`` of every random draw and the tiny ``quick`` demo of the tests."""
+
+    #: Synthesis runs (multi-start).
+    runs: int = cli(
+        typer.Option(10, "--runs", min=1, help="Synthesis runs (multi-start; P-I Table 4 used 10).")
+    )
+    #: Runs per topology and sweep round.
+    topology_runs: int = cli(
+        typer.Option(2, "--topology-runs", min=1, help="Runs per topology and sweep round.")
+    )
+    #: Descriptive task points of topology round 1.
+    subset: int = cli(
+        typer.Option(20, "--subset", min=2, help="Descriptive task points of the topology round 1.")
+    )
+    #: Topologies taken to the complete task.
+    top: int = cli(typer.Option(3, "--top", min=1, help="Topologies taken to the complete task."))
+    #: Sweep worker processes; ``None``: all cores, 0: in process.
+    workers: int | None = cli(
+        typer.Option(
+            None, "--workers", min=0, help="Sweep worker processes (default all cores; 0 = none)."
+        )
+    )
+    #: Seed of every random draw.
+    seed: int = cli(typer.Option(0, help="Seed of every random draw."))
+    #: Tiny demo for tests.
+    quick: bool = cli(
+        typer.Option(
+            False, "--quick", hidden=True, help="Tiny demo for tests: 8 task points, short runs."
+        )
+    )
+
+
+@dataclass(frozen=True)
+class DemoOutput:
+    """Where the demo goes: the ``out`` folder, whether to redo the stages complete
+    there (``fresh``), open the viewer on the results (``view``) and print JSON
+    (``json_out``)."""
+
+    #: Folder for the results.
+    out: Path = cli(typer.Option(Path("reachwise-demo"), "--out", help="Folder for the results."))
+    #: Redo stages already complete on disk.
+    fresh: bool = cli(typer.Option(False, "--fresh", help="Redo stages already complete on disk."))
+    #: Open the viewer on the results.
+    view: bool = cli(typer.Option(False, "--view", help="Open the viewer on the results."))
+    #: Print the key figures as JSON.
+    json_out: bool = cli(typer.Option(False, "--json", help="Print the key figures as JSON."))
+
+
+@typed_command(
+    order=(
+        "out",
+        "runs",
+        "topology_runs",
+        "subset",
+        "top",
+        "workers",
+        "seed",
+        "fresh",
+        "view",
+        "json_out",
+        "quick",
+    )
+)
+def demo(settings: DemoSettings, output: DemoOutput) -> None:
     """Run the main job on built-in defaults: task, synthesis, topology ranking, the
     P-III and P-V avoidance experiments; write reports, print the key figures.
 
@@ -148,23 +195,15 @@ def demo(
     from reachwise.cli.interrupts import deferred_interrupts
     from reachwise.report.demo import write_demo_report
 
+    out, json_out, seed = output.out, output.json_out, settings.seed
     console = Console(quiet=json_out)
     ctx = Ctx(
-        out,
-        seed,
-        quick,
-        runs,
-        topology_runs,
-        subset,
-        top,
-        workers,
-        console,
-        Console(stderr=True, quiet=json_out),
-        json_out,
-    )
+        out, seed, settings.quick, settings.runs, settings.topology_runs, settings.subset,
+        settings.top, settings.workers, console, Console(stderr=True, quiet=json_out), json_out,
+    )  # fmt: skip
     out.mkdir(parents=True, exist_ok=True)
     stages = _stages(ctx)
-    if fresh:
+    if output.fresh:
         _clear(out, stages)
     t0 = time.perf_counter()
     with deferred_interrupts() as interrupts:
@@ -194,7 +233,7 @@ def demo(
     _print_summary(ctx, stages, elapsed, report)
     if json_out:
         typer.echo(json.dumps(figures, indent=2, default=str))
-    if view:
+    if output.view:
         from reachwise.viz.viewer import serve_results
 
         serve_results(out, block=True)
