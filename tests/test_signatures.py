@@ -21,7 +21,6 @@ PENDING = {
     "cli/robot.py:pairs",
     "cli/synth.py:synth",
     "cli/synth.py:_write",
-    "cli/view.py:view",
     "kinematics/ik.py:solve_ik",
     "synthesis/synthesize.py:synthesize",
     "synthesis/active_set.py:bounded_step",

@@ -3,15 +3,18 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import typer
 
+from reachwise.cli._options import cli
+
 if TYPE_CHECKING:
     from reachwise.kinematics.robot import Robot
 
-__all__ = ["LENIENT", "PACKAGE_DIRS", "TIP", "load_with_options"]
+__all__ = ["LENIENT", "PACKAGE_DIRS", "TIP", "RobotFileOptions", "load_with_options"]
 
 TIP = typer.Option(
     None,
@@ -40,3 +43,26 @@ def load_with_options(
     from reachwise.io.robot_file import load_robot
 
     return load_robot(robot, tip=tip, package_dirs=package_dirs or None, lenient=lenient)
+
+
+@dataclass(frozen=True)
+class RobotFileOptions:
+    """The shared robot options as a group: the URDF ``tip`` link (``None``: the
+    chain's end), the folders searched first for ``package://`` URIs and ``lenient``
+    loading (invalid shapes left out and logged)."""
+
+    #: The link that ends a branched URDF's chain; ``None``: its only end.
+    tip: str | None = cli(TIP)
+    #: Folders searched first for ``package://`` mesh URIs.
+    package_dir: list[Path] = cli(PACKAGE_DIRS)
+    #: Leave out (and log) invalid shapes instead of stopping.
+    lenient: bool = cli(LENIENT)
+
+    @property
+    def given(self) -> bool:
+        """Whether any of the options was given."""
+        return self.tip is not None or bool(self.package_dir) or self.lenient
+
+    def load(self, robot: str | Path) -> Robot:
+        """``robot`` loaded with these options."""
+        return load_with_options(robot, self.tip, self.package_dir, self.lenient)
