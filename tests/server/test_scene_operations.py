@@ -4,6 +4,7 @@ alike; its wire messages come from its type hints, checked strictly."""
 
 from __future__ import annotations
 
+import inspect
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -13,9 +14,9 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from reachwise.distance.pairs import PairKind
+from reachwise.distance.pairs import PairKind, WatchedPair
 from reachwise.distance.scene import Scene
-from reachwise.distance.scene_ops import OPERATIONS, scene_operation
+from reachwise.distance.scene_ops import OPERATIONS, scene_change, scene_operation
 from reachwise.errors import InputError
 from reachwise.kinematics.robot import Robot
 from reachwise.server import protocol as P
@@ -23,7 +24,7 @@ from reachwise.server.client import SceneClient
 from reachwise.server.client.errors import ServerInputError
 from reachwise.server.transport import CollisionServer
 
-from .conftest import HANG_GUARD, build_scene, crane_q
+from .conftest import HANG_GUARD, LINKS, build_scene, crane_q
 
 
 @dataclass(frozen=True)
@@ -51,6 +52,15 @@ def closest_of_kind(
     near = tuple(sorted(p.a if order == "a" else p.b for p in rows if p.result.distance < within))
     r = best.result
     return Closest(best.a, best.b, r.distance, np.vstack([r.point_a, r.point_b]), near)
+
+
+@scene_change
+def watch_against(
+    scene: Scene, target: str, margin: float, kind: PairKind = "custom"
+) -> tuple[WatchedPair, ...]:
+    """The toy change: every other object watched against ``target``, in name order."""
+    others = sorted(n for n in scene.objects if n != target)
+    return tuple(scene.watch(n, target, margin, kind=kind) for n in others)
 
 
 @pytest.fixture(scope="module")
@@ -84,6 +94,43 @@ def test_a_query_written_once_answers_in_process_and_through_the_server(
                 is None
                 is closest_of_kind(local, "robot-robot")
             )
+
+
+def test_a_change_written_once_changes_both_scenes_alike(
+    served: str, crane: Robot, clouds: dict[str, NDArray[np.float64]]
+) -> None:
+    local = Scene()
+    build_scene(local, crane, clouds)
+    with SceneClient(served, deadline=HANG_GUARD, setup_deadline=HANG_GUARD, mirror=True) as client:
+        client.clear()
+        build_scene(client, crane, clouds)
+        client.query_all()  # the client holds the layout from before the change
+        here = watch_against(local, "environment", 0.9, kind="robot-environment")
+        there = watch_against(client, "environment", 0.9, kind="robot-environment")
+        assert there == here and len(here) == len(LINKS)
+        assert client.pairs == local.pairs  # the mirror made the same change
+        served_pairs = client.describe().pairs
+        assert [(p.a, p.b, p.margin, p.kind) for p in served_pairs] == [
+            (p.a, p.b, p.margin, p.kind) for p in local.pairs
+        ]
+        q = crane_q(crane, 120)
+        local.set_joints(crane.name, q)
+        client.set_joints(crane.name, q)
+        res, ref = client.query_all(), local.query_all()
+        assert res.valid, res.reason  # the server's pair list is the mirror's
+        for p in ref.pairs:
+            assert res.get(p.a, p.b).result.distance == pytest.approx(p.result.distance, abs=1e-12)
+        client.unwatch("link_1", "environment")
+        local.unwatch("link_1", "environment")
+        assert client.pairs == local.pairs and client.query_all().valid
+
+
+def test_the_clients_pair_rules_are_the_scenes() -> None:
+    for name in ("watch", "unwatch", "watch_self", "watch_environment", "watch_robots"):
+        assert inspect.signature(getattr(SceneClient, name)) == inspect.signature(
+            getattr(Scene, name)
+        )
+        assert OPERATIONS[name].mutates
 
 
 def test_wrong_arguments_are_typed_errors(served: str, crane: Robot) -> None:
