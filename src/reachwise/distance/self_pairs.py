@@ -53,6 +53,7 @@ from numpy.typing import ArrayLike, NDArray
 from reachwise.distance.engine import PairQuery
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
+from reachwise.geometry.mesh_distance import segment_closest_parameters
 from reachwise.kinematics.bodies import Body, adjacent_bodies
 
 __all__ = [
@@ -184,40 +185,12 @@ def capsule_distances(
     b1: NDArray[np.float64],
 ) -> NDArray[np.float64]:
     """Distances between segments ``a0``–``a1`` and ``b0``–``b1``, row by row (``(m, 3)``
-    each): the closest points of two segments (Ericson, *Real-Time Collision
-    Detection*, §5.1.9), vectorised."""
-    d1 = a1 - a0
-    d2 = b1 - b0
-    r = a0 - b0
-    a = np.einsum("ij,ij->i", d1, d1)
-    e = np.einsum("ij,ij->i", d2, d2)
-    f = np.einsum("ij,ij->i", d2, r)
-    c = np.einsum("ij,ij->i", d1, r)
-    b = np.einsum("ij,ij->i", d1, d2)
-    eps = 1e-18
-    pa_ok = a > eps  # segment a is not a point
-    pb_ok = e > eps
-    a_s = np.where(pa_ok, a, 1.0)
-    e_s = np.where(pb_ok, e, 1.0)
-    denom = a * e - b * b
-    general = pa_ok & pb_ok
-    s = np.where(
-        general & (denom > 1e-12 * a_s * e_s),
-        (b * f - c * e) / np.where(denom > 0, denom, 1.0),
-        0.0,
-    )
-    s = np.clip(s, 0.0, 1.0)
-    t = np.where(pb_ok, (b * s + f) / e_s, 0.0)
-    low, high = t < 0.0, t > 1.0
-    t = np.clip(t, 0.0, 1.0)
-    s = np.where(general & low, np.clip(-c / a_s, 0.0, 1.0), s)
-    s = np.where(general & high, np.clip((b - c) / a_s, 0.0, 1.0), s)
-    # one segment degenerate to a point
-    s = np.where(pa_ok & ~pb_ok, np.clip(-c / a_s, 0.0, 1.0), s)
-    t = np.where(~pa_ok & pb_ok, np.clip(f / e_s, 0.0, 1.0), t)
-    s = np.where(pa_ok, s, 0.0)
-    pa = a0 + s[:, None] * d1
-    pb = b0 + t[:, None] * d2
+    each), at their closest points
+    (:func:`reachwise.geometry.mesh_distance.segment_closest_parameters`, Ericson's
+    *Real-Time Collision Detection*, §5.1.9)."""
+    s, t = segment_closest_parameters(a0, a1, b0, b1)
+    pa = a0 + s[:, None] * (a1 - a0)
+    pb = b0 + t[:, None] * (b1 - b0)
     return np.asarray(np.linalg.norm(pa - pb, axis=1), dtype=float)
 
 
