@@ -164,6 +164,28 @@ def test_terms_equal_brute_force_distances() -> None:
             j += m
 
 
+def test_distances_without_gradients_equal_the_terms() -> None:
+    """The solver's trial merit (distances only) is the merit of the rows it keeps."""
+    from reachwise.synthesis.clearance_rows import merit, stacked_rows
+    from reachwise.synthesis.solvers import row_weights
+
+    rng = np.random.default_rng(11)
+    robot = _with_bodies(load_robot("sb60"), _tilted_box())
+    problem = _problem(robot, K=5)
+    model = ClearanceModel(robot, TUNNEL, 0.4)
+    wx = row_weights(problem)
+    on = 0
+    for _ in range(4):
+        z = _random_z(problem, rng)
+        d = model.distances(problem, z)
+        assert np.array_equal(d, model.terms(problem, z).distance)
+        ev = problem.evaluate(z)
+        rows = stacked_rows(problem, ev, wx, z, model)
+        on += int(rows.active[:, 6:].sum())
+        assert merit(problem, ev, wx, z, model) == pytest.approx(rows.cost, rel=1e-12)
+    assert on > 0  # some clearance rows were on
+
+
 def test_box_signed_distance_known_values() -> None:
     half = np.array([[1.0, 2.0, 3.0]])
     x = np.array([[[2.0, 0.0, 0.0]], [[0.5, 0.0, 0.0]], [[2.0, 3.0, 3.0]]])

@@ -291,32 +291,55 @@ class ClearanceModel:
         """Every term's clearance and gradient at ``z`` (module docstring)."""
         pts, F, _ = self.anchor_points(problem, z)
         Jd, Jq = self._anchor_jacobians(problem, F, pts)
-        dist, gd, gq = [], [], []
+        D, GD, GQ = self._evaluate(problem, pts, F, (Jd, Jq))
+        assert GD is not None and GQ is not None
+        return ClearanceTerms(D, GD, GQ, self.labels)
+
+    def distances(self, problem: SynthesisProblem, z: Array) -> Array:
+        """Every term's clearance ``(K, m)`` at ``z`` without the gradients: what a trial
+        step of the solver needs (the same values as ``terms``)."""
+        pts, F, _ = self.anchor_points(problem, z)
+        return self._evaluate(problem, pts, F, None)[0]
+
+    def _evaluate(
+        self, problem: SynthesisProblem, pts: Array, F: Array, jac: tuple[Array, Array] | None
+    ) -> tuple[Array, Array | None, Array | None]:
+        """Distances in label order and, given the anchor Jacobians ``jac``, their
+        gradients w.r.t. the design and the free joints."""
+        K = pts.shape[0]
+        dist: list[Array] = []
+        gd: list[Array] = []
+        gq: list[Array] = []
         if self.envelope is not None:
             idx = [e for part in self.parts for e in part.env_ends]
             rad = np.array([part.radius for part in self.parts for _ in part.env_ends])
             P = pts[:, idx].reshape(-1, 3)
-            s, g = self.envelope.signed_distance_and_gradient(P)
-            K, m = pts.shape[0], len(idx)
-            g = g.reshape(K, m, 3)
-            dist.append(s.reshape(K, m) - rad)
-            gd.append(np.einsum("kmi,kmia->kma", g, Jd[:, idx]))
-            gq.append(np.einsum("kmi,kmia->kma", g, Jq[:, idx]))
+            m = len(idx)
+            if jac is None:
+                dist.append(self.envelope.signed_distance(P).reshape(K, m) - rad)
+            else:
+                s, g = self.envelope.signed_distance_and_gradient(P)
+                g = g.reshape(K, m, 3)
+                dist.append(s.reshape(K, m) - rad)
+                gd.append(np.einsum("kmi,kmia->kma", g, jac[0][:, idx]))
+                gq.append(np.einsum("kmi,kmia->kma", g, jac[1][:, idx]))
         seg = [(a, b) for a, b in self._part_pairs if self.parts[b].kind == "segment"]
         box = [(a, b) for a, b in self._part_pairs if self.parts[b].kind == "box"]
         for pairs, fn in ((seg, self._segment_pairs), (box, self._box_pairs)):
             if pairs:
-                d, a, b = fn(problem, pairs, pts, F, Jd, Jq)
+                d, a, b = fn(problem, pairs, pts, F, jac)
                 dist.append(d)
-                gd.append(a)
-                gq.append(b)
-        K = pts.shape[0]
+                if a is not None and b is not None:
+                    gd.append(a)
+                    gq.append(b)
         # terms in label order: environment, then the part pairs in _part_pairs order
         order = self._pair_order(seg, box)
         D = np.concatenate(dist, axis=1) if dist else np.zeros((K, 0))
+        if jac is None:
+            return D[:, order], None, None
         GD = np.concatenate(gd, axis=1) if gd else np.zeros((K, 0, problem.p))
         GQ = np.concatenate(gq, axis=1) if gq else np.zeros((K, 0, problem.n_free_joints))
-        return ClearanceTerms(D[:, order], GD[:, order], GQ[:, order], self.labels)
+        return D[:, order], GD[:, order], GQ[:, order]
 
     def _pair_order(
         self, seg: list[tuple[int, int]], box: list[tuple[int, int]]
@@ -333,9 +356,8 @@ class ClearanceModel:
         pairs: list[tuple[int, int]],
         pts: Array,
         F: Array,
-        Jd: Array,
-        Jq: Array,
-    ) -> tuple[Array, Array, Array]:
+        jac: tuple[Array, Array] | None,
+    ) -> tuple[Array, Array | None, Array | None]:
         K = pts.shape[0]
         a0 = [self.parts[a].ends[0] for a, _ in pairs]
         a1 = [self.parts[a].ends[1] for a, _ in pairs]
@@ -345,17 +367,22 @@ class ClearanceModel:
         A0, A1, B0, B1 = (pts[:, i].reshape(-1, 3) for i in (a0, a1, b0, b1))
         s, t = segment_closest_parameters(A0, A1, B0, B1)
         diff = (A0 + s[:, None] * (A1 - A0)) - (B0 + t[:, None] * (B1 - B0))
-        nrm = np.linalg.norm(diff, axis=1)
-        n = np.where(nrm[:, None] > 1e-15, diff / np.where(nrm > 1e-15, nrm, 1.0)[:, None], 0.0)
+        nrm = np.sqrt(np.einsum("ij,ij->i", diff, diff))
         m = len(pairs)
+        if jac is None:
+            return nrm.reshape(K, m) - rad, None, None
+        n = np.where(nrm[:, None] > 1e-15, diff / np.where(nrm > 1e-15, nrm, 1.0)[:, None], 0.0)
         s, t, n = s.reshape(K, m, 1), t.reshape(K, m, 1), n.reshape(K, m, 3)
 
         def grad(J: Array) -> Array:
-            Ja = (1 - s)[..., None] * J[:, a0] + s[..., None] * J[:, a1]
-            Jb = (1 - t)[..., None] * J[:, b0] + t[..., None] * J[:, b1]
-            return np.einsum("kmi,kmia->kma", n, Ja - Jb)
+            # nᵀ J interpolated along both segments: contract the normal first
+            nJ0 = np.einsum("kmi,kmia->kma", n, J[:, a0])
+            nJ1 = np.einsum("kmi,kmia->kma", n, J[:, a1])
+            nK0 = np.einsum("kmi,kmia->kma", n, J[:, b0])
+            nK1 = np.einsum("kmi,kmia->kma", n, J[:, b1])
+            return np.asarray((1 - s) * nJ0 + s * nJ1 - (1 - t) * nK0 - t * nK1)
 
-        return nrm.reshape(K, m) - rad, grad(Jd), grad(Jq)
+        return nrm.reshape(K, m) - rad, grad(jac[0]), grad(jac[1])
 
     def _box_pairs(
         self,
@@ -363,9 +390,8 @@ class ClearanceModel:
         pairs: list[tuple[int, int]],
         pts: Array,
         F: Array,
-        Jd: Array,
-        Jq: Array,
-    ) -> tuple[Array, Array, Array]:
+        jac: tuple[Array, Array] | None,
+    ) -> tuple[Array, Array | None, Array | None]:
         K, m = pts.shape[0], len(pairs)
         a0 = [self.parts[a].ends[0] for a, _ in pairs]
         a1 = [self.parts[a].ends[1] for a, _ in pairs]
@@ -383,8 +409,10 @@ class ClearanceModel:
             return box_signed_distance(la + tt[..., None] * (lb - la), half)[0]
 
         t = _golden_min(along, (K, m))
-        X = A + t[..., None] * (B - A)
         phi, g_local = box_signed_distance(la + t[..., None] * (lb - la), half)
+        if jac is None:
+            return phi - rad, None, None
+        X = A + t[..., None] * (B - A)
         g = np.einsum("kmij,kmj->kmi", R, g_local)
         Jx_d, Jx_q = attached_point_jacobians(problem, F, frames, X)
         tt = t[..., None, None]
@@ -393,7 +421,7 @@ class ClearanceModel:
             Ja = (1 - tt) * J[:, a0] + tt * J[:, a1]
             return np.einsum("kmi,kmia->kma", g, Ja - Jx)
 
-        return phi - rad, grad(Jd, Jx_d), grad(Jq, Jx_q)
+        return phi - rad, grad(jac[0], Jx_d), grad(jac[1], Jx_q)
 
 
 def box_signed_distance(x: Array, half: Array) -> tuple[Array, Array]:

@@ -95,6 +95,42 @@ def stacked_rows(
     )
 
 
+def pose_merits(
+    problem: SynthesisProblem,
+    ev: Evaluation,
+    wx: Array,
+    z: Array,
+    model: ClearanceModel | None,
+    band: float = CLEARANCE_BAND,
+) -> Array:
+    """Each pose's share ``(K,)`` of ``stacked_rows(...).cost``, from the distances alone
+    (without the gradients of the clearance terms): a pose's rows depend on the design
+    and its own joints only, so given the design the poses' shares are independent."""
+    e = ev.e * wx
+    out = 0.5 * np.sum(e * e, axis=1)
+    if model is None:
+        return np.asarray(out)
+    ec = np.maximum(model.clearance + band - model.distances(problem, z), 0.0)
+    return np.asarray(out + 0.5 * np.sum(ec * ec, axis=1))
+
+
+def merit(
+    problem: SynthesisProblem,
+    ev: Evaluation,
+    wx: Array,
+    z: Array,
+    model: ClearanceModel | None,
+    band: float = CLEARANCE_BAND,
+) -> float:
+    """``stacked_rows(...).cost`` without the gradients of the clearance terms: the
+    merit of a trial step, which the solver keeps only if it lowers the merit (the
+    rows of an accepted step are built once, by ``stacked_rows``)."""
+    if model is None:  # the reach-only merit, summed as ``Rows.cost`` sums it
+        e = ev.e * wx
+        return 0.5 * float(np.sum(e * e))
+    return float(np.sum(pose_merits(problem, ev, wx, z, model, band)))
+
+
 def clearance_motion(
     terms: ClearanceTerms, clearance: float, gain: float, band: float = MOTION_BAND
 ) -> tuple[Array, Array] | None:

@@ -48,7 +48,13 @@ from numpy.typing import NDArray
 from reachwise.kinematics.dls import EPSILON_SOLVER, LAMBDA_MAX, damping_squared
 from reachwise.synthesis.active_set import bounded_step
 from reachwise.synthesis.clearance import ClearanceModel
-from reachwise.synthesis.clearance_rows import Rows, clearance_motion, stacked_rows
+from reachwise.synthesis.clearance_rows import (
+    Rows,
+    clearance_motion,
+    merit,
+    pose_merits,
+    stacked_rows,
+)
 from reachwise.synthesis.linalg import (
     BlockSystem,
     null_space_project,
@@ -211,8 +217,7 @@ def solve_dls(
             for _ in range(5):
                 z_try = np.clip(z + alpha * step, lo, hi)
                 ev_try = problem.evaluate(z_try)
-                rows_try = stacked_rows(problem, ev_try, wx, z_try, clearance)
-                c_try = rows_try.cost
+                c_try = merit(problem, ev_try, wx, z_try, clearance)
                 if c_try < cost or (step is not task_step and c_try <= cost * 1.000001 + 1e-12):
                     accepted = True
                     break
@@ -221,7 +226,8 @@ def solve_dls(
                 break
         release = not accepted or c_try > cost * (1 - opt.stall_decrease)
         if accepted:
-            z, ev, cost, rows = z_try, ev_try, c_try, rows_try
+            z, ev, cost = z_try, ev_try, c_try
+            rows = stacked_rows(problem, ev, wx, z, clearance)
             boost = boost / 4.0 if alpha == 1.0 else boost
         else:
             boost = min(max(4.0 * boost, 1e-6), opt.max_boost)
@@ -237,6 +243,8 @@ def solve_dls(
             # while the iteration converges on its own
             slow = cost > (1.0 - opt.reseed_progress) * window_start
             z2 = reseed_points(problem, z, ev, rng, opt.reseed_restarts) if slow else None
+            if z2 is not None and clearance is not None:
+                z2 = _keep_clearer(problem, z, ev, z2, wx, clearance)
             if z2 is not None:
                 ev2 = problem.evaluate(z2)
                 rows2 = stacked_rows(problem, ev2, wx, z2, clearance)
@@ -277,6 +285,28 @@ def _capped(step: Array, caps: Array, p: int, K: int, nf: int) -> tuple[Array, f
     rq = np.maximum(1.0, r[p:].reshape(K, nf).max(axis=1))
     out = np.concatenate([step[:p] / rd, (step[p:].reshape(K, nf) / rq[:, None]).ravel()])
     return out, max(rd, float(rq.max(initial=1.0)))
+
+
+def _keep_clearer(
+    problem: SynthesisProblem,
+    z: Array,
+    ev: Evaluation,
+    z2: Array,
+    wx: Array,
+    clearance: ClearanceModel,
+) -> Array | None:
+    """``z2`` (re-seeded joints, same design as ``z``) with each pose's joints kept only
+    where they lower that pose's share of the merit, clearance rows included: the IK of
+    ``reseed_points`` knows the task only, and joints that reach a pose through a body
+    would raise the merit and undo the solver's progress. None if no pose gained."""
+    before = pose_merits(problem, ev, wx, z, clearance)
+    after = pose_merits(problem, problem.evaluate(z2), wx, z2, clearance)
+    better = after < before
+    if not better.any():
+        return None
+    p, nf = problem.p, problem.n_free_joints
+    Q = np.where(better[:, None], z2[p:].reshape(-1, nf), z[p:].reshape(-1, nf))
+    return np.concatenate([z[:p], Q.ravel()])
 
 
 def reseed_points(
