@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -13,57 +14,134 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 from reachwise.cli._help import builtins
-from reachwise.cli._robot_options import LENIENT, PACKAGE_DIRS, TIP, load_with_options
+from reachwise.cli._options import cli, typed_command
+from reachwise.cli._robot_options import RobotFileOptions
 
 if TYPE_CHECKING:
     from reachwise.cli.interrupts import Interrupts
 
 
+@dataclass(frozen=True)
+class DesignProblem:
+    """The synthesis problem: the ``task`` and the template ``robot`` (files or
+    built-in names), the joint variables locked (``lock``, indices), the tunnel
+    envelope kept (``tunnel``), the shortest free a, d (``min_length``, m) and the
+    bodies' clearance (``clearance``, m; ``None``: the robot file's)."""
+
+    #: Task file or built-in task name.
+    task: str = cli(
+        typer.Option(..., "--task", help=f"Task file or built-in task ({builtins('tasks')}).")
+    )
+    #: Template robot with a design section.
+    robot: str = cli(typer.Option(..., "--robot", help="Template robot with a design section."))
+    #: Joint variable indices locked.
+    lock: list[int] = cli(typer.Option([], "--lock", help="Lock joint variable INDEX (repeat)."))
+    #: Keep links inside the task's tunnel envelope.
+    tunnel: bool = cli(
+        typer.Option(
+            True, "--tunnel/--no-tunnel", help="Keep links inside the task's tunnel envelope."
+        )
+    )
+    #: Every free a, d at least this long (m); ``None``: the robot file's.
+    min_length: float | None = cli(
+        typer.Option(
+            None,
+            "--min-length",
+            min=0.0,
+            help="Every free a, d at least this long (m); overrides design.min_length.",
+        )
+    )
+    #: Bodies kept this far apart and from the tunnel (m); ``None``: the robot file's.
+    clearance: float | None = cli(
+        typer.Option(
+            None,
+            "--clearance",
+            min=0.0,
+            help="Keep the robot file's design bodies at least this far apart and from the "
+            "tunnel at every pose (m; 0: off); overrides design.clearance.",
+        )
+    )
+
+
+@dataclass(frozen=True)
+class MultiStart:
+    """The solves: ``runs`` multi-start runs with ``solver`` (``dls`` or ``trf``), run
+    i seeded ``seed + i``."""
+
+    #: Multi-start runs.
+    runs: int = cli(typer.Option(10, "--runs", min=1, help="Multi-start runs (own seeds)."))
+    #: dls (thesis) or trf (scipy).
+    solver: str = cli(typer.Option("dls", "--solver", help="dls (thesis) or trf (scipy)."))
+    #: Seed of the first run; run i uses seed + i.
+    seed: int = cli(typer.Option(0, "--seed", help="Seed of the first run; run i uses seed+i."))
+
+
+@dataclass(frozen=True)
+class DesignObjective:
+    """After reach: the weighted ``objective`` to improve (``None``: the robot file's),
+    or the two objectives of a ``pareto`` sweep over ``points`` weightings."""
+
+    #: Weighted objectives, e.g. gci:1,size:0.2; ``None``: the robot file's.
+    objective: str | None = cli(
+        typer.Option(
+            None,
+            "--objective",
+            help="After reach, improve the design: weighted objectives, e.g. gci:1,size:0.2 "
+            "(gci, kci, size, limits, bounds). Default: the robot file's design.objective.",
+        )
+    )
+    #: Two objectives of a Pareto sweep, e.g. gci,size; ``None``: none.
+    pareto: str | None = cli(
+        typer.Option(
+            None,
+            "--pareto",
+            help="Two objectives, e.g. gci,size: sweep their weights from the "
+            "best reach-only design and keep the non-dominated designs (pareto/).",
+        )
+    )
+    #: Weightings of the Pareto sweep.
+    points: int = cli(typer.Option(8, "--points", min=2, help="Weightings of the --pareto sweep."))
+
+
+@dataclass(frozen=True)
+class SynthesisOutput:
+    """Where the result goes: the ``out`` folder, PNG ``figures`` and JSON on stdout
+    (``json_out``) instead of tables."""
+
+    #: Output folder.
+    out: Path = cli(typer.Option(..., "--out", help="Output folder."))
+    #: Write PNG figures.
+    figures: bool = cli(typer.Option(True, "--figures/--no-figures", help="Write PNG figures."))
+    #: Print the summary as JSON.
+    json_out: bool = cli(typer.Option(False, "--json", help="Print the summary as JSON."))
+
+
+@typed_command(
+    order=(
+        "task",
+        "robot",
+        "out",
+        "runs",
+        "solver",
+        "seed",
+        "lock",
+        "tunnel",
+        "figures",
+        "objective",
+        "pareto",
+        "points",
+        "min_length",
+        "clearance",
+        "json_out",
+        "tip",
+        "package_dir",
+        "lenient",
+    )
+)
 def synth(
-    task: str = typer.Option(
-        ..., "--task", help=f"Task file or built-in task ({builtins('tasks')})."
-    ),
-    robot: str = typer.Option(..., "--robot", help="Template robot with a design section."),
-    out: Path = typer.Option(..., "--out", help="Output folder."),
-    runs: int = typer.Option(10, "--runs", min=1, help="Multi-start runs (own seeds)."),
-    solver: str = typer.Option("dls", "--solver", help="dls (thesis) or trf (scipy)."),
-    seed: int = typer.Option(0, "--seed", help="Seed of the first run; run i uses seed+i."),
-    lock: list[int] = typer.Option([], "--lock", help="Lock joint variable INDEX (repeat)."),
-    tunnel: bool = typer.Option(
-        True, "--tunnel/--no-tunnel", help="Keep links inside the task's tunnel envelope."
-    ),
-    figures: bool = typer.Option(True, "--figures/--no-figures", help="Write PNG figures."),
-    objective: str | None = typer.Option(
-        None,
-        "--objective",
-        help="After reach, improve the design: weighted objectives, e.g. gci:1,size:0.2 "
-        "(gci, kci, size, limits, bounds). Default: the robot file's design.objective.",
-    ),
-    pareto: str | None = typer.Option(
-        None,
-        "--pareto",
-        help="Two objectives, e.g. gci,size: sweep their weights from the "
-        "best reach-only design and keep the non-dominated designs (pareto/).",
-    ),
-    points: int = typer.Option(8, "--points", min=2, help="Weightings of the --pareto sweep."),
-    min_length: float | None = typer.Option(
-        None,
-        "--min-length",
-        min=0.0,
-        help="Every free a, d at least this long (m); overrides design.min_length.",
-    ),
-    clearance: float | None = typer.Option(
-        None,
-        "--clearance",
-        min=0.0,
-        help="Keep the robot file's design bodies at least this far apart and from the "
-        "tunnel at every pose (m; 0: off); overrides design.clearance.",
-    ),
-    json_out: bool = typer.Option(False, "--json", help="Print the summary as JSON."),
-    tip: str | None = TIP,
-    package_dir: list[Path] = PACKAGE_DIRS,
-    lenient: bool = LENIENT,
-) -> None:
+    design: DesignProblem, starts: MultiStart, goal: DesignObjective, output: SynthesisOutput,
+    robot_file: RobotFileOptions,
+) -> None:  # fmt: skip
     """Find design parameters, base frame and joints reaching every task pose (P-I),
     then, with --objective, the best reaching design (or a Pareto front, --pareto).
 
@@ -76,28 +154,26 @@ def synth(
         from reachwise.errors import check_choice
         from reachwise.synthesis.synthesize import SOLVERS
 
-        solver_name = check_choice(solver, SOLVERS, source="--solver", kind="solver")
-        if pareto is not None and objective is not None:
+        solver_name = check_choice(starts.solver, SOLVERS, source="--solver", kind="solver")
+        if goal.pareto is not None and goal.objective is not None:
             raise typer.BadParameter("give --objective or --pareto, not both")
-        names = _pareto_names(pareto) if pareto is not None else None
-        problem, weights, workspace, bodies = _problem(
-            task, robot, tip, package_dir, lenient, min_length, objective, lock, tunnel,
-            clearance,
-        )  # fmt: skip
+        names = _pareto_names(goal.pareto) if goal.pareto is not None else None
+        problem, weights, workspace, bodies = _problem(design, robot_file, goal.objective)
         if names is not None:
             weights = {}  # the sweep starts from the reach-only design
         done = _runs(
-            problem, runs, seed, solver_name, workspace, weights, interrupts, json_out, bodies[0]
-        )
+            problem, starts.runs, starts.seed, solver_name, workspace, weights, interrupts,
+            output.json_out, bodies[0],
+        )  # fmt: skip
         if not done:
             Console(stderr=True).print("interrupted before the first run finished: nothing written")
             raise typer.Exit(130)
         data = _write(
-            problem, done, solver_name, weights, names, points, workspace, out, figures,
-            json_out, interrupts, bodies,
+            problem, done, solver_name, weights, (names, goal.points), workspace, output,
+            interrupts, bodies,
         )  # fmt: skip
     result = data.pop("_result")
-    if json_out:
+    if output.json_out:
         typer.echo(json.dumps(data, indent=2))
     else:
         _print(result, data)
@@ -106,10 +182,8 @@ def synth(
 
 
 def _problem(
-    task: str, robot: str, tip: str | None, package_dir: list[Path], lenient: bool,
-    min_length: float | None, objective: str | None, lock: list[int], tunnel: bool,
-    clearance: float | None = None,
-) -> tuple[Any, dict[str, float], Any, tuple[Any, tuple[Any, ...]]]:  # fmt: skip
+    design: DesignProblem, robot_file: RobotFileOptions, objective: str | None
+) -> tuple[Any, dict[str, float], Any, tuple[Any, tuple[Any, ...]]]:
     """The synthesis problem of the task and template files, the objective's weights,
     the workspace (the task's tunnel envelope, or ``None``) and the bodies' clearance
     model with the poses it leaves out (``clearance_setup``; the problem's task is
@@ -121,18 +195,18 @@ def _problem(
     from reachwise.synthesis.problem import SynthesisProblem, locked_from_spec
     from reachwise.synthesis.synthesize import clearance_setup
 
-    t = load_task(task)
-    template = load_with_options(robot, tip, package_dir, lenient)
-    if min_length is not None:
-        template = replace(template, design=replace(template.design, min_length=min_length))
+    t = load_task(design.task)
+    template = robot_file.load(design.robot)
+    if design.min_length is not None:
+        template = replace(template, design=replace(template.design, min_length=design.min_length))
     weights = (
-        check_objective(template.design.objective, robot)
+        check_objective(template.design.objective, design.robot)
         if objective is None
         else parse_objective(objective)
     )
-    workspace = t.envelope if tunnel else None
-    model, t, unservable = clearance_setup(template, t, workspace, clearance)
-    problem = SynthesisProblem(template, t, locked_from_spec(template, lock or None))
+    workspace = t.envelope if design.tunnel else None
+    model, t, unservable = clearance_setup(template, t, workspace, design.clearance)
+    problem = SynthesisProblem(template, t, locked_from_spec(template, design.lock or None))
     return problem, weights, workspace, (model, unservable)
 
 
@@ -167,24 +241,33 @@ def _runs(
 
 def _write(
     problem: Any, done: list[Any], solver: Any, weights: dict[str, float],
-    names: tuple[str, str] | None, points: int, workspace: Any, out: Path, figures: bool,
-    quiet: bool, interrupts: Interrupts, bodies: tuple[Any, tuple[Any, ...]] = (None, ()),
+    sweep: tuple[tuple[str, str] | None, int], workspace: Any, output: SynthesisOutput,
+    interrupts: Interrupts, bodies: tuple[Any, tuple[Any, ...]] = (None, ()),
 ) -> dict[str, Any]:  # fmt: skip
-    """Write the finished runs (and, if not interrupted, the Pareto sweep) into ``out``;
-    the summary data (with the result under ``_result``)."""
+    """Write the finished runs (and, if not interrupted, the Pareto sweep of
+    ``sweep = (objective names, weightings)``) into ``output.out``; the summary data
+    (with the result under ``_result``)."""
     from reachwise.report.synthesis import save_synthesis_figures, write_synthesis_report
     from reachwise.results.synthesis_out import summary, write_synthesis
     from reachwise.synthesis.synthesize import result_of
 
     result = result_of(problem, done, solver, weights, bodies[1], bodies[0])
-    folder = write_synthesis(result, out)
-    pngs = save_synthesis_figures(result, folder) if figures else False
+    folder = write_synthesis(result, output.out)
+    pngs = save_synthesis_figures(result, folder) if output.figures else False
+    names, points = sweep
     extra = []
     front = None
     if names is not None and not interrupts.requested:
         try:
             front, section = _pareto(
-                result, names, points, workspace, folder, figures, quiet, interrupts.check
+                result,
+                names,
+                points,
+                workspace,
+                folder,
+                output.figures,
+                output.json_out,
+                interrupts.check,
             )
         except KeyboardInterrupt:
             section = None
