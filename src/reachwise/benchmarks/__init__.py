@@ -16,6 +16,7 @@ REGISTRY: dict[str, str] = {
     "pairs": "reachwise.benchmarks.pairs",
     "server": "reachwise.benchmarks.server",
     "realtime": "reachwise.benchmarks.realtime",
+    "realtime-memory": "reachwise.benchmarks.realtime_memory",
     "replay": "reachwise.benchmarks.replay",
     "memory": "reachwise.benchmarks.memory",
 }

@@ -74,6 +74,7 @@ import importlib
 import math
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -164,18 +165,38 @@ def _ray_room(o: Any, d: Any) -> Any:
     return t.min(axis=1)
 
 
+def camera_pose() -> tuple[NDArray[np.float64], float]:
+    """The camera's optical frame (x right, y down, z forward) → world, and its focal
+    length (pixels): 640×480 pixels, 60° wide, pixel ``(u, v)`` looking along
+    ``(u − 319.5, v − 239.5, f)``."""
+    fwd = CAMERA_LOOKS_AT - CAMERA_AT
+    fwd /= np.linalg.norm(fwd)
+    right = np.cross(fwd, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, fwd)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([right, -up, fwd])
+    T[:3, 3] = CAMERA_AT
+    return T, 0.5 * CAMERA_SIZE[0] / math.tan(math.radians(30.0))
+
+
+def camera_depth(k: int, seed: int = 5) -> NDArray[np.float64]:
+    """Frame ``k`` of :func:`camera_frame` as the camera's depth image (480 × 640, m
+    along the optical axis of :func:`camera_pose`)."""
+    T, _ = camera_pose()
+    pts = camera_frame(k, seed).astype(np.float64)
+    depth = (pts - CAMERA_AT) @ T[:3, 2]
+    return depth.reshape(CAMERA_SIZE[1], CAMERA_SIZE[0])
+
+
 def camera_frame(k: int, seed: int = 5) -> NDArray[np.float32]:
     """Depth frame ``k``: 640×480 pinhole rays (60° wide) from :data:`CAMERA_AT`, the
     first hit of each in the room, the table, the shelf's plates or a person (a 0.2 m
     radius, 1.75 m cylinder approximated by its bounding box) walking past, 4 mm noise;
     every ray hits (the room is closed): 307 200 points, float32 as a camera gives them."""
     w, h = CAMERA_SIZE
-    fwd = CAMERA_LOOKS_AT - CAMERA_AT
-    fwd /= np.linalg.norm(fwd)
-    right = np.cross(fwd, [0.0, 0.0, 1.0])
-    right /= np.linalg.norm(right)
-    up = np.cross(right, fwd)
-    f = 0.5 * w / math.tan(math.radians(30.0))
+    T, f = camera_pose()
+    right, up, fwd = T[:3, 0], -T[:3, 1], T[:3, 2]
     u, v = np.meshgrid(np.arange(w) - w / 2 + 0.5, np.arange(h) - h / 2 + 0.5)
     d = fwd * f + right * u.reshape(-1, 1) - up * v.reshape(-1, 1)
     d /= np.linalg.norm(d, axis=1, keepdims=True)
@@ -294,7 +315,7 @@ def _arm() -> tuple[_Arm, str]:
 
 
 def loop_scene(
-    room: NDArray[np.float64], camera: NDArray[np.float32]
+    room: NDArray[np.float64], camera: NDArray[np.floating[Any]]
 ) -> tuple[_Arm, SceneConverter, str]:
     """The loop's world: the arm (:func:`_arm`), the ``room`` scan and a first
     ``camera`` frame, links 1–7 watched against both at :data:`MARGIN` (the base stands
@@ -334,9 +355,21 @@ def thread_counters() -> tuple[Any, bool]:
     return switches, True
 
 
-def _loop(rep: BenchReport, quick: bool) -> None:
-    frames = [camera_frame(k) for k in range(FRAMES)]
-    arm, converter, which = loop_scene(room_points(), frames[0])
+#: What the camera thread hands over: ``feed(scene, k, stamp)`` puts frame ``k`` (taken
+#: at ``stamp``, s) into the scene's ``camera`` object.
+CameraFeed = Callable[[Scene, int, float], None]
+
+
+def _loop(
+    rep: BenchReport,
+    quick: bool,
+    feed: CameraFeed | None = None,
+    first: NDArray[np.float64] | None = None,
+) -> None:
+    """The 1 kHz loop (module docstring, 2.); ``feed`` replaces the camera thread's
+    hand-over of each frame's points, ``first`` the first frame's points."""
+    frames = [camera_frame(k) for k in range(FRAMES)] if feed is None else []
+    arm, converter, which = loop_scene(room_points(), frames[0] if first is None else first)
     scene, robot = arm.scene, arm.robot
     ctrl = arm.controller
     q = arm.q.copy()
@@ -362,9 +395,11 @@ def _loop(rep: BenchReport, quick: bool) -> None:
             pause = due - time.perf_counter()
             if pause > 0:
                 time.sleep(pause)
-            frame = frames[k % FRAMES]
             t0 = time.perf_counter()
-            scene.replace_cloud("camera", frame, stamp=t0 - start)
+            if feed is None:
+                scene.replace_cloud("camera", frames[k % FRAMES], stamp=t0 - start)
+            else:
+                feed(scene, k, t0 - start)
             handoff.append((time.perf_counter() - t0) * 1e6)
             k += 1
 
