@@ -277,10 +277,12 @@ def _drive(
     cloud_of = [b for _, b in pairs]
     ts: list[float] = []
     qs: list[F64] = []
-    dist: list[F64] = []
+    rows: list[F64] = []  # each frame's (P, 7) distance and closest points
+    masks: list[NDArray[np.bool_]] = []  # the pairs whose cloud has arrived
     stamps: list[F64] = []
-    pa: list[F64] = []
-    pb: list[F64] = []
+    versions: Mapping[str, int] | None = None
+    fresh = np.zeros(len(cloud_of), dtype=bool)
+    stamp_row = np.full(len(cloud_of), math.nan)
     memory = None
     if spec.memory is not None and spec.memory_box is not None:
         memory = SceneMemory(spec.memory_box[0], spec.memory_box[1], spec.memory)
@@ -316,34 +318,30 @@ def _drive(
                 continue
             last = t
             res = scene.query_all()
-            r = res.rows
-            versions = res.versions
-            fresh = np.array([versions.get(c, 0) > 0 for c in cloud_of])
+            if res.versions is not versions:  # a cloud was swapped in: new masks
+                versions = res.versions
+                fresh = np.array([versions.get(c, 0) > 0 for c in cloud_of])
+                stamp_row = np.array([res.cloud_stamps.get(c, math.nan) if f else math.nan
+                                      for c, f in zip(cloud_of, fresh, strict=True)])  # fmt: skip
+                for c in objects:
+                    v = versions.get(c, 0)
+                    if v > 0:
+                        seen[c].add(v)
             ts.append(t)
             qs.append(q)
-            dist.append(np.where(fresh, r[:, 0], np.nan))
-            stamps.append(
-                np.array([res.cloud_stamps.get(c, math.nan) if f else math.nan
-                          for c, f in zip(cloud_of, fresh, strict=True)])
-            )  # fmt: skip
-            pa.append(np.where(fresh[:, None], r[:, 1:4], np.nan))
-            pb.append(np.where(fresh[:, None], r[:, 4:7], np.nan))
-            for c in objects:
-                v = versions.get(c, 0)
-                if v > 0:
-                    seen[c].add(v)
-    P = len(pairs)
-
-    def stack(rows: list[F64], *shape: int) -> F64:
-        return np.array(rows, dtype=np.float64).reshape(len(ts), *shape)
-
+            rows.append(res.rows[:, :7])  # a fresh, read-only array per query
+            masks.append(fresh)
+            stamps.append(stamp_row)
+    F, P = len(ts), len(pairs)
+    R = np.array(rows, dtype=np.float64).reshape(F, P, 7)
+    fresh_all = np.array(masks, dtype=bool).reshape(F, P)
     return (
         np.array(ts, dtype=np.float64),
-        np.array(qs, dtype=np.float64).reshape(len(ts), len(matcher.names)),
-        stack(dist, P),
-        stack(stamps, P),
-        stack(pa, P, 3),
-        stack(pb, P, 3),
+        np.array(qs, dtype=np.float64).reshape(F, len(matcher.names)),
+        np.where(fresh_all, R[..., 0], np.nan),
+        np.array(stamps, dtype=np.float64).reshape(F, P),
+        np.where(fresh_all[..., None], R[..., 1:4], np.nan),
+        np.where(fresh_all[..., None], R[..., 4:7], np.nan),
         {c: len(v) for c, v in seen.items()},
     )
 
