@@ -262,6 +262,34 @@ def _code(raw: bytes, limits: P.Limits = LIMITS) -> tuple[P.ErrorCode, str]:
             "body.robot.blob",
         ),
         (_raw("describe", {"clouds": "yes"}), E.WRONG_TYPE, "body.clouds"),
+        # the checks the messages' type hints make: names, finite stamps and joint
+        # values, pose shapes, unknown and missing fields, list entries
+        (
+            _raw("add_object", {"name": "a\x00b", "cloud": _arr(np.zeros((2, 3)))}),
+            E.WRONG_TYPE,
+            "body.name",
+        ),
+        (
+            _raw(
+                "add_object",
+                {"name": "p", "cloud": _arr(np.zeros((2, 3))), "pose": _arr(np.eye(3))},
+            ),
+            E.WRONG_SHAPE,
+            "body.pose",
+        ),
+        (_raw("add_object", {"cloud": _arr(np.zeros((2, 3)))}), E.MISSING_FIELD, "body.name"),
+        (
+            _raw("add_robot", {"robot": {"name": "r"}, "q": _arr(np.array([np.nan]))}),
+            E.NON_FINITE,
+            "body.q",
+        ),
+        (
+            _raw("add_robot", {"robot": {"name": "r"}, "stamp": math.inf}),
+            E.NON_FINITE,
+            "body.stamp",
+        ),
+        (_raw("add_robot", {"robot": {"name": "r"}, "colour": 1}), E.UNKNOWN_FIELD, "body.colour"),
+        (_raw("hello", {"client": "t", "versions": [1, "2"]}), E.WRONG_TYPE, "body.versions[1]"),
     ],
 )
 def test_bad_requests_are_typed_errors(raw: bytes, code: P.ErrorCode, field: str) -> None:
