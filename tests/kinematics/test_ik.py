@@ -99,3 +99,24 @@ def test_bad_target() -> None:
     robot = load_robot("panda")
     with pytest.raises(InputError, match="ik target"):
         robot.ik(np.full((4, 4), np.nan))
+
+
+def test_options_group_and_keywords_are_one_setting() -> None:
+    """IKOptions is the typed group of solve_ik's settings; each field is also a keyword
+    (the documented call), and a keyword overrides the group."""
+    from reachwise.kinematics.ik import IKOptions, solve_ik
+
+    robot = load_robot("puma560")
+    T = robot.fk(np.full(robot.n, 0.3))
+    loose = IKOptions(tol_position=1e-3, tol_orientation=1e-3, max_iter=1, restarts=0)
+    by_group = solve_ik(robot, T, options=loose)
+    by_keywords = solve_ik(
+        robot, T, tol_position=1e-3, tol_orientation=1e-3, max_iter=1, restarts=0
+    )
+    np.testing.assert_array_equal(by_group.q, by_keywords.q)
+    assert (by_group.iterations, by_group.attempts) == (by_keywords.iterations, 1)
+    assert by_group.iterations == 1 and not by_group.success  # one step from mid-range
+    longer = solve_ik(robot, T, options=loose, max_iter=50)  # the keyword wins
+    assert longer.success and longer.iterations > 1
+    with pytest.raises(TypeError, match="tol_postion"):
+        solve_ik(robot, T, tol_postion=1e-3)

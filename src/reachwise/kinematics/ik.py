@@ -21,7 +21,7 @@ drawn from the caller's generator until one attempt converges.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -96,6 +96,30 @@ def finite_limits(robot: KinematicModel) -> tuple[NDArray[np.float64], NDArray[n
     return lo, hi
 
 
+@dataclass(frozen=True)
+class IKOptions:
+    """How :func:`solve_ik` iterates: the tolerances of success, the iteration and
+    restart budget, the damping schedule of P-I Eq. 14 and the null-space goal of
+    Eq. 3.7. Every field is also a keyword of :func:`solve_ik`."""
+
+    #: Largest position error accepted (m).
+    tol_position: float = 1e-6
+    #: Largest orientation error accepted (rad).
+    tol_orientation: float = 1e-6
+    #: Iterations per attempt.
+    max_iter: int = 100
+    #: Attempts from random configurations after the first.
+    restarts: int = 50
+    #: Largest damping factor λ_max (P-I Eq. 14; m or rad, as the task error).
+    lambda_max: float = LAMBDA_MAX
+    #: Singular region: damping starts below this smallest singular value ε.
+    epsilon: float = EPSILON_SOLVER
+    #: Gain k of the null-space step towards mid-range (Eq. 3.7, dimensionless).
+    k_null: float = 0.05
+    #: Task error (m) at and above which λ_max applies in full; below, it scales down.
+    err_ref: float = 0.01
+
+
 def solve_ik(
     robot: KinematicModel,
     T: ArrayLike,
@@ -103,23 +127,21 @@ def solve_ik(
     mask: Any = None,
     rng: np.random.Generator | int | None = None,
     *,
-    tol_position: float = 1e-6,
-    tol_orientation: float = 1e-6,
-    max_iter: int = 100,
-    restarts: int = 50,
-    lambda_max: float = LAMBDA_MAX,
-    epsilon: float = EPSILON_SOLVER,
-    k_null: float = 0.05,
-    err_ref: float = 0.01,
+    options: IKOptions | None = None,
+    **overrides: Any,
 ) -> IKResult:
     """Solve ``fk(q) ≈ T`` for the task directions in ``mask``.
 
     ``q0`` is the first initial guess (default: mid-range); up to ``restarts`` further
     attempts start from random configurations drawn from ``rng`` (a Generator or seed;
     default seed 0, so results are reproducible). Returns the first attempt that
-    converges, else the best one with ``success=False``. ``lambda_max`` and ``epsilon``
-    set the damping schedule (``reachwise.kinematics.dls``).
+    converges, else the best one with ``success=False``. ``options`` (an
+    :class:`IKOptions`) sets the tolerances, budget and damping schedule
+    (``reachwise.kinematics.dls``); each of its fields may also be given as a keyword
+    (``tol_position=1e-4``), which overrides ``options``.
     """
+    opts = replace(options or IKOptions(), **overrides)
+    tol_position, tol_orientation = opts.tol_position, opts.tol_orientation
     Td = np.ascontiguousarray(check_pose(T, f"{robot.name}: ik target"))
     rows, axis_mode = task_rows(mask)
     if not (tol_position > 0 and tol_orientation > 0):
@@ -143,15 +165,16 @@ def solve_ik(
         IKSettings(
             tol_position=float(tol_position),
             tol_orientation=float(tol_orientation),
-            max_iter=int(max_iter),
-            lambda_max=float(lambda_max),
-            epsilon=float(epsilon),
-            k_null=float(k_null),
-            err_ref=float(err_ref),
+            max_iter=int(opts.max_iter),
+            lambda_max=float(opts.lambda_max),
+            epsilon=float(opts.epsilon),
+            k_null=float(opts.k_null),
+            err_ref=float(opts.err_ref),
         )
     )
     best = IKResult(start.copy(), False, np.inf, np.inf, 0, 0)
     total = 0
+    restarts = opts.restarts
     for attempt in range(restarts + 1):
         if attempt > 0:
             start = gen.uniform(lo, hi)
