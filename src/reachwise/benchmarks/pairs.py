@@ -1,7 +1,7 @@
 """``reachwise bench pairs``: automatic self-collision pairs of a real arm.
 
-The example-robot-data Panda (the ``robots`` extra), its link clouds (1000 points per
-link, 9 links, 36 pairs), margin 5 cm:
+The example-robot-data Panda (the ``robots`` extra), its link clouds (the default: each
+covers its shapes within 1 cm, about 10 000 points in all; 11 URDF links), margin 5 cm:
 
 - ``pairs.compute_s``: :func:`reachwise.distance.self_pairs.self_collision_pairs` with
   10 000 random configurations (``--quick``: 1 000) — batched FK, capsule bounds, exact
@@ -81,6 +81,7 @@ def run(quick: bool = False) -> BenchReport:
     watched = set(found.watched)
     close = [p for p, e in zip(others, events, strict=True) if e > 0]
     caught = sum(int(e) for p, e in zip(others, events, strict=True) if p in watched)
+    rep.metrics["pairs.cloud_points"] = float(sum(len(c.points) for c in clouds.values()))
     rep.metrics["pairs.pairs"] = float(len(found.pairs))
     rep.metrics["pairs.watched"] = float(len(watched))
     rep.metrics["pairs.excluded_adjacent"] = float(len(found.pairs) - len(others))
@@ -94,7 +95,8 @@ def run(quick: bool = False) -> BenchReport:
         rep.metrics["pairs.recall_events"], 0.999, higher_is_better=True
     )
     rep.notes.append(
-        f"Panda (example-robot-data), 1000 points per link, margin {MARGIN} m, {samples} "
+        f"Panda (example-robot-data), clouds covering their shapes within 1 cm "
+        f"({rep.metrics['pairs.cloud_points']:.0f} points), margin {MARGIN} m, {samples} "
         "random configurations; recall against a separate set of 10 000"
     )
     return rep

@@ -147,13 +147,14 @@ def pairs(
         0.05, "--margin", min=0.0, help="m: a pair closer than this counts as close."
     ),
     points: int | None = typer.Option(
-        None, "--points", min=1, help="Points per link cloud (default: the link's, 1000)."
+        None, "--points", min=1, help="Points per link cloud, sampled (instead of --resolution)."
     ),
     resolution: float | None = typer.Option(
         None,
         "--resolution",
         min=0.0,
-        help="m: link clouds that cover their shapes within this (instead of --points).",
+        help="m: link clouds that cover their shapes within this; the pair rules take distances "
+        "conservative by it (default: 0.01 for a URDF robot; a YAML robot's own counts).",
     ),
     seed: int = typer.Option(0, "--seed", help="Seed of the random configurations."),
     srdf: Path | None = typer.Option(

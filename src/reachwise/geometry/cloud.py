@@ -20,6 +20,7 @@ and the reason.
 
 from __future__ import annotations
 
+import math
 import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -58,14 +59,20 @@ MAX_SAMPLED_POINTS = 5_000_000
 class PointCloud:
     """An immutable set of 3-D points in metres, expressed in frame ``frame``.
 
-    The cloud holds its (read-only) points, frame and name, nothing else: the spatial
-    index the distance queries need is kept by the distance layer, keyed by the cloud
-    (``reachwise.distance.index``), so repeated queries do not rebuild it.
+    The cloud holds its (read-only) points, frame, name and ``resolution``, nothing
+    else: the spatial index the distance queries need is kept by the distance layer,
+    keyed by the cloud (``reachwise.distance.index``), so repeated queries do not
+    rebuild it. ``resolution`` (m) is what the cloud guarantees about the surface it
+    samples: every point of that surface lies within ``resolution`` of a cloud point
+    (a robot's link clouds, ``reachwise.io.robot_clouds.covering_points``), so a
+    distance measured to the cloud overstates the one to the surface by at most that
+    much; 0 when nothing is guaranteed (a scan, a random sample).
     """
 
     points: NDArray[np.float64]
     frame: str = "world"
     name: str = ""
+    resolution: float = 0.0
 
     def __post_init__(self) -> None:
         source = self.name or "point cloud"
@@ -88,6 +95,9 @@ class PointCloud:
             )
         pts.setflags(write=False)
         object.__setattr__(self, "points", pts)
+        r = self.resolution
+        if isinstance(r, bool) or not isinstance(r, numbers.Real) or not 0.0 <= r < math.inf:
+            raise CloudError(source, "resolution", f"must be finite and >= 0, got {r!r}")
 
     @classmethod
     def of(cls, data: PointCloud | ArrayLike, name: str = "") -> PointCloud:

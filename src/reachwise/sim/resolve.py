@@ -218,7 +218,9 @@ def _link_cloud(
         return cloud, solid_of_mesh(mesh)
     if link not in robot.geometry:
         raise InputError(sc.source, f"robots.{rs.name}.links", f"link {link!r} has no geometry")
-    cloud = link_cloud(robot, link, rs.points, rs.seed, density=rs.density)
+    cloud = link_cloud(
+        robot, link, rs.points, rs.seed, density=rs.density, resolution=rs.resolution
+    )
     shapes = robot.geometry[link]
     has_mesh = any(g.shape == "mesh" for g in shapes)
     return cloud, solid_of_link(shapes, shape_meshes(robot, link) if has_mesh else None)

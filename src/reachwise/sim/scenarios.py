@@ -24,6 +24,8 @@ robots:
     links: [link_2, link_8] # links that get clouds (default: every link with geometry)
     points: 1000            # points per link cloud (default: the geometry's, 1000)
     density: 20000          # or: points per m² of the link's shapes
+    resolution: 0.01        # or: every point of the shapes within this of the cloud (m;
+                            #   the default of a URDF robot, 1 cm; distances conservative by it)
     seed: 0
     link_clouds: {link_6: {mesh: meshes/grabber.obj, points: 1000}}  # replace a link's shape
     tool_links: [link_8, tool]                      # parts avoided in task space (P-V Eq. 6)
@@ -300,6 +302,7 @@ class RobotSpec(StrictModel):
     links: list[str] | None = None
     points: SampledPoints | None = None
     density: float | None = Field(default=None, gt=0.0)
+    resolution: float | None = Field(default=None, gt=0.0)
     seed: int = Field(default=0, ge=0)
     link_clouds: dict[str, LinkCloudSpec] = {}
     tool_links: list[str] | None = None
@@ -320,8 +323,8 @@ class RobotSpec(StrictModel):
 
     @model_validator(mode="after")
     def _count(self) -> RobotSpec:
-        if self.points is not None and self.density is not None:
-            raise ValueError("give points or density, not both")
+        if sum(x is not None for x in (self.points, self.density, self.resolution)) > 1:
+            raise ValueError("give one of points, density and resolution")
         return self
 
 
