@@ -19,7 +19,6 @@ MAX_PARAMETERS = 10
 PENDING = {
     "cli/replay.py:replay",
     "cli/robot.py:pairs",
-    "synthesis/synthesize.py:synthesize",
     "synthesis/active_set.py:bounded_step",
     "tasks/task.py:from_arrays",
     "api.py:simulate",

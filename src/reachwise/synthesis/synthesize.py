@@ -15,8 +15,8 @@ parameter that ended at a bound.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
-from typing import Literal, get_args
+from dataclasses import dataclass, field, replace
+from typing import Any, Literal, get_args
 
 import numpy as np
 from numpy.typing import NDArray
@@ -249,28 +249,46 @@ def run_once(
     )
 
 
+@dataclass(frozen=True)
+class SynthesisSettings:
+    """How :func:`synthesize` searches: ``runs`` multi-start runs with ``solver``, run
+    i seeded ``seed + i`` and started from the best of ``init_sets`` initial guesses;
+    the joint variables ``locked`` (indices, or index → value); the ``workspace`` the
+    links stay inside (``"task"``: the task's envelope, ``None``: none); the solver's
+    ``options``; the ``objective`` weights (``None``: the template's
+    ``design.objective``) and how the design is improved for them
+    (``improve_options``); the bodies' ``clearance`` (m; ``None``: the template's
+    ``design.clearance``, 0: none). Every field is also a keyword of
+    :func:`synthesize`."""
+
+    runs: int = 10
+    solver: SolverName = "dls"
+    seed: int = 0
+    init_sets: int = 8
+    locked: Sequence[int] | dict[int, float] | None = None
+    workspace: Workspace | str | None = "task"
+    options: SolverOptions | None = None
+    objective: Mapping[str, float] | None = None
+    improve_options: ImproveOptions | None = None
+    clearance: float | None = None
+
+
 def synthesize(
     task: Task,
     template: Robot,
+    settings: SynthesisSettings | None = None,
     *,
-    runs: int = 10,
-    solver: SolverName = "dls",
-    seed: int = 0,
-    init_sets: int = 8,
-    locked: Sequence[int] | dict[int, float] | None = None,
-    workspace: Workspace | str | None = "task",
-    options: SolverOptions | None = None,
     on_run: Callable[[RunResult], None] | None = None,
-    objective: Mapping[str, float] | None = None,
-    improve_options: ImproveOptions | None = None,
-    clearance: float | None = None,
+    **keywords: Any,
 ) -> SynthesisResult:
     """Find design parameters, base frame and joint values that reach every task pose.
 
     ``template`` is a Robot whose ``design`` section lists the free parameters and
-    bounds (``reachwise.synthesize`` also takes built-in names and files). Run ``i``
-    uses seed ``seed + i``; ``on_run`` is called after each run (progress, or keeping
-    finished runs when interrupted).
+    bounds (``reachwise.synthesize`` also takes built-in names and files). The search
+    is set by ``settings`` (:class:`SynthesisSettings`) or by its fields as keywords
+    (``runs=10, seed=0, objective={"gci": 1.0}``), a keyword overriding ``settings``.
+    Run ``i`` uses seed ``seed + i``; ``on_run`` is called after each run (progress,
+    or keeping finished runs when interrupted).
     ``workspace="task"`` keeps the links inside the task's envelope (the tunnel of a
     drilling task) when it has one; pass ``None`` to ignore it, or any object with
     ``signed_distance`` and ``gradient``. ``objective`` maps objective names
@@ -281,6 +299,10 @@ def synthesize(
     (``clearance_setup``); poses no design can serve are left out before the solve and
     listed in ``SynthesisResult.unservable``.
     """
+    s = replace(settings or SynthesisSettings(), **keywords)
+    runs, seed, init_sets, options = s.runs, s.seed, s.init_sets, s.options
+    workspace, objective, improve_options = s.workspace, s.objective, s.improve_options
+    solver = s.solver
     solver = check_choice(solver, SOLVERS, source="synthesize", kind="solver")
     if runs < 1:
         raise InputError("synthesize", "runs", "at least one run")
@@ -288,8 +310,8 @@ def synthesize(
         if workspace != "task":
             raise InputError("synthesize", "workspace", "'task', None or a workspace object")
         workspace = task.envelope
-    model, task, unservable = clearance_setup(template, task, workspace, clearance)
-    problem = SynthesisProblem(template, task, locked_from_spec(template, locked))
+    model, task, unservable = clearance_setup(template, task, workspace, s.clearance)
+    problem = SynthesisProblem(template, task, locked_from_spec(template, s.locked))
     weights = check_objective(
         template.design.objective if objective is None else objective, "synthesize"
     )
