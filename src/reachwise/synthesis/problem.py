@@ -67,6 +67,11 @@ class SynthesisProblem:
     template: Robot
     task: Task
     locked: dict[int, float] = field(default_factory=dict)
+    #: the last design ``robot_at`` built and its robot (the solver evaluates the task,
+    #: the clearance and the workspace at one design before the next trial)
+    _last_robot: tuple[bytes, Robot] | None = field(
+        default=None, init=False, repr=False, compare=False
+    )
 
     def __post_init__(self) -> None:
         src = self.template.name
@@ -215,6 +220,9 @@ class SynthesisProblem:
 
     def robot_at(self, design: Array, name: str | None = None) -> Robot:
         """The template with the design variables set to ``design``."""
+        key = np.asarray(design, dtype=np.float64).tobytes()
+        if name is None and self._last_robot is not None and self._last_robot[0] == key:
+            return self._last_robot[1]
         dh = np.array(self.template.dh)
         base6 = self.base_xyz_rpy.copy()
         for v, (kind, j, p) in zip(design, self.template.design.free, strict=True):
@@ -223,7 +231,10 @@ class SynthesisProblem:
             else:
                 base6[BASE_PARAMS.index(p)] = v
         base = pose_from_xyz_rpy(base6[:3], base6[3:])
-        return self.template.with_parameters(dh=dh, base=base, name=name)
+        robot = self.template.with_parameters(dh=dh, base=base, name=name)
+        if name is None:
+            object.__setattr__(self, "_last_robot", (key, robot))
+        return robot
 
     # ---- residual and Jacobian ---------------------------------------------------
     def evaluate(self, z: Array) -> Evaluation:
