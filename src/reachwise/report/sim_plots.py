@@ -42,8 +42,9 @@ def joint_figure(log: SimulationLog, baseline: SimulationLog | None = None) -> F
         for r, name in enumerate(run.robots):
             ax = axes[r, c]
             q = run.q[name]
+            labels = [c[len(name) + 1 :] for c in run.joint_columns(name)]
             for k in range(q.shape[1]):
-                ax.plot(run.t, q[:, k], lw=1.2, label=f"q{k + 1}")
+                ax.plot(run.t, q[:, k], lw=1.2, label=labels[k])
             title = "with collision avoidance" if run.avoidance else "without collision avoidance"
             ax.set_title(f"{name}: {title}", fontsize=9)
             ax.set_xlabel("t (s)")

@@ -16,11 +16,12 @@ from numpy.typing import NDArray
 
 from reachwise.errors import InputError
 from reachwise.io.atomic import atomic_open, atomic_write
+from reachwise.io.ros.joint_state import robot_joint_names
 from reachwise.kinematics.robot import Robot
 from reachwise.sim.robots import robot_of
 from reachwise.sim.scenarios import Scenario, load_scenario
 
-__all__ = ["Event", "GoalRecord", "SimulationLog", "load_log"]
+__all__ = ["Event", "GoalRecord", "SimulationLog", "joint_names_of", "load_log"]
 
 
 @dataclass(frozen=True)
@@ -63,6 +64,9 @@ class SimulationLog:
     (``scene: false``: seen only by sensors), exact (``reachwise.sim.contact``),
     ``inf`` beyond margin + monitor range. ``frames``: per sensor, the index of the
     frame in the scene at each tick (T,), for replay (``reachwise.sim.sensors``).
+    ``joint_names``: per robot, the name of each entry of ``q`` (its URDF or robot
+    file's joint names, :func:`~reachwise.io.ros.joint_state.robot_joint_names`); the
+    CSV's joint columns are ``<robot>.<joint name>`` (``<robot>.q<k>`` without names).
     """
 
     scenario: str
@@ -92,6 +96,16 @@ class SimulationLog:
     true_pairs: tuple[str, ...] = ()
     true_distance: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
     frames: dict[str, NDArray[np.int64]] = field(default_factory=dict)
+    joint_names: dict[str, tuple[str, ...]] = field(default_factory=dict)
+
+    def joint_columns(self, robot: str) -> list[str]:
+        """The CSV columns of ``robot``'s joints: ``<robot>.<joint name>``, or
+        ``<robot>.q<k>`` (k from 1) when the log has no names for it."""
+        n = self.q[robot].shape[1] if self.q[robot].ndim == 2 else 0
+        names = self.joint_names.get(robot, ())
+        if len(names) != n:
+            names = tuple(f"q{k + 1}" for k in range(n))
+        return [f"{robot}.{name}" for name in names]
 
     @property
     def min_true_distance(self) -> NDArray[np.float64]:
@@ -234,7 +248,7 @@ class SimulationLog:
         }
 
     def save(self, folder: str | Path) -> Path:
-        """Write ``log.npz`` (every array), ``log.csv`` (t, joints, tool xyz, min
+        """Write ``log.npz`` (every array), ``log.csv`` (t, joints by name, tool xyz, min
         distance per tick) and ``summary.json`` into ``folder``; returns it."""
         out = Path(folder)
         out.mkdir(parents=True, exist_ok=True)
@@ -253,6 +267,8 @@ class SimulationLog:
             arrays[f"{r}.tool"] = self.tool[r]
             arrays[f"{r}.state"] = self.state[r]
             arrays[f"{r}.goal_index"] = self.goal_index[r]
+            if r in self.joint_names:
+                arrays[f"{r}.joint_names"] = np.array(self.joint_names[r], dtype=str)
         for name, poses in self.object_poses.items():
             arrays[f"object.{name}.pose"] = poses
         if self.true_pairs:
@@ -266,8 +282,7 @@ class SimulationLog:
             w = csv.writer(fh)
             head = ["t"]
             for r in self.robots:
-                n = self.q[r].shape[1]
-                head += [f"{r}.q{k + 1}" for k in range(n)]
+                head += self.joint_columns(r)
                 head += [f"{r}.tool_{c}" for c in "xyz"] + [f"{r}.state"]
             head.append("min_distance")
             w.writerow(head)
@@ -282,6 +297,12 @@ class SimulationLog:
                 w.writerow(row)
         atomic_write(out / "summary.json", json.dumps(self.summary(), indent=2))
         return out
+
+
+def joint_names_of(robots: dict[str, Robot]) -> dict[str, tuple[str, ...]]:
+    """Each robot's joint names, by robot name (what :attr:`SimulationLog.joint_names`
+    holds: :func:`~reachwise.io.ros.joint_state.robot_joint_names`)."""
+    return {name: robot_joint_names(r) for name, r in robots.items()}
 
 
 def load_log(folder: str | Path, scenario: Scenario | str | Path | None = None) -> SimulationLog:
@@ -402,6 +423,11 @@ def load_log(folder: str | Path, scenario: Scenario | str | Path | None = None) 
         goals=goals,
         first_collision=None if fc is None else float(fc),
         first_collision_pair=meta.get("first_collision_pair"),
+        joint_names={
+            r: tuple(str(x) for x in arrays[f"{r}.joint_names"])
+            for r in robots
+            if f"{r}.joint_names" in arrays
+        },
         extras=extras,
         object_poses=objects,
         true_pairs=true_pairs,

@@ -39,7 +39,7 @@ from numpy.typing import NDArray
 from reachwise.control.controller import ControlStatus
 from reachwise.distance.scene import SceneLike, SceneResult
 from reachwise.sim.contact import true_clearance
-from reachwise.sim.log import Event, GoalRecord, SimulationLog
+from reachwise.sim.log import Event, GoalRecord, SimulationLog, joint_names_of
 from reachwise.sim.plant import PlantName
 from reachwise.sim.resolve import ResolvedScenario, resolve_scenario
 from reachwise.sim.scenarios import EscapeSpec, Scenario
@@ -287,6 +287,7 @@ class _Recorder:
             true_pairs=tuple(f"{a}|{b}" for a, b in world.truth),
             true_distance=self.true_distance[:n],
             frames={k_: v[:n] for k_, v in self.frames.items()},
+            joint_names=joint_names_of({a.name: a.robot for a in agents}),
         )
 
 
