@@ -15,6 +15,7 @@ from typer.testing import CliRunner
 
 import reachwise
 from reachwise.errors import InputError, MissingDependency
+from reachwise.io.robot_clouds import link_mesh
 from reachwise.kinematics.robot import Joint, LinkGeometry, Robot
 from reachwise.sim.mujoco_model import mujoco_model, require_mujoco
 from reachwise.sim.mujoco_plant import (
@@ -116,7 +117,10 @@ def test_mesh_link_inertia_from_its_convex_hull(tmp_path: Path) -> None:
     trimesh.creation.box(extents=(lx, ly, lz)).export(tmp_path / "part.obj")
     g = LinkGeometry("mesh", mesh="part.obj", origin=_at(0.2, 0.0, 0.0))
     robot = Robot("meshy", (Joint("revolute"),), geometry={"link_1": g})
-    mj = mujoco_model(robot, density=800.0, base_dir=tmp_path)
+    with pytest.raises(InputError):  # not read yet and not where the robot file is
+        mujoco_model(robot, density=800.0)
+    meshes = {"link_1": link_mesh(robot, "link_1", tmp_path)}  # as a resolved scenario has
+    mj = mujoco_model(robot, density=800.0, meshes=meshes)
     b = mj.body[1]
     mass = 800.0 * lx * ly * lz
     assert mj.model.body_mass[b] == pytest.approx(mass, rel=1e-9)

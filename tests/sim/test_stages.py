@@ -19,6 +19,8 @@ import pytest
 import trimesh
 
 import reachwise
+from reachwise.errors import RobotFileError
+from reachwise.io.meshes import _CACHE as mesh_cache
 from reachwise.sim.log import SimulationLog
 from reachwise.sim.resolve import ResolvedScenario, resolve_scenario
 from reachwise.sim.simulate import run_world
@@ -102,6 +104,34 @@ def test_build_and_run_read_no_file_and_log_the_same(name: str) -> None:
     assert len(blocked.t) > 100
     assert_same_log(blocked, free)
     assert_same_log(reachwise.simulate(name, duration=DURATION), free)
+
+
+@needs_erd
+def test_a_mujoco_plant_builds_from_the_resolved_meshes() -> None:
+    """The MuJoCo plant's link inertias come from meshes read at resolve: a real-URDF
+    scenario builds and runs on it with every file blocked, logging what the unblocked
+    run logs; without the resolved meshes the build would read the mesh files."""
+    pytest.importorskip("mujoco")
+    resolved = resolve_scenario("panda-shelf")
+    meshes = next(iter(resolved.link_meshes.values()))
+    assert len(meshes) >= 7  # every panda link with a mesh shape
+
+    def run(res: ResolvedScenario) -> SimulationLog:
+        clock = SimClock()
+        world = build_world(res, plant="mujoco", clock=clock)
+        return run_world(world, clock, duration=0.5)
+
+    free = run(resolved)
+    mesh_cache.clear()  # a cached mesh is found by its file's size and time: none now
+    with files_blocked() as attempts:
+        blocked = run(resolved)
+    assert attempts == []
+    assert_same_log(blocked, free)
+    unread = dataclasses.replace(resolved, link_meshes={})
+    mesh_cache.clear()
+    with files_blocked() as attempts, pytest.raises(RobotFileError):
+        run(unread)
+    assert attempts  # the check sees a build that reads the meshes
 
 
 def test_the_blocker_catches_the_resolve_stage_reading_files() -> None:

@@ -32,8 +32,8 @@ MuJoCo is the optional ``sim`` extra: it is imported here only when a model is b
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -113,17 +113,19 @@ def _quat(mujoco: Any, T: Pose) -> NDArray[np.float64]:
 
 
 def _mesh_inertia(
-    robot: Robot, links: list[str], density: float, base_dir: str | Path | None
+    robot: Robot, links: list[str], density: float, meshes: Mapping[str, Any] | None
 ) -> Any:
     """Mass, centre and inertia (at the centre, frame coordinates) of the convex hull of
-    the shapes of ``links`` (the bodies riding on one frame)."""
+    the shapes of ``links`` (the bodies riding on one frame): each link's mesh from
+    ``meshes`` (read already), else made from its shapes (a mesh file read here)."""
     import trimesh
 
     from reachwise.io.robot_clouds import link_mesh
 
-    parts = [link_mesh(robot, link, base_dir) for link in links]
+    given = meshes or {}
+    parts = [given[link] if link in given else link_mesh(robot, link) for link in links]
     joined = parts[0] if len(parts) == 1 else trimesh.util.concatenate(parts)
-    hull = joined.convex_hull  # type: ignore[attr-defined]
+    hull = joined.convex_hull  # type: ignore[union-attr]
     hull.density = density
     return float(hull.mass), np.asarray(hull.center_mass), np.asarray(hull.moment_inertia)
 
@@ -139,7 +141,7 @@ def mujoco_model(
     min_inertia: float = 1e-4,
     timestep: float = 0.001,
     gravity: bool = True,
-    base_dir: str | Path | None = None,
+    meshes: Mapping[str, Any] | None = None,
 ) -> MujocoRobot:
     """Build and compile the MuJoCo model of ``robot`` (see the module docstring).
 
@@ -147,8 +149,10 @@ def mujoco_model(
     joint or one value for all; ``passive_damping`` (N·m·s/rad) per passive joint or one
     value; ``density`` (kg/m³) of the link geometry; ``timestep`` (s) of the integrator
     (``implicitfast``, which treats the servo's velocity feedback implicitly, so a
-    stiff servo stays stable); ``base_dir`` for mesh paths (default: the robot file's
-    folder).
+    stiff servo stays stable); ``meshes``: link → its shapes as one mesh
+    (:func:`reachwise.io.robot_clouds.link_mesh`), read already, as a resolved
+    scenario holds them (``ResolvedScenario.link_meshes``); a link with a mesh shape
+    not among them is read from its file (relative to the robot file's folder).
     """
     mujoco = require_mujoco()
     src = robot.source or robot.name
@@ -235,7 +239,7 @@ def mujoco_model(
             if idx == tool_row:
                 raise InputError(src, f"geometry.{links[0]}",
                                  "a mesh on the tool frame is not supported")  # fmt: skip
-            mass, com, inertia = _mesh_inertia(robot, links, density, base_dir)
+            mass, com, inertia = _mesh_inertia(robot, links, density, meshes)
             body.explicitinertial = True
             body.mass = max(mass, min_mass)
             body.ipos = com

@@ -37,8 +37,8 @@ run of the same scenario with its own (kinematic or hydraulic) plant.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -118,7 +118,7 @@ class MujocoPlant:
         robot: Robot,
         q0: ArrayLike,
         config: MujocoPlantConfig | None = None,
-        base_dir: str | Path | None = None,
+        meshes: Mapping[str, Any] | None = None,
     ) -> None:
         self._mj = mujoco = require_mujoco()
         self.robot = robot
@@ -128,7 +128,7 @@ class MujocoPlant:
             raise InputError(robot.name, "q0", f"expected {robot.n} finite values")
         self._act = act = np.asarray(robot.actuated, dtype=bool)
         self.mj: MujocoRobot = mujoco_model(
-            robot, density=cfg.density, timestep=cfg.substep, base_dir=base_dir
+            robot, density=cfg.density, timestep=cfg.substep, meshes=meshes
         )
         m = self.mj.model
         self.data = d = mujoco.MjData(m)

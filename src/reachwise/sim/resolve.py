@@ -31,7 +31,7 @@ from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud, sample_mesh_surface
 from reachwise.io.clouds import load_cloud, load_mesh_cloud
 from reachwise.io.meshes import load_mesh
-from reachwise.io.robot_clouds import link_cloud, shape_meshes
+from reachwise.io.robot_clouds import link_cloud, link_mesh, shape_meshes
 from reachwise.kinematics.robot import Robot
 from reachwise.sim.contact import Solid, solid_of_link, solid_of_mesh
 from reachwise.sim.robots import robot_of
@@ -56,6 +56,17 @@ def cloud_key(obj: str, k: int | None = None) -> str:
     return obj if k is None else f"{obj}@{k}"
 
 
+def _mesh_links(robot: Robot) -> Mapping[str, trimesh.Trimesh]:
+    """Every link of ``robot`` that has a mesh shape, as one mesh (its files read)."""
+    return _frozen(
+        {
+            link: link_mesh(robot, link)
+            for link, shapes in robot.geometry.items()
+            if any(g.shape == "mesh" for g in shapes)
+        }
+    )
+
+
 def _frozen(d: Mapping[str, Any]) -> Mapping[str, Any]:
     return MappingProxyType(dict(d))
 
@@ -76,7 +87,9 @@ class ResolvedScenario:
       time ``t`` on (for the sensors and the true clearance);
     - ``scan_targets`` — scanned object → what its scanner scans;
     - ``self_pairs`` — index of a ``watch: {self: …}`` entry → the link pairs it lists or
-      picks (``pairs: auto``), or ``None`` for every non-adjacent pair.
+      picks (``pairs: auto``), or ``None`` for every non-adjacent pair;
+    - ``link_meshes`` — robot name → link → its shapes as one mesh, for every link with a
+      mesh shape (read from its file here; a MuJoCo plant takes its inertia from it).
     """
 
     scenario: Scenario
@@ -87,6 +100,7 @@ class ResolvedScenario:
     object_surfaces: Mapping[str, tuple[tuple[float, Surface], ...]] = field(default_factory=dict)
     scan_targets: Mapping[str, ScanScene] = field(default_factory=dict)
     self_pairs: Mapping[int, tuple[tuple[str, str], ...] | None] = field(default_factory=dict)
+    link_meshes: Mapping[str, Mapping[str, trimesh.Trimesh]] = field(default_factory=dict)
 
 
 def resolve_scenario(scenario: Scenario | str | Path | ResolvedScenario) -> ResolvedScenario:
@@ -133,6 +147,7 @@ def resolve_scenario(scenario: Scenario | str | Path | ResolvedScenario) -> Reso
         object_surfaces=_frozen(_object_surfaces(sc) if seen else {}),
         scan_targets=_frozen(targets),
         self_pairs=MappingProxyType(_self_pairs(sc, robots, links)),
+        link_meshes=_frozen({name: _mesh_links(robot) for name, robot in robots.items()}),
     )
 
 

@@ -5,10 +5,10 @@ scene (in process or on a collision server), solids, watched pairs and moving ob
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -143,7 +143,17 @@ def _assemble(scene: SceneLike, res: ResolvedScenario, avoidance: bool, plant: P
     control = _watch_pairs(scene, res, inflation)
     job_robots = set(sc.spec.jobs.robots) if sc.spec.jobs is not None else set()
     agents = [
-        _make_agent(scene, sc, rs, robots[rs.name], control, avoidance, plant, job_robots)
+        _make_agent(
+            scene,
+            sc,
+            rs,
+            robots[rs.name],
+            control,
+            avoidance,
+            plant,
+            job_robots,
+            res.link_meshes.get(rs.name),
+        )
         for rs in sc.spec.robots
     ]
     jobs = _shared_jobs(sc, robots)
@@ -339,8 +349,10 @@ def _make_agent(
     avoidance: bool,
     plant: PlantName,
     job_robots: set[str],
+    meshes: Mapping[str, Any] | None = None,
 ) -> Agent:
-    """One robot's controller, scene converter, plant and own goals."""
+    """One robot's controller, scene converter, plant (a MuJoCo plant's link inertias
+    from the resolved ``meshes``) and own goals."""
     try:
         cfg = _controller_config(rs, sc.spec.dt, avoidance)
     except InputError as exc:  # the controller's own checks name the scenario field
@@ -359,7 +371,7 @@ def _make_agent(
         rs.name,
         robot,
         Controller(robot, cfg),
-        _make_plant(plant, robot, rs.start, pc),
+        _make_plant(plant, robot, rs.start, pc, meshes),
         conv,
         own,
         rs.name in job_robots,
@@ -395,12 +407,13 @@ class SimClock:
 
 
 def _make_plant(
-    kind: PlantName, robot: Robot, q0: list[float], pc: PlantConfig
-) -> Plant | MujocoPlant:
+    kind: PlantName, robot: Robot, q0: list[float], pc: PlantConfig,
+    meshes: Mapping[str, Any] | None = None,
+) -> Plant | MujocoPlant:  # fmt: skip
     if kind == "mujoco":
         from reachwise.sim.mujoco_plant import MujocoPlant, MujocoPlantConfig
 
-        return MujocoPlant(robot, q0, MujocoPlantConfig.like(pc))
+        return MujocoPlant(robot, q0, MujocoPlantConfig.like(pc), meshes)
     return Plant(robot, q0, pc)
 
 
