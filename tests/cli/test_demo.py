@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 from typer.testing import CliRunner
 
-from reachwise.cli import app
+from reachwise.cli import app, demo_stages
 from reachwise.cli import demo as demo_mod
 
 FOLDERS = (
@@ -56,7 +56,7 @@ def test_demo_interrupted_resumes_and_writes_every_report(
         raise KeyboardInterrupt
 
     with monkeypatch.context() as m:
-        m.setattr(demo_mod, "_simulate", interrupt)
+        m.setattr(demo_stages, "simulate", interrupt)
         res = run(out)
     assert res.exit_code == 130, res.output
     first = figures(res)
@@ -142,7 +142,7 @@ def test_demo_interrupted_resumes_and_writes_every_report(
 
     # --fresh clears every stage before running (interrupted at once here: nothing left)
     with monkeypatch.context() as m:
-        m.setattr(demo_mod, "_task", interrupt)
+        m.setattr(demo_stages, "task", interrupt)
         res = run(out, "--fresh")
     assert res.exit_code == 130
     assert figures(res)["stages"] == {}
@@ -178,7 +178,7 @@ def _ctx(out: Path, runs: int) -> Any:
 def test_each_gci_figure_names_the_design_it_starts_from() -> None:
     """The run's random start and the first reaching design are two different starts: each
     line says which one its GCI figures go from, both to the same final design."""
-    from reachwise.cli.demo import _best_line, _objective_lines
+    from reachwise.cli.demo_stages import best_line, objective_lines
 
     d = {
         "best_seed": 3,
@@ -194,8 +194,8 @@ def test_each_gci_figure_names_the_design_it_starts_from() -> None:
             "objective_values": {"gci": 0.0721, "kci": 0.02},
         },
     }
-    best = _best_line(d)
+    best = best_line(d)
     assert "from its random start design to the final design: GCI 0.0711 → 0.0721" in best
-    (obj,) = _objective_lines(d)
+    (obj,) = objective_lines(d)
     assert "from the first design that reaches every point to the improved final design" in obj
     assert "GCI 0.0667 → 0.0721" in obj
