@@ -18,6 +18,24 @@ Schema (lengths in m; every body in the frame of its link)::
 
 ``link`` defaults to the body's name. See
 ``reachwise.kinematics.design_bodies.DesignBody`` for what each field means.
+
+A synthesized design (``design.yaml`` of ``reachwise synth``) also lists its bodies as
+concrete shapes, for any other forward kinematics (``reachwise.results.design_file``)::
+
+    placed_bodies:
+      clearance: 0.1                 # what every watched pair keeps
+      watched: [[boom_root, feed], [boom, feed]]
+      parts:
+        boom.a:                      # a part of body `boom`
+          body: boom
+          capsule: {radius: 0.15, start: {link: link_2, xyz: [0, 0, 0]},
+                    end: {link: link_2, xyz: [1.1, 0, 0]}}
+        bracket:
+          body: bracket
+          box: {link: link_0, size: [0.5, 0.6, 0.7], origin: [[1, 0, 0, -0.35], ...]}
+
+Reading a robot file checks this section's form; reachwise recomputes the shapes from
+``design: bodies:`` and does not use it.
 """
 
 from __future__ import annotations
@@ -34,7 +52,7 @@ from reachwise.kinematics.transforms import pose_from_xyz_rpy, xyz_rpy_from_pose
 _STRICT = ConfigDict(extra="forbid", allow_inf_nan=False, strict=False)
 Vec3 = tuple[float, float, float]
 
-__all__ = ["BodyModel", "bodies_from_models", "bodies_to_dict"]
+__all__ = ["BodyModel", "PlacedBodiesModel", "bodies_from_models", "bodies_to_dict"]
 
 
 class CapsuleModel(BaseModel):
@@ -75,6 +93,54 @@ class BodyModel(BaseModel):
         if (self.capsule is None) == (self.box is None):
             raise ValueError("give exactly one shape: capsule or box")
         return self
+
+
+class LinkPointModel(BaseModel):
+    model_config = _STRICT
+    link: str
+    xyz: Vec3
+
+
+class PlacedCapsuleModel(BaseModel):
+    model_config = _STRICT
+    radius: float = Field(gt=0)
+    start: LinkPointModel
+    end: LinkPointModel
+    contact: float = Field(default=0.0, ge=0)
+
+
+class PlacedBoxModel(BaseModel):
+    model_config = _STRICT
+    link: str
+    size: Vec3
+    origin: tuple[
+        tuple[float, float, float, float],
+        tuple[float, float, float, float],
+        tuple[float, float, float, float],
+        tuple[float, float, float, float],
+    ]
+
+
+class PlacedPartModel(BaseModel):
+    model_config = _STRICT
+    body: str
+    capsule: PlacedCapsuleModel | None = None
+    box: PlacedBoxModel | None = None
+
+    @model_validator(mode="after")
+    def _one_shape(self) -> PlacedPartModel:
+        if (self.capsule is None) == (self.box is None):
+            raise ValueError("give exactly one shape: capsule or box")
+        return self
+
+
+class PlacedBodiesModel(BaseModel):
+    """The ``placed_bodies`` section of a synthesized design (module docstring)."""
+
+    model_config = _STRICT
+    clearance: float = Field(default=0.0, ge=0)
+    watched: list[tuple[str, str]] = []
+    parts: dict[str, PlacedPartModel] = {}
 
 
 def _link_name(link: str, joint_names: Sequence[str]) -> str:

@@ -20,7 +20,12 @@ from pydantic import ConfigDict, Field, ValidationError, model_validator
 from reachwise.errors import InputError, RobotFileError
 from reachwise.io._builtin import Builtin, builtin_names, load_named
 from reachwise.io.atomic import atomic_write
-from reachwise.io.design_bodies import BodyModel, bodies_from_models, bodies_to_dict
+from reachwise.io.design_bodies import (
+    BodyModel,
+    PlacedBodiesModel,
+    bodies_from_models,
+    bodies_to_dict,
+)
 from reachwise.io.robot_geometry import GeometryModel, geometry_to_dict, resolve_meshes
 from reachwise.io.text_input import parse_text, read_text
 from reachwise.io.validation import StrictModel, input_error
@@ -144,6 +149,7 @@ class RobotModel(StrictModel):
     tool: FrameModel = FrameModel()
     geometry: dict[str, GeometryModel | list[GeometryModel]] = {}
     design: DesignModel = DesignModel()
+    placed_bodies: PlacedBodiesModel | None = None  # a synthesized design's, not read
 
 
 def robot_from_dict(data: Any, source: str = "robot") -> Robot:
