@@ -11,6 +11,7 @@ from reachwise import load_robot, load_task
 from reachwise.errors import InputError
 from reachwise.kinematics.indices import gci, kci, lci
 from reachwise.synthesis.bound_hits import bound_hits
+from reachwise.synthesis.clearance import ClearanceModel
 from reachwise.synthesis.objectives import (
     OBJECTIVES,
     Objective,
@@ -48,17 +49,23 @@ def central(f, z: np.ndarray) -> np.ndarray:  # type: ignore[no-untyped-def]
     return g
 
 
+def bodies_of(prob: SynthesisProblem) -> ClearanceModel:
+    """The sb60 stand-in bodies against the tunnel (every clearance term)."""
+    return ClearanceModel(prob.template, prob.task.envelope, 0.1)
+
+
 @pytest.mark.parametrize("name", list(OBJECTIVES))
 def test_each_objective_gradient_equals_central_differences(
     name: str, rng: np.random.Generator
 ) -> None:
     prob = small_problem()
     z = some_z(prob, rng)
-    terms = evaluate_terms(prob, z, [name])
+    bodies = bodies_of(prob)
+    terms = evaluate_terms(prob, z, [name], bodies=bodies)
     grad = terms.gradients[name]
 
     def f(x: np.ndarray) -> float:
-        return evaluate_terms(prob, x, [name]).values[name]
+        return evaluate_terms(prob, x, [name], bodies=bodies).values[name]
 
     num = central(f, z)
     assert np.abs(num).max() > 0  # the term depends on z here
@@ -82,19 +89,41 @@ def test_terms_agree_with_the_indices(rng: np.random.Generator) -> None:
     z = some_z(prob, rng)
     design, Q = prob.split(z)
     lcis = lci(prob.robot_at(design), Q)
-    t = evaluate_terms(prob, z, list(OBJECTIVES), kci_temperature=1e-5)
+    bodies = bodies_of(prob)
+    t = evaluate_terms(prob, z, list(OBJECTIVES), kci_temperature=1e-5, bodies=bodies)
     assert t.values["gci"] == pytest.approx(gci(lcis), rel=1e-12)
     # the smooth minimum lies between the minimum and the minimum + τ log K
     assert kci(lcis) - 1e-12 <= t.values["kci"] <= kci(lcis) + 1e-5 * np.log(len(lcis))
     size = sum(abs(design[i]) for i, n in enumerate(prob.design_names) if n[0] in "ad")
     assert t.values["size"] == pytest.approx(size, abs=1e-3)
+    # the clearance's soft minimum: between min - τ log N and the true minimum
+    d = bodies.terms(prob, z).distance
+    tau = 0.005
+    assert d.min() - tau * np.log(d.size) - 1e-12 <= t.values["clearance"] <= d.min() + 1e-12
+
+
+def test_clearance_objective_over_hand_made_terms() -> None:
+    """The soft minimum of the clearance terms against its formula, computed here from
+    the terms themselves, and its limit as the temperature falls: the true minimum."""
+    prob = small_problem()
+    rng = np.random.default_rng(3)
+    z = some_z(prob, rng)
+    bodies = bodies_of(prob)
+    d = bodies.terms(prob, z).distance.ravel()
+    for tau in (0.05, 0.005, 1e-4):
+        got = evaluate_terms(prob, z, ["clearance"], bodies=bodies, clearance_temperature=tau)
+        want = -tau * np.log(np.sum(np.exp(-(d - d.min()) / tau))) + d.min()
+        assert got.values["clearance"] == pytest.approx(want, rel=1e-12, abs=1e-12)
+    assert got.values["clearance"] == pytest.approx(d.min(), abs=1e-4 * np.log(d.size))
+    with pytest.raises(InputError, match="bodies"):
+        evaluate_terms(prob, z, ["clearance"])
 
 
 def test_parse_and_check() -> None:
     assert parse_objective("gci:1,size:0.2") == {"gci": 1.0, "size": 0.2}
     assert parse_objective("kci") == {"kci": 1.0}
     assert check_objective(None) == {} == check_objective({})
-    with pytest.raises(InputError, match=r"speed.*valid: bounds, gci"):
+    with pytest.raises(InputError, match=r"speed.*valid: bounds, clearance, gci"):
         parse_objective("speed:1")
     with pytest.raises(InputError, match="not a number"):
         parse_objective("gci:x")

@@ -78,8 +78,9 @@ class MultiStart:
 
 @dataclass(frozen=True)
 class DesignObjective:
-    """After reach: the weighted ``objective`` to improve (``None``: the robot file's),
-    or the two objectives of a ``pareto`` sweep over ``points`` weightings."""
+    """After reach: the weighted ``objective`` to improve (``None``: the robot file's)
+    and the indices it must ``keep``, or the two objectives of a ``pareto`` sweep over
+    ``points`` weightings."""
 
     #: Weighted objectives, e.g. gci:1,size:0.2; ``None``: the robot file's.
     objective: str | None = cli(
@@ -87,7 +88,17 @@ class DesignObjective:
             None,
             "--objective",
             help="After reach, improve the design: weighted objectives, e.g. gci:1,size:0.2 "
-            "(gci, kci, size, limits, bounds). Default: the robot file's design.objective.",
+            "(gci, kci, size, limits, bounds, clearance). Default: the robot file's "
+            "design.objective.",
+        )
+    )
+    #: Indices the improvement must not make worse; ``None``: kci when gci is weighted.
+    keep: str | None = cli(
+        typer.Option(
+            None,
+            "--keep",
+            help="Indices the improvement must not make worse than the reach-only design's, "
+            "e.g. kci,clearance (none: nothing). Default: kci when gci is weighted.",
         )
     )
     #: Two objectives of a Pareto sweep, e.g. gci,size; ``None``: none.
@@ -95,8 +106,8 @@ class DesignObjective:
         typer.Option(
             None,
             "--pareto",
-            help="Two objectives, e.g. gci,size: sweep their weights from the "
-            "best reach-only design and keep the non-dominated designs (pareto/).",
+            help="Two objectives, e.g. gci,size or clearance,size: sweep their weights from "
+            "the best reach-only design and keep the non-dominated designs (pareto/).",
         )
     )
     #: Weightings of the Pareto sweep.
@@ -128,6 +139,7 @@ class SynthesisOutput:
         "tunnel",
         "figures",
         "objective",
+        "keep",
         "pareto",
         "points",
         "min_length",
@@ -158,12 +170,15 @@ def synth(
         if goal.pareto is not None and goal.objective is not None:
             raise typer.BadParameter("give --objective or --pareto, not both")
         names = _pareto_names(goal.pareto) if goal.pareto is not None else None
-        problem, weights, workspace, bodies = _problem(design, robot_file, goal.objective)
+        kept = _keep_names(goal.keep)
+        problem, weights, workspace, bodies = _problem(
+            design, robot_file, goal.objective, "clearance" in (*(names or ()), *(kept or ()))
+        )
         if names is not None:
             weights = {}  # the sweep starts from the reach-only design
         done = _runs(
             problem, starts.runs, starts.seed, solver_name, workspace, weights, interrupts,
-            output.json_out, bodies[0],
+            output.json_out, bodies[0], kept,
         )  # fmt: skip
         if not done:
             Console(stderr=True).print("interrupted before the first run finished: nothing written")
@@ -182,12 +197,14 @@ def synth(
 
 
 def _problem(
-    design: DesignProblem, robot_file: RobotFileOptions, objective: str | None
-) -> tuple[Any, dict[str, float], Any, tuple[Any, tuple[Any, ...]]]:
+    design: DesignProblem, robot_file: RobotFileOptions, objective: str | None,
+    needs_bodies: bool = False,
+) -> tuple[Any, dict[str, float], Any, tuple[Any, tuple[Any, ...]]]:  # fmt: skip
     """The synthesis problem of the task and template files, the objective's weights,
     the workspace (the task's tunnel envelope, or ``None``) and the bodies' clearance
     model with the poses it leaves out (``clearance_setup``; the problem's task is
-    without them)."""
+    without them). A clearance objective or a kept clearance (``needs_bodies``) builds
+    the model even at a clearance of 0."""
     from dataclasses import replace
 
     from reachwise.io.task_file import load_task
@@ -205,7 +222,8 @@ def _problem(
         else parse_objective(objective)
     )
     workspace = t.envelope if design.tunnel else None
-    model, t, unservable = clearance_setup(template, t, workspace, design.clearance)
+    needs_bodies = needs_bodies or "clearance" in weights
+    model, t, unservable = clearance_setup(template, t, workspace, design.clearance, needs_bodies)
     problem = SynthesisProblem(template, t, locked_from_spec(template, design.lock or None))
     return problem, weights, workspace, (model, unservable)
 
@@ -213,6 +231,7 @@ def _problem(
 def _runs(
     problem: Any, runs: int, seed: int, solver: Any, workspace: Any,
     weights: dict[str, float], interrupts: Interrupts, quiet: bool, clearance: Any = None,
+    keep: tuple[str, ...] | None = None,
 ) -> list[Any]:  # fmt: skip
     """The multi-start runs ``seed, seed + 1, ...`` until ``runs`` are done or Ctrl-C:
     asked between the runs, as the compiled code inside one must not be interrupted."""
@@ -230,7 +249,7 @@ def _runs(
                     break
                 r = run_once(
                     problem, seed + i, solver, workspace=workspace, objective=weights,
-                    clearance=clearance,
+                    clearance=clearance, keep=keep,
                 )  # fmt: skip
                 done.append(r)
                 bar.update(job, advance=1, description=f"run {i}: {r.n_reached}/{problem.K}")
@@ -268,6 +287,7 @@ def _write(
                 output.figures,
                 output.json_out,
                 interrupts.check,
+                bodies[0],
             )
         except KeyboardInterrupt:
             section = None
@@ -298,9 +318,22 @@ def _pareto_names(text: str) -> tuple[str, str]:
     return names[0], names[1]
 
 
+def _keep_names(text: str | None) -> tuple[str, ...] | None:
+    """``--keep``'s names (``None`` when not given: the default of ``synthesis.keep``)."""
+    from reachwise.errors import InputError
+    from reachwise.synthesis.keep import parse_keep
+
+    if text is None:
+        return None
+    try:
+        return parse_keep(text)
+    except InputError as e:
+        raise typer.BadParameter(str(e), param_hint="--keep") from None
+
+
 def _pareto(
     result: Any, names: tuple[str, str], points: int, workspace: Any, folder: Path,
-    figures: bool, quiet: bool, stop: Callable[[], None] | None = None,
+    figures: bool, quiet: bool, stop: Callable[[], None] | None = None, bodies: Any = None,
 ) -> tuple[dict[str, Any] | None, Any]:  # fmt: skip
     """The Pareto sweep from the best run (if it reaches every pose): files in
     ``folder/pareto/``, the report section, and the data for the summary. ``stop`` is
@@ -317,8 +350,13 @@ def _pareto(
     prob = result.problem
     if not quiet:
         Console(stderr=True).print(f"Pareto sweep {names[0]}/{names[1]}: {points} weightings")
-    front = pareto_sweep(prob, prob.pack(best.design, best.q), names, points, workspace, stop=stop)
-    data = write_pareto(front, folder / "pareto")
+    front = pareto_sweep(
+        prob, prob.pack(best.design, best.q), names, points, workspace, stop=stop,
+        clearance=bodies,
+    )  # fmt: skip
+    data = write_pareto(
+        front, folder / "pareto", clearance=bodies.clearance if bodies is not None else 0.0
+    )
     fig = pareto_figure(front) if figures else None
     if fig is not None:
         save_png(fig, folder / "pareto" / "front.png", dpi=110)
@@ -343,8 +381,10 @@ def _print(result: object, data: dict) -> None:  # type: ignore[type-arg]
             "objective " + ", ".join(f"{k}:{v:g}" for k, v in data["objective"].items())
             + ": reach-only → improved design: "
             + ", ".join(f"{n} {ro[n]:.4g} → {ov[n]:.4g}" for n in ("gci", "kci", "size",
-                                                                    "limits", "bounds"))
+                        "limits", "bounds", "clearance") if n in ro and n in ov)
         )  # fmt: skip
+        if b.get("kept"):
+            console.print("kept (never worse than reach-only): " + ", ".join(b["kept"]))
     if "clearance" in data:
         c = data["clearance"]
         small = c["smallest_m"]

@@ -46,7 +46,9 @@ DH_PARAMS: tuple[str, ...] = ("a", "alpha", "d", "theta")
 BASE_PARAMS: tuple[str, ...] = ("x", "y", "z", "roll", "pitch", "yaw")
 #: the design objectives a :class:`DesignSpace` may weight (their maths is in
 #: ``synthesis.objectives``): name -> +1 when higher is better, -1 when lower is better
-OBJECTIVES: dict[str, int] = {"gci": 1, "kci": 1, "size": -1, "limits": -1, "bounds": -1}
+OBJECTIVES: dict[str, int] = {
+    "gci": 1, "kci": 1, "size": -1, "limits": -1, "bounds": -1, "clearance": 1,
+}  # fmt: skip
 _KIND = {"revolute": 0, "prismatic": 1, "fixed": 2}
 
 

@@ -28,6 +28,7 @@ MEANING: dict[str, str] = {
     "size": "Σ|a| + Σ|d| of the free length parameters (m), lower is better",
     "limits": "mean squared distance of the joints from mid-range (0 mid, 1 at a limit)",
     "bounds": "bound-margin penalty (0: every parameter the margin inside its bounds)",
+    "clearance": "smallest clearance of the design bodies over the task (m), higher is better",
 }
 SIDE = {"lower": "at lower bound", "upper": "at upper bound", "min_length": "at min length"}
 
@@ -88,6 +89,8 @@ def objective_section(result: SynthesisResult, data: Mapping[str, Any]) -> Raw |
     before, after = best["reach_only"], best["objective_values"]
     rows = []
     for n in OBJECTIVES:
+        if n not in before or n not in after:
+            continue  # the clearance, without bodies
         b, a = float(before[n]), float(after[n])
         change = 100.0 * (a - b) / abs(b) if abs(b) > 1e-12 else 0.0
         good = (a - b) * OBJECTIVES[n] >= -1e-12
@@ -99,6 +102,13 @@ def objective_section(result: SynthesisResult, data: Mapping[str, Any]) -> Raw |
             "After every pose was reached, the design was improved in the null space of the "
             "task (P-I §3.2, Eq. 23–25): every accepted step keeps every pose within "
             f"tolerance. {best['improve_iterations']} improvement iterations."
+            + (
+                " Kept (a constraint: never worse than the reach-only design): "
+                + ", ".join(best["kept"])
+                + "."
+                if best.get("kept")
+                else ""
+            )
         ),
         table(
             ["objective", "weight", "reach only", "improved", "change %", "better", "meaning"],

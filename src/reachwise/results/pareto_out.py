@@ -14,8 +14,8 @@ from pathlib import Path
 from typing import Any
 
 from reachwise.io.atomic import atomic_open, atomic_write
-from reachwise.io.robot_file import save_robot
 from reachwise.io.urdf import export_urdf
+from reachwise.results.design_file import save_design
 from reachwise.synthesis.objectives import OBJECTIVES
 from reachwise.synthesis.pareto import ParetoPoint, ParetoResult
 
@@ -37,17 +37,18 @@ def point_record(p: ParetoPoint, folder: str) -> dict[str, Any]:
 
 
 def write_pareto(
-    result: ParetoResult, out: str | Path, link_base: str = "pareto"
+    result: ParetoResult, out: str | Path, link_base: str = "pareto", clearance: float = 0.0
 ) -> dict[str, Any]:
     """Write every design of ``result`` into ``out`` (module docstring); return the data
-    (``points``: one record per design, links relative to ``out``'s parent folder)."""
+    (``points``: one record per design, links relative to ``out``'s parent folder).
+    ``clearance`` is what the designs' bodies keep (``design_file``)."""
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
     records = []
     for p in result.points:
         sub = folder / f"point-{p.index}"
         sub.mkdir(exist_ok=True)
-        save_robot(p.robot, sub / "design.yaml")
+        save_design(p.robot, sub / "design.yaml", clearance)
         export_urdf(p.robot, sub / "design.urdf")
         records.append(point_record(p, f"{link_base}/point-{p.index}"))
     a, b = result.names
@@ -61,7 +62,7 @@ def write_pareto(
     atomic_write(folder / "front.json", json.dumps(data, indent=2))
     with atomic_open(folder / "front.csv", "w", newline="") as fh:
         w = csv.writer(fh)
-        names = list(OBJECTIVES)
+        names = [n for n in OBJECTIVES if n in result.start.values]
         w.writerow(["index", f"w_{a}", f"w_{b}", *names, "reached", "front", "bound_hits",
                     "design_yaml"])  # fmt: skip
         for r in records:

@@ -1,4 +1,5 @@
-"""A synthesis result as files in a folder: design.yaml, design.urdf, summary.json and
+"""A synthesis result as files in a folder: design.yaml (with its bodies placed,
+:mod:`reachwise.results.design_file`), design.urdf, summary.json and
 points.csv, written and read back (the figures and the HTML report are
 :mod:`reachwise.report.synthesis`'s)."""
 
@@ -15,8 +16,8 @@ from numpy.typing import NDArray
 
 from reachwise._version import __version__
 from reachwise.io.atomic import atomic_open, atomic_write
-from reachwise.io.robot_file import save_robot
 from reachwise.kinematics.indices import gci, kci
+from reachwise.results.design_file import save_design
 from reachwise.synthesis.synthesize import SynthesisResult
 
 if TYPE_CHECKING:
@@ -116,6 +117,7 @@ def _design_objectives(result: SynthesisResult) -> dict[str, Any]:
             **best.objective_start,
         },
         "objective_values": dict(best.objective_final),
+        "kept": list(best.kept),
         "improve_iterations": best.improve_iterations,
     }  # fmt: skip
 
@@ -126,7 +128,7 @@ def write_synthesis(result: SynthesisResult, out: str | Path) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     best = result.best
     prob = result.problem
-    save_robot(best.robot, folder / "design.yaml")
+    save_design(best.robot, folder / "design.yaml", result.clearance)
     from reachwise.io.urdf import export_urdf
 
     export_urdf(best.robot, folder / "design.urdf")

@@ -19,17 +19,19 @@ it. One iteration:
    step of ``active_set`` with ``λ → 0``): the null-space step leaves a second-order
    residual only;
 4. the trial is accepted only if every pose is within tolerance (position and
-   orientation), every link point is inside the workspace and the objective decreased;
-   the radius then grows, otherwise it shrinks.
+   orientation), every link point is inside the workspace, every kept index
+   (``Objective.keep``, ``keep``) is at least as good as at the start and the objective
+   decreased; the radius then grows, otherwise it shrinks.
 
 So every accepted iterate reaches every pose: the result is never worse than the
-reach-only design it started from. The loop ends when the radius or the relative
-decrease over ``window`` accepted steps falls below its tolerance.
+reach-only design it started from, and never worse in a kept index. The loop ends when
+the radius or the relative decrease over ``window`` accepted steps falls below its
+tolerance.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,8 +39,9 @@ from numpy.typing import NDArray
 from reachwise.synthesis.active_set import bounded_step
 from reachwise.synthesis.clearance import ClearanceModel
 from reachwise.synthesis.clearance_rows import clearance_barrier
+from reachwise.synthesis.keep import keep_barrier, kept_floors
 from reachwise.synthesis.linalg import BlockSystem, null_space_project, weighted
-from reachwise.synthesis.objectives import Objective, Terms, size_columns
+from reachwise.synthesis.objectives import OBJECTIVES, Objective, Terms, size_columns
 from reachwise.synthesis.problem import Evaluation, SynthesisProblem
 from reachwise.synthesis.solvers import Workspace, converged, row_weights
 from reachwise.synthesis.workspace_points import link_points
@@ -64,12 +67,14 @@ class ImproveOptions:
     samples_per_link: int = 4
     active_band: float = 1e-3
     max_passes: int = 60
+    keep_weight: float = 1.0
 
 
 @dataclass(frozen=True)
 class ImproveOutcome:
     """The improved vector, its evaluation, the objective's terms at the start and the end,
-    and how many steps were tried and accepted."""
+    how many steps were tried and accepted, and the kept indices' values at the start
+    (``floors``, ``keep``)."""
 
     z: Array
     evaluation: Evaluation
@@ -79,6 +84,7 @@ class ImproveOutcome:
     iterations: int
     accepted: int
     cost_history: list[float] = field(default_factory=list)
+    floors: dict[str, float] = field(default_factory=dict)
 
 
 def _spans(problem: SynthesisProblem) -> Array:
@@ -271,8 +277,13 @@ def improve(
     (module docstring). ``objective`` without reference magnitudes is referenced to
     ``z0``. If ``z0`` does not reach every pose it is returned unchanged. With
     ``clearance`` every accepted iterate keeps every clearance term, and a barrier on
-    the terms near it joins the tunnel wall's."""
+    the terms near it joins the tunnel wall's (``clearance`` is also the model of the
+    ``clearance`` objective when ``objective`` has none). Every index in
+    ``objective.keep`` stays at least as good as at ``z0`` (``keep``)."""
     opt = options or ImproveOptions()
+    if clearance is not None and objective.bodies is None:
+        objective = replace(objective, bodies=clearance)
+    bodies = objective.bodies
     lo, hi = problem.bounds
     p, K, nf = problem.p, problem.K, problem.n_free_joints
     span = _spans(problem)
@@ -282,16 +293,31 @@ def improve(
     scale[p:] *= np.sqrt(K)
     z = np.clip(np.asarray(z0, dtype=np.float64), lo, hi)
     ev = problem.evaluate(z)
+    margin = objective.margin
+    floors = kept_floors(problem, z, objective.keep, bodies, margin)
+
+    def barriers(x: Array) -> tuple[float, Array, bool]:
+        """The walls' barriers and the kept indices', and whether ``x`` keeps all."""
+        value, g, ok = _walls(problem, x, workspace, opt, clearance)
+        if not floors or opt.keep_weight <= 0:
+            return value, g, ok and kept_floors_hold(x)
+        v2, g2, ok2 = keep_barrier(problem, x, floors, bodies, margin)
+        return value + opt.keep_weight * v2, g + opt.keep_weight * g2, ok and ok2
+
+    def kept_floors_hold(x: Array) -> bool:
+        now = kept_floors(problem, x, objective.keep, bodies, margin)
+        return all(OBJECTIVES[n] * (now[n] - f) >= 0 for n, f in floors.items())
+
     if converged(problem, ev):  # every iterate from here on lies well inside the tolerance
         z1, ev1 = restore(problem, z, opt.restore_iter, opt.restore_tolerance)
-        if converged(problem, ev1):
+        if converged(problem, ev1) and barriers(z1)[2]:  # restoring may cost clearance
             z, ev = z1, ev1
     start = objective.terms(problem, z)
     obj = objective if objective.reference else objective.referenced(start)
     terms = start
-    wall, gwall, inside = _walls(problem, z, workspace, opt, clearance)
+    wall, gwall, inside = barriers(z)
     if not (converged(problem, ev) and inside):
-        return ImproveOutcome(z, ev, start, start, obj, 0, 0, [])
+        return ImproveOutcome(z, ev, start, start, obj, 0, 0, [], floors)
     cost = obj.cost(terms) + wall
     history = [cost]
     wx = row_weights(problem)
@@ -372,7 +398,7 @@ def improve(
             )  # fmt: skip
             if converged(problem, ev_try):
                 t_try = obj.terms(problem, z_try)
-                w_try, gw_try, in_try = _walls(problem, z_try, workspace, opt, clearance)
+                w_try, gw_try, in_try = barriers(z_try)
                 c_try = obj.cost(t_try) + w_try
                 if in_try and c_try < cost:
                     ok = True
@@ -391,4 +417,4 @@ def improve(
             ref = history[-1 - opt.window]
             if ref - cost <= opt.tolerance * max(abs(ref), 1.0):
                 break
-    return ImproveOutcome(z, ev, start, terms, obj, it, accepted, history)
+    return ImproveOutcome(z, ev, start, terms, obj, it, accepted, history, floors)

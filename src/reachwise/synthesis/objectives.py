@@ -18,6 +18,18 @@ reaching designs (``improve``). Each objective is a function of the decision vec
 * ``bounds`` — keep each design parameter a fraction ``margin`` of its range inside its
   bounds: ``Σ (max(0, m − u)² + max(0, u − 1 + m)²) / m²`` with ``u`` the parameter
   normalized to ``[0, 1]`` (P-I Table 3's scale); 0 inside the band, 1 at a bound.
+* ``clearance`` — maximize the smallest clearance (m) of the design bodies over the task:
+  every term ``d_i`` of every pose (``clearance.ClearanceModel``: watched pairs and
+  bodies against the tunnel). The minimum over the terms is not differentiable where
+  two tie, so the optimized term is the log-sum-exp soft minimum
+  ``−τ log Σ_i exp(−d_i / τ)`` (``τ = clearance_temperature``, 5 mm), whose gradient is
+  the softmax-weighted mean of the terms' gradients. It lies between ``min d − τ log N``
+  (``N`` terms) and ``min d``: never above the true smallest clearance, so a positive
+  value proves a clear design; in practice only the few terms within a few ``τ`` of the
+  minimum count, which puts it within millimetres of it. A p-norm of ``1 / d`` (the other
+  usual smooth minimum) is not used: a clearance may be negative (an overlap). The true
+  smallest clearance is what results report. It needs the template's bodies
+  (``design.bodies``) and their model.
 
 The weighted objective to minimize is ``Σ_i w_i s_i f_i / f_i⁰`` with ``s_i = −1`` for a
 term to maximize and ``f_i⁰`` the term's magnitude at a reference design (the reach-only
@@ -38,11 +50,14 @@ from numpy.typing import NDArray
 from reachwise.errors import InputError, UnknownName
 from reachwise.kinematics.conditioning import lci_gradient
 from reachwise.kinematics.robot import OBJECTIVES
+from reachwise.synthesis.clearance import ClearanceModel
 from reachwise.synthesis.problem import SynthesisProblem
 
 Array = NDArray[np.float64]
 
 LENGTH_PARAMS = ("a", "d")
+#: The soft minimum's temperature of the ``clearance`` objective (m).
+CLEARANCE_TEMPERATURE = 0.005
 
 
 def check_objective(
@@ -112,8 +127,11 @@ def evaluate_terms(
     margin: float = 0.05,
     kci_temperature: float = 0.002,
     abs_smoothing: float = 1e-4,
+    bodies: ClearanceModel | None = None,
+    clearance_temperature: float = CLEARANCE_TEMPERATURE,
 ) -> Terms:
-    """Values and exact gradients of the named terms at ``z`` (module docstring)."""
+    """Values and exact gradients of the named terms at ``z`` (module docstring);
+    ``clearance`` needs the bodies' model ``bodies``."""
     p, K, nf = problem.p, problem.K, problem.n_free_joints
     values: dict[str, float] = {}
     grads: dict[str, Array] = {}
@@ -174,12 +192,43 @@ def evaluate_terms(
         g = np.zeros(problem.size)
         g[:p] = np.where(ok, 2.0 * (above - below) / np.where(ok, span, 1.0) / m2, 0.0)
         grads["bounds"] = g
+    if "clearance" in names:
+        values["clearance"], grads["clearance"] = soft_clearance(
+            problem, z, bodies, clearance_temperature
+        )
     return Terms(values, grads, lcis)
+
+
+def soft_clearance(
+    problem: SynthesisProblem, z: Array, bodies: ClearanceModel | None, temperature: float
+) -> tuple[float, Array]:
+    """The ``clearance`` term (module docstring): ``−τ log Σ exp(−d_i / τ)`` over every
+    clearance term of every pose, and its gradient w.r.t. ``z``."""
+    if bodies is None:
+        raise InputError(
+            problem.template.name,
+            "design.bodies",
+            "the clearance objective needs the template's bodies (design.bodies)",
+        )
+    t = bodies.terms(problem, z)
+    if t.distance.size == 0:
+        raise InputError(problem.template.name, "design.bodies", "no clearance term to measure")
+    x = -t.distance / temperature
+    mx = float(x.max())
+    ex = np.exp(x - mx)
+    total = float(ex.sum())
+    w = ex / total  # (K, m): the softmax weights
+    g = np.empty(problem.size)
+    g[: problem.p] = np.einsum("km,kma->a", w, t.grad_design)
+    g[problem.p :] = np.einsum("km,kma->ka", w, t.grad_joints).ravel()
+    return float(-temperature * (mx + math.log(total))), g
 
 
 @dataclass(frozen=True)
 class Objective:
-    """Weights of the terms, each term's reference magnitude and the options.
+    """Weights of the terms, each term's reference magnitude and the options
+    (``bodies``: the clearance model the ``clearance`` term measures; ``keep``: the
+    indices the improvement must not make worse than at its start, ``keep``).
 
     ``cost`` is ``Σ w_i s_i f_i / f_i⁰`` (module docstring), to be minimized. ``levels``
     (for ε-constraint Pareto points, ``pareto``) bound terms as well: a term to maximize
@@ -192,6 +241,8 @@ class Objective:
     kci_temperature: float = 0.002
     levels: Mapping[str, float] = field(default_factory=dict)
     penalty: float = 30.0
+    bodies: ClearanceModel | None = field(default=None, compare=False, repr=False)
+    keep: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "weights", check_objective(self.weights))
@@ -200,6 +251,9 @@ class Objective:
         for n in self.levels:
             if n not in OBJECTIVES:
                 raise UnknownName("objective", "level", str(n), OBJECTIVES)
+        for n in self.keep:
+            if n not in OBJECTIVES:
+                raise UnknownName("objective", "keep", str(n), OBJECTIVES)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -208,7 +262,9 @@ class Objective:
 
     def terms(self, problem: SynthesisProblem, z: Array) -> Terms:
         names = tuple(dict.fromkeys((*self.names, *self.levels)))
-        return evaluate_terms(problem, z, names, self.margin, self.kci_temperature)
+        return evaluate_terms(
+            problem, z, names, self.margin, self.kci_temperature, bodies=self.bodies
+        )
 
     def referenced(self, terms: Terms) -> Objective:
         """This objective with the reference magnitudes taken from ``terms`` (1 where a

@@ -46,7 +46,12 @@ continuation found, so it was dominated. The front's size then depended on round
 Every design is checked by forward kinematics (``fk_check``, independent of the
 solver's residual) and only designs that reach every pose count. Each design is
 measured by the objectives' own values (GCI and KCI as P-II Eq. 38–39 define them, the
-others as ``objectives`` does). Pure math.
+clearance as the true smallest term over the task, the others as ``objectives`` does).
+
+**With bodies** (``clearance``, a ``clearance.ClearanceModel``): every improvement keeps
+every clearance term at least the model's clearance (``improve``), a design counts as
+reaching a pose only when it is that clear there too, and ``clearance`` may be one of
+the two objectives (``--pareto clearance,size``). Pure math.
 """
 
 from __future__ import annotations
@@ -62,6 +67,7 @@ from reachwise.errors import InputError
 from reachwise.kinematics.indices import gci, kci, lci
 from reachwise.kinematics.robot import Robot
 from reachwise.synthesis.bound_hits import BoundHit, bound_hits
+from reachwise.synthesis.clearance import ClearanceModel
 from reachwise.synthesis.fk_check import reached_by_fk
 from reachwise.synthesis.improve import ImproveOptions, improve
 from reachwise.synthesis.objectives import OBJECTIVES, Objective, check_objective, evaluate_terms
@@ -227,9 +233,12 @@ def measure(
     weights: dict[str, float],
     level: float | None = None,
     stage: Stage = "level",
+    bodies: ClearanceModel | None = None,
 ) -> ParetoPoint:
     """A design of the sweep, measured by every objective (GCI/KCI per P-II Eq. 38–39)
-    and checked by forward kinematics at every posture (``fk_check``)."""
+    and checked by forward kinematics at every posture (``fk_check``); with ``bodies``
+    its clearance too (the smallest term; a pose less clear than the model's clearance
+    is not reached)."""
     design, Q = problem.split(z)
     robot = problem.robot_at(design, name=f"{problem.template.name}-pareto-{index}")
     reached = reached_by_fk(robot, Q, problem.task) & problem.within_bounds(z)
@@ -238,6 +247,11 @@ def measure(
         problem, z, ("size", "limits", "bounds"), margin=problem.template.design.margin
     )
     values = {"gci": gci(lcis), "kci": kci(lcis), **terms.values}
+    if bodies is not None:
+        d = bodies.terms(problem, z).distance
+        smallest = d.min(axis=1) if d.shape[1] else np.full(problem.K, np.inf)
+        reached = reached & (smallest >= bodies.clearance)
+        values["clearance"] = float(smallest.min())
     return ParetoPoint(
         index, weights, robot, design.copy(), Q, reached, values, lcis,
         tuple(bound_hits(problem, design)), level=level, stage=stage, z=z.copy(),
@@ -254,24 +268,38 @@ def pareto_sweep(
     same: float = SAME,
     max_solves: int | None = None,
     stop: Callable[[], None] | None = None,
+    clearance: ClearanceModel | None = None,
 ) -> ParetoResult:
     """The front of the module docstring from the reaching vector ``z0``: aims at
     ``points`` non-dominated designs with at most ``max_solves`` improvements (default
     ``4 · points + 4``). ``stop``, if given, is called before each improvement; it may
-    raise (a command's Ctrl-C) to end the sweep between the compiled solves."""
+    raise (a command's Ctrl-C) to end the sweep between the compiled solves.
+    ``clearance`` (the bodies' model) keeps every design that clear and measures it."""
     a, b = check_names(names)
+    if clearance is None and "clearance" in (a, b):
+        raise InputError(
+            "pareto", "objectives", "the clearance objective needs the bodies' clearance model"
+        )
     if points < 2:
         raise InputError("pareto", "points", f"at least 2, got {points}")
     if not 0 < same < 0.5:
         raise InputError("pareto", "same", f"must lie in (0, 0.5), got {same}")
     budget = 4 * points + 4 if max_solves is None else int(max_solves)
     z0 = np.asarray(z0, dtype=np.float64)
-    start = measure(problem, z0, -1, {}, stage="start")
+    start = measure(problem, z0, -1, {}, stage="start", bodies=clearance)
     if not start.all_reached:
         raise InputError("pareto", "start", "the start design does not reach every pose")
     margin = problem.template.design.margin
-    ref = Objective({a: 1.0, b: 1.0}, margin=margin).terms(problem, z0)
+    ref = Objective({a: 1.0, b: 1.0}, margin=margin, bodies=clearance).terms(problem, z0)
     found: list[ParetoPoint] = []
+
+    def level_of(p: ParetoPoint, name: str) -> float:
+        """A design's value of ``name`` as a level is held: the optimized term's, which
+        for the clearance is the soft minimum (``objectives``), not the true one."""
+        if name != "clearance":
+            return p.values[name]
+        soft = evaluate_terms(problem, p.z, (name,), margin=margin, bodies=clearance)
+        return soft.values[name]
 
     def solve(z: Array, name: str, level: float | None = None, stage: Stage = "level"
               ) -> ParetoPoint:  # fmt: skip
@@ -281,10 +309,10 @@ def pareto_sweep(
         other = b if name == a else a
         levels = {} if level is None else {other: level}
         obj = Objective(
-            {name: 1.0}, margin=margin, levels=levels, penalty=LEVEL_PENALTY
+            {name: 1.0}, margin=margin, levels=levels, penalty=LEVEL_PENALTY, bodies=clearance
         ).referenced(ref)
-        z1 = improve(problem, z, obj, workspace, options or SWEEP_OPTIONS).z
-        p = measure(problem, z1, len(found), {name: 1.0, other: 0.0}, level, stage)
+        z1 = improve(problem, z, obj, workspace, options or SWEEP_OPTIONS, clearance).z
+        p = measure(problem, z1, len(found), {name: 1.0, other: 0.0}, level, stage, clearance)
         found.append(p)
         return p
 
@@ -299,14 +327,14 @@ def pareto_sweep(
     # looser than the last, so each ε-problem starts from a design that meets its level
     # (the result is at least as good in a); from the a end the level pulls the design
     # across. They follow different basins of the improvement; the front keeps the best
-    va, vb = end_a.values[b], end_b.values[b]
+    va, vb = level_of(end_a, b), level_of(end_b, b)
     for ts, p in ((np.linspace(1.0, 0.0, points), end_b), (np.linspace(0.0, 1.0, points), end_a)):
         for t in ts[1:-1]:
             p = solve(p.z, a, float(va + t * (vb - va)))
     # 3. the ends polished from the best design for each objective, then lexicographic
     for name, other in ((a, b), (b, a)):
         top = solve(best(name).z, name, stage="polish")
-        solve(top.z, other, top.values[name], stage="polish")
+        solve(top.z, other, level_of(top, name), stage="polish")
     # 4. adaptive levels in the largest gaps of the front
     tried: set[tuple[int, int]] = set()
     while len(found) < budget:
@@ -326,7 +354,7 @@ def pareto_sweep(
             break
         _, key, left, right = max(gaps, key=lambda g: g[0])
         tried.add(key)
-        level = 0.5 * (left.values[b] + right.values[b])
+        level = 0.5 * (level_of(left, b) + level_of(right, b))
         # first from the neighbour better in b, which meets the level (a feasible start:
         # the result is at least as good in a), from the other only if that gave no new
         # front design

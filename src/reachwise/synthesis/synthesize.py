@@ -28,6 +28,7 @@ from reachwise.synthesis.bound_hits import BoundHit, bound_hits
 from reachwise.synthesis.clearance import ClearanceModel, Unservable, unservable_poses
 from reachwise.synthesis.improve import ImproveOptions, improve
 from reachwise.synthesis.init import initial_guess
+from reachwise.synthesis.keep import check_keep, default_keep
 from reachwise.synthesis.objectives import (
     OBJECTIVES,
     Objective,
@@ -70,6 +71,7 @@ class RunResult:
     objective_start: dict[str, float] = field(default_factory=dict)
     objective_final: dict[str, float] = field(default_factory=dict)
     improve_iterations: int = 0
+    kept: tuple[str, ...] = ()
     clearance: Array | None = None
     clearance_pairs: tuple[tuple[str, str], ...] = ()
 
@@ -167,12 +169,19 @@ def _lci_at(problem: SynthesisProblem, robot: Robot, Q: Array) -> Array:
     return np.asarray(lci(robot, Q))
 
 
-def design_values(problem: SynthesisProblem, z: Array, lcis: Array) -> dict[str, float]:
+def design_values(
+    problem: SynthesisProblem, z: Array, lcis: Array, bodies: ClearanceModel | None = None
+) -> dict[str, float]:
     """Every design objective's value at ``z`` (``objectives``), with GCI and KCI as
-    P-II Eq. 38–39 define them (``lcis``: the LCI at every task posture)."""
+    P-II Eq. 38–39 define them (``lcis``: the LCI at every task posture) and, with the
+    bodies' model, the clearance as the true smallest term over the task."""
     margin = problem.template.design.margin
     values = evaluate_terms(problem, z, ("size", "limits", "bounds"), margin=margin).values
-    return {"gci": float(np.mean(lcis)), "kci": float(np.min(lcis)), **values}
+    out = {"gci": float(np.mean(lcis)), "kci": float(np.min(lcis)), **values}
+    if bodies is not None:
+        d = bodies.terms(problem, z).distance
+        out["clearance"] = float(d.min()) if d.size else float("inf")
+    return out
 
 
 def run_once(
@@ -185,9 +194,12 @@ def run_once(
     objective: dict[str, float] | None = None,
     improve_options: ImproveOptions | None = None,
     clearance: ClearanceModel | None = None,
+    keep: Sequence[str] | None = None,
 ) -> RunResult:
     """One run: Beta/IK initialization from ``seed``, one solve and, with an
-    ``objective`` (weights) and every pose reached, the null-space improvement. With
+    ``objective`` (weights) and every pose reached, the null-space improvement, which
+    never makes an index in ``keep`` worse than at the reach-only design (``None``:
+    ``keep.default_keep``, the KCI when the GCI is weighted). With
     ``clearance`` (``clearance_setup``) the solve and the improvement keep every watched
     pair of bodies at least its clearance apart at every pose, and a pose counts as
     reached only when it is within tolerance *and* clear."""
@@ -204,7 +216,8 @@ def run_once(
     weights = check_objective(objective)
     extra: dict[str, object] = {}
     if weights and out.converged:
-        obj = Objective(weights, margin=problem.template.design.margin)
+        kept = default_keep(weights) if keep is None else check_keep(keep)
+        obj = Objective(weights, margin=problem.template.design.margin, keep=kept)
         better = improve(problem, out.z, obj, workspace, improve_options, clearance)
         reach_d, reach_q = problem.split(out.z)
         z, ev = better.z, better.evaluation
@@ -214,10 +227,11 @@ def run_once(
             "reach_design": reach_d.copy(),
             "reach_q": reach_q,
             "lci_reach": lci_reach,
-            "objective_start": design_values(problem, out.z, lci_reach),
+            "objective_start": design_values(problem, out.z, lci_reach, clearance),
             "objective_final": design_values(
-                problem, z, _lci_at(problem, problem.robot_at(fd), fq)
+                problem, z, _lci_at(problem, problem.robot_at(fd), fq), clearance
             ),
+            "kept": tuple(better.floors),
             "improve_iterations": better.iterations,
         }
     design, Q = problem.split(z)
@@ -257,9 +271,10 @@ class SynthesisSettings:
     links stay inside (``"task"``: the task's envelope, ``None``: none); the solver's
     ``options``; the ``objective`` weights (``None``: the template's
     ``design.objective``) and how the design is improved for them
-    (``improve_options``); the bodies' ``clearance`` (m; ``None``: the template's
-    ``design.clearance``, 0: none). Every field is also a keyword of
-    :func:`synthesize`."""
+    (``improve_options``) and the indices the improvement must ``keep`` (``None``: the
+    KCI when the GCI is weighted, ``synthesis.keep``); the bodies' ``clearance`` (m;
+    ``None``: the template's ``design.clearance``, 0: none). Every field is also a
+    keyword of :func:`synthesize`."""
 
     runs: int = 10
     solver: SolverName = "dls"
@@ -271,6 +286,7 @@ class SynthesisSettings:
     objective: Mapping[str, float] | None = None
     improve_options: ImproveOptions | None = None
     clearance: float | None = None
+    keep: Sequence[str] | None = None
 
 
 def synthesize(
@@ -293,7 +309,9 @@ def synthesize(
     drilling task) when it has one; pass ``None`` to ignore it, or any object with
     ``signed_distance`` and ``gradient``. ``objective`` maps objective names
     (``objectives.OBJECTIVES``: ``gci``, ``kci``, ``size``, ``limits``, ``bounds``) to
-    weights; ``None`` takes the template's ``design.objective``, ``{}`` none.
+    weights; ``None`` takes the template's ``design.objective``, ``{}`` none. ``keep``
+    names the indices the improvement must not make worse than the reach-only design's
+    (``synthesis.keep``; ``None``: the KCI when the GCI is weighted, ``()``: none).
     ``clearance`` (m; ``None``: the template's ``design.clearance``, 0: none) keeps the
     template's bodies that far apart and from the workspace at every pose
     (``clearance_setup``); poses no design can serve are left out before the solve and
@@ -310,16 +328,18 @@ def synthesize(
         if workspace != "task":
             raise InputError("synthesize", "workspace", "'task', None or a workspace object")
         workspace = task.envelope
-    model, task, unservable = clearance_setup(template, task, workspace, s.clearance)
-    problem = SynthesisProblem(template, task, locked_from_spec(template, s.locked))
     weights = check_objective(
         template.design.objective if objective is None else objective, "synthesize"
     )
+    kept = None if s.keep is None else check_keep(s.keep, "synthesize")
+    needs_bodies = "clearance" in weights or "clearance" in (kept or ())
+    model, task, unservable = clearance_setup(template, task, workspace, s.clearance, needs_bodies)
+    problem = SynthesisProblem(template, task, locked_from_spec(template, s.locked))
     results = []
     for i in range(runs):
         r = run_once(
             problem, seed + i, solver, init_sets, options, workspace, weights, improve_options,
-            model,
+            model, kept,
         )  # fmt: skip
         results.append(r)
         if on_run is not None:
@@ -328,23 +348,29 @@ def synthesize(
 
 
 def clearance_setup(
-    template: Robot, task: Task, workspace: Workspace | None, clearance: float | None
+    template: Robot,
+    task: Task,
+    workspace: Workspace | None,
+    clearance: float | None,
+    needed: bool = False,
 ) -> tuple[ClearanceModel | None, Task, tuple[Unservable, ...]]:
-    """The clearance model of ``template``'s bodies (``None`` when the clearance is 0),
-    the task without the poses no design can serve, and those poses with the reason.
+    """The clearance model of ``template``'s bodies (``None`` when the clearance is 0
+    and the model is not ``needed``), the task without the poses no design can serve,
+    and those poses with the reason.
 
     ``clearance`` ``None`` takes ``design.clearance``. A workspace that is not a tunnel
     envelope (no ``signed_distance_and_gradient``) adds no environment terms.
+    ``needed`` (the ``clearance`` objective, or a kept clearance) builds the model even
+    at a clearance of 0: the bodies then only must not overlap.
     """
     c = template.design.clearance if clearance is None else float(clearance)
     if not (np.isfinite(c) and c >= 0):
         raise InputError("synthesize", "clearance", f"must be >= 0, got {c}")
-    if c == 0:
+    if c == 0 and not needed:
         return None, task, ()
     if not template.design.bodies:
-        raise InputError(
-            template.name, "design.bodies", f"a clearance of {c} m needs bodies to keep apart"
-        )
+        why = f"a clearance of {c} m" if c > 0 else "the clearance objective"
+        raise InputError(template.name, "design.bodies", f"{why} needs bodies to keep apart")
     env = workspace if hasattr(workspace, "signed_distance_and_gradient") else None
     model = ClearanceModel(template, env, c)  # type: ignore[arg-type]
     bad = tuple(unservable_poses(model, task.poses, task.dims, task.names))
