@@ -38,23 +38,31 @@ _FIGURES = {
     "(P-I Figs. 4–5 colours).",
     "lci": "LCI at every task point, initial and optimized design (P-I Fig. 6); GCI is its "
     "mean (P-II Eq. 38), KCI its minimum (Eq. 39).",
+    "clearance": "The same configurations coloured by each pose's smallest clearance of the "
+    "design bodies (watched pairs and bodies against the tunnel); a pose below the required "
+    "clearance is red.",
 }
 
 
 def synthesis_figures(result: SynthesisResult) -> dict[str, FigureSource]:
     """Draw the report's figures from the result (P-I Figs. 5–6)."""
-    from reachwise.report.plots import configurations_figure, lci_figure
+    from reachwise.report.plots import clearance_figure, configurations_figure, lci_figure
 
     best = result.best
     prob = result.problem
-    return {
+    out = {
         "configurations": configurations_figure(
             best.robot, best.q, prob.task.poses, best.status, every=2
         ),
-        "lci": lci_figure(
-            best.lci_initial, best.lci_final, f"{prob.template.name} on {prob.task.name}"
-        ),
     }
+    if best.clearance is not None:
+        out["clearance"] = clearance_figure(
+            best.robot, best.q, prob.task.poses, best.clearance, result.clearance, every=2
+        )
+    out["lci"] = lci_figure(
+        best.lci_initial, best.lci_final, f"{prob.template.name} on {prob.task.name}"
+    )
+    return out
 
 
 def save_synthesis_figures(result: SynthesisResult, folder: str | Path) -> dict[str, Path]:
@@ -231,6 +239,53 @@ def _points(result: SynthesisResult) -> Raw:
     )
 
 
+def clearance_section(result: SynthesisResult, data: Mapping[str, Any]) -> Raw | None:
+    """The bodies' clearance: what was required, the poses left out before the solve
+    (with why), and every pose's smallest clearance and the pair it belongs to; None
+    without a clearance."""
+    c = data.get("clearance")
+    if not c:
+        return None
+    required = float(c["required_m"])
+    parts: list[Raw] = [
+        para(
+            f"Every watched pair of design bodies, and every body against the tunnel, kept "
+            f"at least {required:g} m apart at every pose, as constraints of the solve. "
+            + (
+                f"Smallest clearance over the task: {c['smallest_m']:.3f} m."
+                if c["smallest_m"] is not None
+                else ""
+            )
+        )
+    ]
+    if c["unservable"]:
+        parts.append(
+            table(
+                ["pose", "why no design can serve it"],
+                [[u["name"], u["reason"]] for u in c["unservable"]],
+                caption=f"{len(c['unservable'])} poses left out before the solve.",
+                id="unservable",
+                left=(0, 1),
+            )
+        )
+    rows = [[r["name"], num(r["clearance_m"]), " ~ ".join(r["pair"])] for r in c["per_pose"]]
+    if rows:
+        cls = ["bad" if r["clearance_m"] < required else "" for r in c["per_pose"]]
+        parts.append(
+            details(
+                "every pose's smallest clearance",
+                table(
+                    ["pose", "smallest clearance (m)", "pair"],
+                    rows,
+                    id="clearance-table",
+                    left=(0, 2),
+                    row_class=cls,
+                ),
+            )
+        )
+    return section("Clearance of the design bodies", *parts, id="clearance")
+
+
 def _comparison(result: SynthesisResult, data: Mapping[str, Any]) -> Raw:
     ok = data["runs_reaching_all"]
     rows: list[tuple[object, object, object, object]] = [
@@ -311,7 +366,8 @@ def synthesis_html(
         ),
     ]
     objectives = objective_section(result, data)
-    body += [s for s in (objectives, bounds_section(data)) if s is not None]
+    clear = clearance_section(result, data)
+    body += [s for s in (objectives, clear, bounds_section(data)) if s is not None]
     if with_thesis:
         body.append(
             section(
