@@ -179,18 +179,21 @@ def test_sigkill_during_writes_leaves_a_sound_database(tmp_path: Path) -> None:
         assert st.write("sid", _item(run=len(runs)))  # and the sweep can go on
 
 
-def test_a_schema_1_database_is_upgraded_in_place(tmp_path: Path) -> None:
+@pytest.mark.parametrize("version", [1, 2])
+def test_an_older_schema_is_upgraded_in_place(tmp_path: Path, version: int) -> None:
     """A store written before the design objectives (schema 1: no size/limits/bounds
-    columns) opens, keeps its rows (the new measures read NaN) and takes new ones."""
+    columns) or before the clearance (schema 2: no clearance column) opens, keeps its
+    rows (the new measures read NaN) and takes new ones."""
     from reachwise.results import sweep_store
 
-    path = tmp_path / "v1.db"
-    v1 = sweep_store._SCHEMA
-    for c in ("size", "limits", "bounds"):
-        v1 = v1.replace(f"  {c} REAL,\n", "")
+    path = tmp_path / f"v{version}.db"
+    old_schema = sweep_store._SCHEMA
+    later = {1: ("size", "limits", "bounds", "clearance"), 2: ("clearance",)}[version]
+    for c in later:
+        old_schema = old_schema.replace(f"  {c} REAL,\n", "")
     db = sqlite3.connect(path)
-    db.executescript(v1)
-    db.execute("INSERT INTO meta(key, value) VALUES ('schema', '1')")
+    db.executescript(old_schema)
+    db.execute("INSERT INTO meta(key, value) VALUES ('schema', ?)", (str(version),))
     db.commit()
     db.close()
     old = _item(run=0)
@@ -198,16 +201,18 @@ def test_a_schema_1_database_is_upgraded_in_place(tmp_path: Path) -> None:
         st.open_sweep("sid", {"task": "demo"}, [("t", "R R", "h1")])
         assert st.write("sid", old)
     db = sqlite3.connect(path)
-    db.execute("UPDATE items SET size = NULL, limits = NULL, bounds = NULL")
+    db.execute(f"UPDATE items SET {', '.join(f'{c} = NULL' for c in later)}")
     db.commit()
     db.close()
     new = replace(
-        _item(run=1), measures=replace(_item().measures, size=3.5, limits=0.25, bounds=0.0)
+        _item(run=1),
+        measures=replace(_item().measures, size=3.5, limits=0.25, bounds=0.0, clearance=0.125),
     )
     with SweepStore(path) as st:
         assert st.write("sid", new)
         got = {r.run: r for r in st.results("sid")}
-    assert got[0].same_outcome(old) and math.isnan(got[0].measures.size)
-    assert got[1].measures.size == 3.5 and got[1].same_outcome(new)
+    assert got[0].same_outcome(old) and math.isnan(got[0].measures.clearance)
+    assert got[1].measures.size == 3.5 and got[1].measures.clearance == 0.125
+    assert got[1].same_outcome(new)
     with SweepStore(path) as st:  # opening again is a no-op
         assert len(st.results("sid")) == 2

@@ -37,10 +37,11 @@ from reachwise.errors import InputError
 from reachwise.synthesis.rank import Measures
 from reachwise.synthesis.sweep.items import ItemResult
 
-SCHEMA_VERSION = 2
-# v2 adds the design-objective measures (``rank.Measures.size/limits/bounds``); a v1
-# database is upgraded in place (the new columns read NULL, i.e. NaN, for old rows).
-_V2_COLUMNS = ("size", "limits", "bounds")
+SCHEMA_VERSION = 3
+# v2 adds the design-objective measures (``rank.Measures.size/limits/bounds``), v3 the
+# clearance (``rank.Measures.clearance``); an older database is upgraded in place (the
+# new columns read NULL, i.e. NaN, for old rows).
+_NEW_COLUMNS = {2: ("size", "limits", "bounds"), 3: ("clearance",)}
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (
   key TEXT PRIMARY KEY,
@@ -81,6 +82,7 @@ CREATE TABLE IF NOT EXISTS items (
   size REAL,
   limits REAL,
   bounds REAL,
+  clearance REAL,
   max_position_error REAL,
   max_orientation_error REAL,
   design_names TEXT NOT NULL,
@@ -102,7 +104,8 @@ CREATE TABLE IF NOT EXISTS items (
 _COLUMNS = (
     "sweep_id", "topology", "round", "run", "seed", "n_points", "n_reached", "feasible",
     "e_obj", "iterations", "converged", "gci", "kci", "mean", "manipulability", "length",
-    "prismatic", "size", "limits", "bounds", "max_position_error", "max_orientation_error",
+    "prismatic", "size", "limits", "bounds", "clearance", "max_position_error",
+    "max_orientation_error",
     "design_names", "design", "status", "q", "q_rows", "q_cols", "error", "wall_s", "worker",
     "versions", "finished_at",
 )  # fmt: skip
@@ -141,9 +144,10 @@ class SweepStore:
                 self._db.execute(
                     "INSERT INTO meta(key, value) VALUES ('schema', ?)", (str(SCHEMA_VERSION),)
                 )
-            elif int(row[0]) == 1:
-                for c in _V2_COLUMNS:
-                    self._db.execute(f"ALTER TABLE items ADD COLUMN {c} REAL")
+            elif 1 <= int(row[0]) < SCHEMA_VERSION:
+                for version in range(int(row[0]) + 1, SCHEMA_VERSION + 1):
+                    for c in _NEW_COLUMNS[version]:
+                        self._db.execute(f"ALTER TABLE items ADD COLUMN {c} REAL")
                 self._db.execute("UPDATE meta SET value = ? WHERE key = 'schema'",
                                  (str(SCHEMA_VERSION),))  # fmt: skip
             elif int(row[0]) != SCHEMA_VERSION:
@@ -249,6 +253,7 @@ class SweepStore:
             None if m is None else m.length, None if m is None else int(m.prismatic),
             None if m is None else _real(m.size), None if m is None else _real(m.limits),
             None if m is None else _real(m.bounds),
+            None if m is None else _real(m.clearance),
             _real(result.max_position_error), _real(result.max_orientation_error),
             json.dumps(list(result.design_names)), json.dumps(list(result.design)),
             json.dumps(list(result.status)), q.tobytes(), int(q.shape[0]), int(q.shape[1]),
@@ -283,6 +288,7 @@ class SweepStore:
                 manipulability=float(r["manipulability"]), length=float(r["length"]),
                 prismatic=int(r["prismatic"]), size=_float(r["size"]),
                 limits=_float(r["limits"]), bounds=_float(r["bounds"]),
+                clearance=_float(r["clearance"]),
             )  # fmt: skip
         q = np.frombuffer(r["q"], dtype="<f8").reshape(r["q_rows"], r["q_cols"]).copy()
         return ItemResult(

@@ -18,7 +18,11 @@ Further keys, as P-II §6 suggests ("different performance measures can be used"
 * ``size``, ``limits``, ``bounds`` — the design objectives of ``objectives`` (lower is
   better): ``Σ |a| + Σ |d|`` of the free length parameters, the mean squared normalized
   distance of the joints from mid-range, and the bound-margin penalty. They need the
-  synthesis problem, so ``measures`` leaves them NaN and the sweep fills them in.
+  synthesis problem, so ``measures`` leaves them NaN and the sweep fills them in;
+* ``clearance`` — the smallest clearance of the design bodies over the task (m, higher is
+  better), when the sweep keeps one (``SweepConfig.clearance``): a run that is less
+  clear than that at a pose has not reached it, so its topology is rejected as one that
+  does not reach; NaN without a clearance.
 
 Only feasible candidates (the best run reaches every task point) are ranked; the others
 are reported with ``rank = None`` (P-II Table 2's "−": "no solution for the problem").
@@ -51,8 +55,9 @@ from reachwise.kinematics.robot import Robot
 #: length, number of prismatic joints, or a design objective (``size``, ``limits``,
 #: ``bounds``; see ``objectives``).
 RankKey = Literal[
-    "mean", "gci", "kci", "manipulability", "length", "prismatic", "size", "limits", "bounds"
-]
+    "mean", "gci", "kci", "manipulability", "length", "prismatic", "size", "limits", "bounds",
+    "clearance",
+]  # fmt: skip
 # key -> +1 when higher is better, -1 when lower is better
 RANK_KEYS: dict[RankKey, int] = {
     "mean": 1,
@@ -64,6 +69,7 @@ RANK_KEYS: dict[RankKey, int] = {
     "size": -1,
     "limits": -1,
     "bounds": -1,
+    "clearance": 1,
 }
 
 
@@ -80,6 +86,7 @@ class Measures:
     size: float = math.nan
     limits: float = math.nan
     bounds: float = math.nan
+    clearance: float = math.nan
 
     def value(self, key: RankKey) -> float:
         return float(getattr(self, check_key(key)))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from reachwise.errors import InputError, check_choice
@@ -25,7 +26,9 @@ class SweepConfig:
     ``seed … seed + runs − 1``); ``rank_key``: one of ``rank.RANK_KEYS``; ``workspace``:
     keep the links inside the task's envelope (the tunnel); ``batch_size``: runs per
     submitted batch; ``objective``: weights of the design objectives every run then
-    improves (``synthesis.objectives``), ``None`` for reach only.
+    improves (``synthesis.objectives``), ``None`` for reach only; ``clearance`` (m, 0:
+    none): every run keeps the templates' design bodies that clear at every pose
+    (``synthesize.clearance_setup``; a template without bodies is rejected).
     """
 
     subset: int | None = None
@@ -39,6 +42,7 @@ class SweepConfig:
     options: SolverOptions | None = None
     batch_size: int = 1
     objective: dict[str, float] | None = None
+    clearance: float = 0.0
 
     def __post_init__(self) -> None:
         if self.subset is not None and self.subset < 1:
@@ -53,5 +57,7 @@ class SweepConfig:
         if self.batch_size < 1:
             raise InputError("sweep", "batch_size", "must be >= 1")
         check_key(self.rank_key)
+        if not (math.isfinite(self.clearance) and self.clearance >= 0):
+            raise InputError("sweep", "clearance", f"must be >= 0, got {self.clearance}")
         if self.objective is not None:
             object.__setattr__(self, "objective", check_objective(self.objective, "sweep") or None)

@@ -47,6 +47,8 @@ def template_fingerprint(robot: Robot) -> str:
     )
     if d.min_length or d.margin != 0.05 or d.objective:  # else: the id of earlier stores
         design += (d.min_length, d.margin, sorted(d.objective.items()))
+    if d.bodies:  # likewise: the bodies a clearance keeps apart
+        design += (d.bodies,)
     return _h(
         repr((robot.convention, joints, design)).encode(),
         np.ascontiguousarray(robot.base, dtype="<f8").tobytes(),
@@ -57,7 +59,7 @@ def template_fingerprint(robot: Robot) -> str:
 def sweep_fingerprint(task: Task, subset: NDArray[np.intp] | None, config: SweepConfig) -> str:
     """The sweep id: task, subset, seed and solver settings (not runs, top, rank key)."""
     opts = None if config.options is None else asdict(config.options)
-    spec = {
+    spec: dict[str, object] = {
         "task": task_fingerprint(task),
         "subset": None if subset is None else [int(i) for i in subset],
         "seed": config.seed,
@@ -68,4 +70,6 @@ def sweep_fingerprint(task: Task, subset: NDArray[np.intp] | None, config: Sweep
     }
     if config.objective:  # only then: sweeps stored before objectives keep their id
         spec["objective"] = dict(sorted(config.objective.items()))
+    if config.clearance:  # likewise
+        spec["clearance"] = config.clearance
     return _h(json.dumps(spec, sort_keys=True).encode())[:16]

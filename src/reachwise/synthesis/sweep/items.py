@@ -25,7 +25,7 @@ from reachwise.synthesis.problem import SynthesisProblem
 from reachwise.synthesis.rank import Measures
 from reachwise.synthesis.rank import measures as design_measures
 from reachwise.synthesis.solvers import SolverOptions
-from reachwise.synthesis.synthesize import SolverName, run_once
+from reachwise.synthesis.synthesize import SolverName, clearance_setup, run_once
 from reachwise.tasks.task import Task
 
 Array = NDArray[np.float64]
@@ -46,6 +46,7 @@ class WorkItem:
     options: SolverOptions | None = None
     workspace: bool = True
     objective: dict[str, float] | None = None
+    clearance: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -125,15 +126,19 @@ def versions() -> dict[str, str]:
 
 def run_item(item: WorkItem) -> ItemResult:
     """One synthesis run of one topology (``synthesize.run_once``) and its measures
-    (P-II Eq. 38–39, ``rank.measures``). Pure apart from its wall-time record."""
+    (P-II Eq. 38–39, ``rank.measures``); with a clearance, the poses no design can serve
+    are left out first and a pose less clear than the clearance is not reached. Pure
+    apart from its wall-time record."""
     t0 = time.perf_counter()
     problem: SynthesisProblem | None = None
     try:
-        problem = SynthesisProblem(item.template, item.task)
         ws = item.task.envelope if item.workspace else None
+        model, task, _ = clearance_setup(item.template, item.task, ws, item.clearance)
+        problem = SynthesisProblem(item.template, task)
         r = run_once(
-            problem, item.seed, item.solver, item.init_sets, item.options, ws, item.objective
-        )
+            problem, item.seed, item.solver, item.init_sets, item.options, ws, item.objective,
+            clearance=model,
+        )  # fmt: skip
         terms = evaluate_terms(
             problem, problem.pack(r.design, r.q), ("size", "limits", "bounds"),
             margin=problem.template.design.margin,
@@ -143,6 +148,7 @@ def run_item(item: WorkItem) -> ItemResult:
             size=terms["size"],
             limits=terms["limits"],
             bounds=terms["bounds"],
+            clearance=float(np.min(r.clearance)) if r.clearance is not None else math.nan,
         )
         res = ItemResult(
             topology=item.topology,

@@ -164,6 +164,7 @@ def _run_round(
                     options=cfg.options,
                     workspace=cfg.workspace,
                     objective=cfg.objective,
+                    clearance=cfg.clearance,
                 )
             )
             left[t.name] = left.get(t.name, 0) + 1

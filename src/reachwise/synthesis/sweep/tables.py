@@ -59,6 +59,7 @@ class RoundTable:
                     "manipulability": None if m is None else m.manipulability,
                     "length": None if m is None else m.length,
                     "prismatic": None if m is None else m.prismatic,
+                    "clearance": None if m is None else _finite_or_none(m.clearance),
                     "e_obj": c.e_obj,
                     "best_run": b.run,
                     "best_seed": b.seed,
@@ -69,6 +70,10 @@ class RoundTable:
                 }
             )
         return out
+
+
+def _finite_or_none(v: float) -> float | None:
+    return float(v) if math.isfinite(v) else None
 
 
 def _key_costs(runs: Sequence[ItemResult], key: RankKey) -> list[float] | None:

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from reachwise.errors import InputError
+from reachwise.kinematics.design_bodies import DesignBody
 from reachwise.kinematics.robot import DesignSpace, Joint, Robot
 from reachwise.synthesis.topology.spec import _JOINT_TYPE, _SRC, TopologySpec, _parallel, as_spec
 
@@ -33,7 +34,10 @@ class TemplateOptions:
 
     ``length_bounds`` for every free ``a``/``d`` (m); ``prismatic_limits`` the stroke
     (m); ``revolute_limits`` (rad); ``base_bounds`` for base x, y, z (m; orientation
-    fixed); ``minimal`` leaves exactly redundant parameters locked (module docstring).
+    fixed); ``minimal`` leaves exactly redundant parameters locked (module docstring);
+    ``body_radius`` (m, 0: none) gives every link a stand-in body, a capsule of that
+    radius along its DH row's ``a`` and ``d`` segments (``kinematics.design_bodies``),
+    for a sweep that keeps a clearance.
     """
 
     length_bounds: tuple[float, float] = (-2.0, 2.0)
@@ -43,8 +47,12 @@ class TemplateOptions:
         default_factory=lambda: {"x": (-2.0, 2.0), "y": (-2.0, 2.0), "z": (-2.0, 2.0)}
     )
     minimal: bool = True
+    body_radius: float = 0.0
 
     def __post_init__(self) -> None:
+        r = float(self.body_radius)
+        if not (math.isfinite(r) and r >= 0):
+            raise InputError(_SRC, "body_radius", f"must be >= 0, got {self.body_radius}")
         for name in ("length_bounds", "prismatic_limits", "revolute_limits"):
             lo, hi = (float(v) for v in getattr(self, name))
             if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
@@ -125,5 +133,13 @@ def to_template(
         joints=tuple(joints),
         convention="modified",
         base=base,
-        design=DesignSpace(joints=design, base=dict(opt.base_bounds)),
-    )
+        design=DesignSpace(
+            joints=design,
+            base=dict(opt.base_bounds),
+            bodies=tuple(
+                DesignBody(f"link_{i + 1}", f"link_{i + 1}", along=("a", "d"),
+                           radius=opt.body_radius)
+                for i in range(len(joints))
+            ) if opt.body_radius > 0 else (),
+        ),
+    )  # fmt: skip
