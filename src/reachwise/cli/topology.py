@@ -33,8 +33,9 @@ class SweepSettings:
     """The sweep: the ``task`` (a file or built-in name), round 1 on ``subset``
     descriptive points (``None``: none), the ``top`` topologies to round 2, ``runs``
     multi-start runs per topology from ``seed``, the ranking key, the objective every
-    reaching run is improved for (``None``: none), runs per submitted ``batch`` and
-    the task's tunnel envelope kept (``tunnel``)."""
+    reaching run is improved for (``None``: none), the ``clearance`` of stand-in link
+    bodies of ``body_radius`` (0: none), runs per submitted ``batch`` and the task's
+    tunnel envelope kept (``tunnel``)."""
 
     #: Task file or built-in task name.
     task: str = cli(
@@ -58,8 +59,23 @@ class SweepSettings:
             "mean",
             "--rank",
             help="mean, gci, kci, manipulability, length, prismatic, or an objective: size, "
-            "limits, bounds.",
+            "limits, bounds, clearance.",
         )
+    )
+    #: Clearance of the stand-in link bodies (m); 0: off.
+    clearance: float = cli(
+        typer.Option(
+            0.0,
+            "--clearance",
+            min=0.0,
+            help="Keep stand-in link bodies (capsules of --body-radius along every link) "
+            "this far apart and from the tunnel at every pose (m; 0: off); a topology whose "
+            "best run is less clear at a pose does not reach it.",
+        )
+    )
+    #: Radius of the stand-in link bodies (m), with a clearance.
+    body_radius: float = cli(
+        typer.Option(0.1, "--body-radius", min=0.0, help="Radius of the stand-in link bodies (m).")
     )
     #: Weighted objectives, e.g. gci:1,size:0.2; ``None``: reach only.
     objective: str | None = cli(
@@ -215,6 +231,8 @@ class SweepOutput:
         "seed",
         "rank_key",
         "objective",
+        "clearance",
+        "body_radius",
         "workers",
         "dask",
         "batch",
@@ -237,6 +255,8 @@ def topology(
     what is done. Ctrl-C (once or more) stops submitting, waits for the running runs,
     stores them and exits (130); a killed sweep loses nothing it stored.
     """
+    from dataclasses import replace
+
     from reachwise.io.task_file import load_task
     from reachwise.synthesis.objectives import parse_objective
     from reachwise.synthesis.rank import check_key
@@ -246,7 +266,10 @@ def topology(
     key = check_key(sweep.rank_key)
     place.check()
     t = load_task(sweep.task)
-    topos = source.topologies(t, bounds.options())
+    options = bounds.options()
+    if sweep.clearance > 0:
+        options = replace(options, body_radius=sweep.body_radius)
+    topos = source.topologies(t, options)
     if output.list_only:
         _list(topos, output.json_out)
         return
@@ -254,6 +277,7 @@ def topology(
         subset=sweep.subset, top=sweep.top, runs=sweep.runs, seed=sweep.seed, rank_key=key,
         workspace=sweep.tunnel, batch_size=sweep.batch,
         objective=parse_objective(sweep.objective) if sweep.objective else None,
+        clearance=sweep.clearance,
     )  # fmt: skip
     result = _sweep(t, topos, cfg, place, output)
     _report(result, output)
