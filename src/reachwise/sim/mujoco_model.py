@@ -186,6 +186,41 @@ def mujoco_model(
     spec.option.gravity = [0.0, 0.0, -9.81 if gravity else 0.0]
     spec.option.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
 
+    bodies, joint_names = _bodies(mujoco, spec, robot, damp)
+    T_tool = np.asarray(robot.tool)
+    bodies[-1].add_site(name="tool", pos=T_tool[:3, 3], quat=_quat(mujoco, T_tool))
+    _mass_properties(mujoco, robot, bodies, (density, min_mass), meshes)
+    _actuators(mujoco, spec, robot, joint_names, kv_a, flim)
+
+    try:
+        model = spec.compile()
+    except ValueError as exc:
+        raise InputError(src, "mujoco", f"the MuJoCo model does not compile: {exc}") from None
+    body_ids = np.array([model.body(f"link_{i}").id for i in range(len(bodies))], dtype=np.int64)
+    jids = [model.joint(nm).id for nm in joint_names]
+    actuator_ids = np.full(robot.n, -1, dtype=np.int64)
+    for k, name in enumerate(joint_names):
+        if act[k]:
+            actuator_ids[k] = model.actuator(name).id
+    return MujocoRobot(
+        robot=robot,
+        spec=spec,
+        model=model,
+        body=body_ids,
+        site=int(model.site("tool").id),
+        qpos=np.array([model.jnt_qposadr[j] for j in jids], dtype=np.int64),
+        dof=np.array([model.jnt_dofadr[j] for j in jids], dtype=np.int64),
+        actuator=actuator_ids,
+    )
+
+
+def _bodies(
+    mujoco: Any, spec: Any, robot: Robot, damp: NDArray[np.float64]
+) -> tuple[list[Any], list[str]]:
+    """The chain of bodies ``link_0 … link_n`` (each placed by its DH transform) with
+    a hinge or slide joint on every movable joint (passive ones damped by ``damp``),
+    and the joints' names."""
+    act = np.asarray(robot.actuated, dtype=bool)
     classic = robot.convention == "classic"
     bodies = [
         spec.worldbody.add_body(
@@ -221,9 +256,19 @@ def mujoco_model(
             )
             joint_names.append(name)
             k += 1
-    T_tool = np.asarray(robot.tool)
-    bodies[-1].add_site(name="tool", pos=T_tool[:3, 3], quat=_quat(mujoco, T_tool))
+    return bodies, joint_names
 
+
+def _mass_properties(
+    mujoco: Any, robot: Robot, bodies: list[Any], density_min_mass: tuple[float, float],
+    meshes: Mapping[str, Any] | None,
+) -> None:  # fmt: skip
+    """Each frame's bodies' mass: the convex hull of their shapes when one is a mesh
+    (an explicit inertia, at least ``min_mass``), else their primitive shapes as
+    geoms of ``density`` (kg/m³)."""
+    density, min_mass = density_min_mass
+    src = robot.source or robot.name
+    T_tool = np.asarray(robot.tool)
     on_frame: dict[str, list[str]] = {}
     for link in robot.geometry:
         on_frame.setdefault(robot.frame_of(link), []).append(link)
@@ -273,6 +318,14 @@ def mujoco_model(
                 conaffinity=0,
             )
 
+
+def _actuators(
+    mujoco: Any, spec: Any, robot: Robot, joint_names: list[str], kv_a: NDArray[np.float64],
+    flim: NDArray[np.float64],
+) -> None:  # fmt: skip
+    """A velocity servo on every actuated joint: gain ``kv_a`` (N·s/rad or N·s/m),
+    its command limited to the joint's vmax and its force to ``flim`` (N·m or N)."""
+    act = np.asarray(robot.actuated, dtype=bool)
     a = 0
     for k, name in enumerate(joint_names):
         if not act[k]:
@@ -300,24 +353,3 @@ def mujoco_model(
         else:
             actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_FALSE
         a += 1
-
-    try:
-        model = spec.compile()
-    except ValueError as exc:
-        raise InputError(src, "mujoco", f"the MuJoCo model does not compile: {exc}") from None
-    body_ids = np.array([model.body(f"link_{i}").id for i in range(len(bodies))], dtype=np.int64)
-    jids = [model.joint(nm).id for nm in joint_names]
-    actuator_ids = np.full(robot.n, -1, dtype=np.int64)
-    for k, name in enumerate(joint_names):
-        if act[k]:
-            actuator_ids[k] = model.actuator(name).id
-    return MujocoRobot(
-        robot=robot,
-        spec=spec,
-        model=model,
-        body=body_ids,
-        site=int(model.site("tool").id),
-        qpos=np.array([model.jnt_qposadr[j] for j in jids], dtype=np.int64),
-        dof=np.array([model.jnt_dofadr[j] for j in jids], dtype=np.int64),
-        actuator=actuator_ids,
-    )
