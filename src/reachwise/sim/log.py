@@ -65,7 +65,7 @@ class SimulationLog:
     ``inf`` beyond margin + monitor range. ``frames``: per sensor, the index of the
     frame in the scene at each tick (T,), for replay (``reachwise.sim.sensors``).
     ``joint_names``: per robot, the name of each entry of ``q`` (its URDF or robot
-    file's joint names, :func:`~reachwise.io.ros.joint_state.robot_joint_names`); the
+    file's joint names, ``reachwise.io.ros.joint_state.robot_joint_names``); the
     CSV's joint columns are ``<robot>.<joint name>`` (``<robot>.q<k>`` without names).
     """
 
@@ -301,7 +301,7 @@ class SimulationLog:
 
 def joint_names_of(robots: dict[str, Robot]) -> dict[str, tuple[str, ...]]:
     """Each robot's joint names, by robot name (what :attr:`SimulationLog.joint_names`
-    holds: :func:`~reachwise.io.ros.joint_state.robot_joint_names`)."""
+    holds: ``reachwise.io.ros.joint_state.robot_joint_names``)."""
     return {name: robot_joint_names(r) for name, r in robots.items()}
 
 
