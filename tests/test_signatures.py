@@ -17,7 +17,6 @@ MAX_PARAMETERS = 10
 #: Functions over the bound not converted yet (module path: function): each an entry
 #: to remove once it takes typed groups; a stale entry fails the test.
 PENDING = {
-    "cli/robot.py:pairs",
     "synthesis/active_set.py:bounded_step",
     "tasks/task.py:from_arrays",
     "api.py:simulate",

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -13,7 +14,14 @@ from rich.console import Console
 from rich.table import Table
 
 from reachwise.cli._help import builtins
-from reachwise.cli._robot_options import LENIENT, PACKAGE_DIRS, TIP, load_with_options
+from reachwise.cli._options import cli, typed_command
+from reachwise.cli._robot_options import (
+    LENIENT,
+    PACKAGE_DIRS,
+    TIP,
+    RobotFileOptions,
+    load_with_options,
+)
 
 app = typer.Typer(help="Inspect, validate and export robot models.", no_args_is_help=True)
 
@@ -134,37 +142,86 @@ def export(
     typer.echo(f"wrote {urdf}")
 
 
+@dataclass(frozen=True)
+class PairSearch:
+    """How the pairs are picked: the ``robot`` (built-in name or file), ``samples``
+    random joint vectors from ``seed``, the ``margin`` (m) that counts as close, and
+    the link clouds: ``points`` sampled each, or covering their shapes within
+    ``resolution`` (m); ``None``: the robot's default."""
+
+    #: Built-in robot name or robot file (YAML or URDF).
+    robot: str = cli(
+        typer.Argument(
+            ..., help=f"Built-in robot ({builtins('robots')}) or robot file (YAML or URDF)."
+        )
+    )
+    #: Random joint vectors inside the limits.
+    samples: int = cli(
+        typer.Option(10_000, "--samples", min=1, help="Random joint vectors inside the limits.")
+    )
+    #: A pair closer than this counts as close (m).
+    margin: float = cli(
+        typer.Option(0.05, "--margin", min=0.0, help="m: a pair closer than this counts as close.")
+    )
+    #: Points per link cloud; ``None``: by --resolution.
+    points: int | None = cli(
+        typer.Option(
+            None,
+            "--points",
+            min=1,
+            help="Points per link cloud, sampled (instead of --resolution).",
+        )
+    )
+    #: Link clouds cover their shapes within this (m); ``None``: the default.
+    resolution: float | None = cli(
+        typer.Option(
+            None,
+            "--resolution",
+            min=0.0,
+            help="m: link clouds that cover their shapes within this; the pair rules take "
+            "distances conservative by it (default: 0.01 for a URDF robot; a YAML robot's own "
+            "counts).",
+        )
+    )
+    #: Seed of the random configurations.
+    seed: int = cli(typer.Option(0, "--seed", help="Seed of the random configurations."))
+
+
+@dataclass(frozen=True)
+class PairOutput:
+    """Where the pairs go: the pair file ``out``, MoveIt's SRDF ``srdf`` (``None``:
+    none) and JSON on stdout (``json_out``)."""
+
+    #: Pair file (YAML).
+    out: Path = cli(typer.Option(..., "--out", help="Write the pair file (YAML) here."))
+    #: SRDF file of the excluded pairs; ``None``: none.
+    srdf: Path | None = cli(
+        typer.Option(
+            None, "--srdf", help="Also write the excluded pairs as MoveIt SRDF disable_collisions."
+        )
+    )
+    #: Print JSON.
+    json_out: bool = cli(typer.Option(False, "--json", help="Print JSON."))
+
+
 @app.command("pairs")
-def pairs(
-    robot: str = typer.Argument(
-        ..., help=f"Built-in robot ({builtins('robots')}) or robot file (YAML or URDF)."
-    ),
-    out: Path = typer.Option(..., "--out", help="Write the pair file (YAML) here."),
-    samples: int = typer.Option(
-        10_000, "--samples", min=1, help="Random joint vectors inside the limits."
-    ),
-    margin: float = typer.Option(
-        0.05, "--margin", min=0.0, help="m: a pair closer than this counts as close."
-    ),
-    points: int | None = typer.Option(
-        None, "--points", min=1, help="Points per link cloud, sampled (instead of --resolution)."
-    ),
-    resolution: float | None = typer.Option(
-        None,
-        "--resolution",
-        min=0.0,
-        help="m: link clouds that cover their shapes within this; the pair rules take distances "
-        "conservative by it (default: 0.01 for a URDF robot; a YAML robot's own counts).",
-    ),
-    seed: int = typer.Option(0, "--seed", help="Seed of the random configurations."),
-    srdf: Path | None = typer.Option(
-        None, "--srdf", help="Also write the excluded pairs as MoveIt SRDF disable_collisions."
-    ),
-    json_out: bool = typer.Option(False, "--json", help="Print JSON."),
-    tip: str | None = TIP,
-    package_dir: list[Path] = PACKAGE_DIRS,
-    lenient: bool = LENIENT,
-) -> None:
+@typed_command(
+    order=(
+        "robot",
+        "out",
+        "samples",
+        "margin",
+        "points",
+        "resolution",
+        "seed",
+        "srdf",
+        "json_out",
+        "tip",
+        "package_dir",
+        "lenient",
+    )
+)
+def pairs(search: PairSearch, output: PairOutput, robot_file: RobotFileOptions) -> None:
     """Pick a robot's self-collision pairs (MoveIt Setup Assistant method, exact distances).
 
     Adjacent links are excluded; pairs within the margin at the home configuration (0,
@@ -179,14 +236,21 @@ def pairs(
     from reachwise.io.pairs_file import save_pairs
     from reachwise.io.robot_clouds import link_clouds
 
-    r = load_with_options(robot, tip, package_dir, lenient)
+    robot, points, resolution, margin = (
+        search.robot,
+        search.points,
+        search.resolution,
+        search.margin,
+    )
+    out, srdf = output.out, output.srdf
+    r = robot_file.load(robot)
     if points is not None and resolution is not None:
         raise typer.BadParameter("give --points or --resolution, not both")
     clouds = link_clouds(r, points, resolution=resolution)
     if len(clouds) < 2:
         raise typer.BadParameter(f"{robot} has {len(clouds)} link(s) with shapes; pairs need two")
     t0 = time.perf_counter()
-    found = self_collision_pairs(r, clouds, margin, samples=samples, seed=seed)
+    found = self_collision_pairs(r, clouds, margin, samples=search.samples, seed=search.seed)
     took = time.perf_counter() - t0
     save_pairs(found, out, source=r.source or robot)
     if srdf is not None:
@@ -208,7 +272,7 @@ def pairs(
         "seconds": round(took, 3),
         "srdf": None if srdf is None else str(srdf),
     }
-    if json_out:
+    if output.json_out:
         typer.echo(json.dumps(data, indent=2))
         return
     excl = ", ".join(f"{n} {rule}" for rule, n in rules.items()) or "none"
