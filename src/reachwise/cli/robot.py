@@ -178,9 +178,8 @@ class PairSearch:
             None,
             "--resolution",
             min=0.0,
-            help="m: link clouds that cover their shapes within this; the pair rules take "
-            "distances conservative by it (default: 0.01 for a URDF robot; a YAML robot's own "
-            "counts).",
+            help="m: link clouds that cover their shapes within this (default: 0.01 for a URDF "
+            "robot; a YAML robot's own counts).",
         )
     )
     #: Seed of the random configurations.

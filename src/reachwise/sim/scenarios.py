@@ -25,7 +25,7 @@ robots:
     points: 1000            # points per link cloud (default: the geometry's, 1000)
     density: 20000          # or: points per m² of the link's shapes
     resolution: 0.01        # or: every point of the shapes within this of the cloud (m;
-                            #   the default of a URDF robot, 1 cm; distances conservative by it)
+                            #   the default of a URDF robot, 1 cm)
     seed: 0
     link_clouds: {link_6: {mesh: meshes/grabber.obj, points: 1000}}  # replace a link's shape
     tool_links: [link_8, tool]                      # parts avoided in task space (P-V Eq. 6)
