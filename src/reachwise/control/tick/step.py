@@ -106,7 +106,8 @@ def tick(chain, limits, gains, settings, target, rows, memory, q):  # type: igno
     task = TaskParts(pG, pts.pR, wG, six)
     sol = solve_joints(J, joints, task, limits, extended, pts, recalled, gains, avoid)
 
-    # ---- guard: the task is scaled down (s < 1) before any pair closes in too fast
+    # ---- guard: the task is scaled down (s < 1) before any pair closes in too fast;
+    # where even s = 0 would stop all motion, the closing part is projected out
     s = 1.0
     guard = 1.0
     qd1 = sol.qd
