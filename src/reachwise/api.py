@@ -60,11 +60,19 @@ def synthesize(
     ``bounds``; ``reachwise.synthesis.objectives``) to weights: a run that reaches every
     pose then improves its design for them, keeping every pose reached; ``None`` takes
     the template's ``design.objective``. Further ``options`` (``solver``, ``init_sets``,
-    ``locked``, ``workspace``, ``options``, ``on_run``, ``improve_options``) go to
-    ``reachwise.synthesis.synthesize.synthesize``.
+    ``locked``, ``workspace``, ``options``, ``on_run``, ``improve_options``, or all of
+    them as one ``settings`` group, ``SynthesisSettings``) go to
+    ``reachwise.synthesis.synthesize.synthesize``; with ``settings``, ``runs``, ``seed``
+    and ``objective`` override its fields only when given other than their defaults.
     """
     t, robot = resolve_design(task, template)
-    return synthesize_objects(t, robot, runs=runs, seed=seed, objective=objective, **options)
+    keywords: dict[str, Any] = {"runs": runs, "seed": seed, "objective": objective}
+    if options.get("settings") is not None:
+        # with a settings group, only the keywords given other than their defaults
+        # override its fields
+        defaults = {"runs": 10, "seed": 0, "objective": None}
+        keywords = {k: v for k, v in keywords.items() if v != defaults[k]}
+    return synthesize_objects(t, robot, **keywords, **options)
 
 
 def resolve_design(task: Task | str | Path, template: Robot | str | Path) -> tuple[Task, Robot]:

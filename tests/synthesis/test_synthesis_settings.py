@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import reachwise
 from reachwise import load_robot, load_task
 from reachwise.synthesis.synthesize import SynthesisSettings, synthesize
 
@@ -22,3 +23,12 @@ def test_settings_group_and_keywords_are_one_search() -> None:
     assert [r.seed for r in overridden.runs] == [4, 5]
     with pytest.raises(TypeError, match="sed"):
         synthesize(task, template, sed=1)
+
+
+def test_public_synthesize_keeps_the_settings_group() -> None:
+    task = load_task("tunnel-87").subset(np.arange(0, 87, 29), name="tunnel-3")
+    settings = SynthesisSettings(runs=1, seed=3, objective={}, init_sets=2)
+    kept = reachwise.synthesize(task, "sb60", settings=settings)
+    assert [r.seed for r in kept.runs] == [3]  # not the keywords' defaults (10 runs, seed 0)
+    overridden = reachwise.synthesize(task, "sb60", settings=settings, seed=5)
+    assert [r.seed for r in overridden.runs] == [5]
