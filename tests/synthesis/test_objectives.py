@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from reachwise import load_robot, load_task
+from reachwise import load_robot, load_task, synthesize
 from reachwise.errors import InputError
 from reachwise.kinematics.indices import gci, kci, lci
 from reachwise.synthesis.bound_hits import bound_hits
@@ -16,6 +16,7 @@ from reachwise.synthesis.objectives import (
     OBJECTIVES,
     Objective,
     check_objective,
+    designable_terms,
     evaluate_terms,
     parse_objective,
 )
@@ -96,8 +97,9 @@ def test_terms_agree_with_the_indices(rng: np.random.Generator) -> None:
     assert kci(lcis) - 1e-12 <= t.values["kci"] <= kci(lcis) + 1e-5 * np.log(len(lcis))
     size = sum(abs(design[i]) for i, n in enumerate(prob.design_names) if n[0] in "ad")
     assert t.values["size"] == pytest.approx(size, abs=1e-3)
-    # the clearance's soft minimum: between min - τ log N and the true minimum
-    d = bodies.terms(prob, z).distance
+    # the clearance's soft minimum over the terms a design can change: between
+    # min - τ log N and their true minimum
+    d = bodies.terms(prob, z).distance[designable_terms(bodies, prob.task.dims)]
     tau = 0.005
     assert d.min() - tau * np.log(d.size) - 1e-12 <= t.values["clearance"] <= d.min() + 1e-12
 
@@ -109,7 +111,7 @@ def test_clearance_objective_over_hand_made_terms() -> None:
     rng = np.random.default_rng(3)
     z = some_z(prob, rng)
     bodies = bodies_of(prob)
-    d = bodies.terms(prob, z).distance.ravel()
+    d = bodies.terms(prob, z).distance[designable_terms(bodies, prob.task.dims)]
     for tau in (0.05, 0.005, 1e-4):
         got = evaluate_terms(prob, z, ["clearance"], bodies=bodies, clearance_temperature=tau)
         want = -tau * np.log(np.sum(np.exp(-(d - d.min()) / tau))) + d.min()
@@ -154,3 +156,33 @@ def test_min_length_tightens_the_kept_bounds_and_flags() -> None:
     assert hits == {"a1": "min_length", "a2": "min_length", "base.z": "upper"}
     d[1] = lo[1] + 0.02 * (decl_hi[1] - decl_lo[1])  # 2 % inside: not flagged
     assert "a2" not in {h.parameter for h in bound_hits(prob, d)}
+
+
+def test_terms_no_design_changes_are_those_the_pose_places() -> None:
+    """At a reaching design, each term left out of the clearance objective (the feed,
+    fixed to the tool, against the tunnel at a 6-D pose) equals the feed's distance
+    placed by the task pose alone, written out here; every other term is kept."""
+    prob = small_problem()
+    res = synthesize(prob.task, prob.template, runs=1, seed=0)
+    assert res.reached.all()
+    bodies = bodies_of(prob)
+    z = prob.pack(res.best.design, res.best.q)
+    d = bodies.terms(prob, z).distance
+    mask = designable_terms(bodies, prob.task.dims)
+    robot = prob.template
+    feed = next(b for b in robot.design.bodies if b.name == "feed")
+    f = robot.link_names.index(feed.link)
+    F0 = np.asarray(robot.fk_all(np.zeros(robot.n)))
+    tool_in_f = np.linalg.inv(F0[f]) @ F0[-1]
+    s, e = np.array(feed.start), np.array(feed.end)
+    e = e - feed.contact * (e - s) / np.linalg.norm(e - s)
+    env = prob.task.envelope
+    assert env is not None
+    fixed_cols = np.flatnonzero(~mask[0])
+    assert (prob.task.dims == 6).all() and fixed_cols.size == 2  # the feed's two ends
+    for k in range(prob.K):
+        Tf = prob.task.poses[k] @ np.linalg.inv(tool_in_f)
+        ends = np.stack([Tf[:3, :3] @ s + Tf[:3, 3], Tf[:3, :3] @ e + Tf[:3, 3]])
+        want = np.sort(env.signed_distance(ends) - feed.radius)
+        assert np.allclose(np.sort(d[k, fixed_cols]), want, atol=5e-3)  # pose within 1 mm, 1 mrad
+    assert mask.sum() == mask.size - prob.K * fixed_cols.size

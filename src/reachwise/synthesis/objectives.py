@@ -29,7 +29,11 @@ reaching designs (``improve``). Each objective is a function of the decision vec
   minimum count, which puts it within millimetres of it. A p-norm of ``1 / d`` (the other
   usual smooth minimum) is not used: a clearance may be negative (an overlap). The true
   smallest clearance is what results report. It needs the template's bodies
-  (``design.bodies``) and their model.
+  (``design.bodies``) and their model. Terms that no design changes are left out
+  (``designable_terms``): a body fixed to the tool (the feed) against the tunnel at a
+  6-D pose, which the pose alone places. They stay constraints of the solve; in the
+  objective they would cap the minimum at a value no design can raise (on tunnel-87
+  the feed at the collar points nearest the wall) and flatten it.
 
 The weighted objective to minimize is ``Σ_i w_i s_i f_i / f_i⁰`` with ``s_i = −1`` for a
 term to maximize and ``f_i⁰`` the term's magnitude at a reference design (the reach-only
@@ -50,7 +54,7 @@ from numpy.typing import NDArray
 from reachwise.errors import InputError, UnknownName
 from reachwise.kinematics.conditioning import lci_gradient
 from reachwise.kinematics.robot import OBJECTIVES
-from reachwise.synthesis.clearance import ClearanceModel
+from reachwise.synthesis.clearance import ClearanceModel, task_fixed_frames
 from reachwise.synthesis.problem import SynthesisProblem
 
 Array = NDArray[np.float64]
@@ -199,11 +203,35 @@ def evaluate_terms(
     return Terms(values, grads, lcis)
 
 
+def designable_terms(bodies: ClearanceModel, dims: NDArray[np.int64]) -> NDArray[np.bool_]:
+    """``(K, m)``: which clearance terms a design can change (module docstring): all
+    but a body-vs-environment term whose anchors are fixed to the tool
+    (``clearance.task_fixed_frames``) at a 6-D pose."""
+    fixed_frames = set(task_fixed_frames(bodies.robot))
+    fixed = []
+    if bodies.envelope is not None:
+        for part in bodies.parts:
+            for e in part.env_ends:
+                a = bodies.anchors[e]
+                fixed.append(a.frame in fixed_frames and a.elbow < 0)
+    fixed += [False] * (len(bodies.labels) - len(fixed))
+    out = ~(np.asarray(dims)[:, None] == 6) | ~np.array(fixed, dtype=np.bool_)[None, :]
+    return np.asarray(out, dtype=np.bool_)
+
+
+def smallest_designable(bodies: ClearanceModel, problem: SynthesisProblem, z: Array) -> float:
+    """The smallest clearance term a design can change at ``z`` (``designable_terms``;
+    ``inf`` without one): the ``clearance`` objective's true value."""
+    d = bodies.terms(problem, z).distance[designable_terms(bodies, problem.task.dims)]
+    return float(d.min()) if d.size else math.inf
+
+
 def soft_clearance(
     problem: SynthesisProblem, z: Array, bodies: ClearanceModel | None, temperature: float
 ) -> tuple[float, Array]:
     """The ``clearance`` term (module docstring): ``−τ log Σ exp(−d_i / τ)`` over every
-    clearance term of every pose, and its gradient w.r.t. ``z``."""
+    clearance term of every pose a design can change (``designable_terms``), and its
+    gradient w.r.t. ``z``."""
     if bodies is None:
         raise InputError(
             problem.template.name,
@@ -211,9 +239,12 @@ def soft_clearance(
             "the clearance objective needs the template's bodies (design.bodies)",
         )
     t = bodies.terms(problem, z)
-    if t.distance.size == 0:
-        raise InputError(problem.template.name, "design.bodies", "no clearance term to measure")
-    x = -t.distance / temperature
+    mask = designable_terms(bodies, problem.task.dims)
+    if not mask.any():
+        raise InputError(
+            problem.template.name, "design.bodies", "no clearance term a design can change"
+        )
+    x = np.where(mask, -t.distance / temperature, -np.inf)
     mx = float(x.max())
     ex = np.exp(x - mx)
     total = float(ex.sum())

@@ -70,7 +70,13 @@ from reachwise.synthesis.bound_hits import BoundHit, bound_hits
 from reachwise.synthesis.clearance import ClearanceModel
 from reachwise.synthesis.fk_check import reached_by_fk
 from reachwise.synthesis.improve import ImproveOptions, improve
-from reachwise.synthesis.objectives import OBJECTIVES, Objective, check_objective, evaluate_terms
+from reachwise.synthesis.objectives import (
+    OBJECTIVES,
+    Objective,
+    check_objective,
+    evaluate_terms,
+    smallest_designable,
+)
 from reachwise.synthesis.problem import SynthesisProblem
 from reachwise.synthesis.solvers import Workspace
 
@@ -251,7 +257,7 @@ def measure(
         d = bodies.terms(problem, z).distance
         smallest = d.min(axis=1) if d.shape[1] else np.full(problem.K, np.inf)
         reached = reached & (smallest >= bodies.clearance)
-        values["clearance"] = float(smallest.min())
+        values["clearance"] = smallest_designable(bodies, problem, z)
     return ParetoPoint(
         index, weights, robot, design.copy(), Q, reached, values, lcis,
         tuple(bound_hits(problem, design)), level=level, stage=stage, z=z.copy(),

@@ -34,6 +34,7 @@ from reachwise.synthesis.objectives import (
     Objective,
     check_objective,
     evaluate_terms,
+    smallest_designable,
 )
 from reachwise.synthesis.problem import SynthesisProblem, locked_from_spec
 from reachwise.synthesis.rank import best_run_index
@@ -174,13 +175,13 @@ def design_values(
 ) -> dict[str, float]:
     """Every design objective's value at ``z`` (``objectives``), with GCI and KCI as
     P-II Eq. 38–39 define them (``lcis``: the LCI at every task posture) and, with the
-    bodies' model, the clearance as the true smallest term over the task."""
+    bodies' model, the clearance objective's true value (the smallest term a design
+    can change, ``objectives.designable_terms``)."""
     margin = problem.template.design.margin
     values = evaluate_terms(problem, z, ("size", "limits", "bounds"), margin=margin).values
     out = {"gci": float(np.mean(lcis)), "kci": float(np.min(lcis)), **values}
     if bodies is not None:
-        d = bodies.terms(problem, z).distance
-        out["clearance"] = float(d.min()) if d.size else float("inf")
+        out["clearance"] = smallest_designable(bodies, problem, z)
     return out
 
 
