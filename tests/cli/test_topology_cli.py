@@ -118,8 +118,8 @@ def test_an_unknown_rank_key_lists_the_valid_ones(tmp_path: Path) -> None:
     )  # fmt: skip
     assert isinstance(res.exception, UnknownName)  # `reachwise` exits 2 with this line
     assert (
-        "unknown rank key 'speed'; valid: bounds, gci, kci, length, limits, manipulability, "
-        "mean, prismatic, size" in str(res.exception)
+        "unknown rank key 'speed'; valid: bounds, clearance, gci, kci, length, limits, "
+        "manipulability, mean, prismatic, size" in str(res.exception)
     )
     assert not (tmp_path / "e.db").exists()
 
