@@ -24,8 +24,9 @@ from reachwise.synthesis.rank import (
 def _m(
     g: float, k: float, w: float = 1.0, length: float = 5.0, p: int = 1,
     size: float = math.nan, limits: float = math.nan, bounds: float = math.nan,
+    clearance: float = math.nan,
 ) -> Measures:  # fmt: skip
-    return Measures(g, k, 0.5 * (g + k), w, length, p, size, limits, bounds)
+    return Measures(g, k, 0.5 * (g + k), w, length, p, size, limits, bounds, clearance)
 
 
 def test_measures_match_the_indices_of_p2_eq_38_39(rng: np.random.Generator) -> None:
@@ -56,9 +57,9 @@ def test_link_length_sums_a_and_d() -> None:
 
 def test_rank_by_each_key_and_infeasible_unranked() -> None:
     cands = [
-        Candidate("a", 10, 10, _m(0.10, 0.07, 5.0, 9.0, 2, size=3.0, limits=0.2, bounds=1.0)),
-        Candidate("b", 10, 10, _m(0.12, 0.05, 1.0, 4.0, 0, size=2.0, limits=0.3, bounds=0.0)),
-        Candidate("c", 10, 10, _m(0.08, 0.08, 9.0, 6.0, 1, size=4.0, limits=0.1, bounds=2.0)),
+        Candidate("a", 10, 10, _m(0.10, 0.07, 5.0, 9.0, 2, 3.0, 0.2, 1.0, clearance=0.3)),
+        Candidate("b", 10, 10, _m(0.12, 0.05, 1.0, 4.0, 0, 2.0, 0.3, 0.0, clearance=0.1)),
+        Candidate("c", 10, 10, _m(0.08, 0.08, 9.0, 6.0, 1, 4.0, 0.1, 2.0, clearance=0.2)),
         Candidate("x", 9, 10, _m(0.50, 0.40)),  # misses a point: never ranked
         Candidate("y", 3, 10, None),
     ]
@@ -72,6 +73,7 @@ def test_rank_by_each_key_and_infeasible_unranked() -> None:
         "size": ["b", "a", "c"],
         "limits": ["c", "a", "b"],
         "bounds": ["b", "a", "c"],
+        "clearance": ["a", "c", "b"],
     }
     assert set(order) == set(RANK_KEYS)
     for key, want in order.items():
