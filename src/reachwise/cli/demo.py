@@ -35,7 +35,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from reachwise.cli import demo_stages as stages
+import reachwise.cli.demo_stages as stages
 from reachwise.cli._options import cli, typed_command
 from reachwise.cli.demo_stages import Ctx, StageOutput
 from reachwise.io.atomic import atomic_write
