@@ -2,7 +2,8 @@
 a person only depth cameras see, judged on their true box): the conventional controller
 runs into the person; with the memory the exact distance between the arm's collision
 meshes and the person's box stays at least 2 cm at every tick and the arm finishes at
-least 3 of its 4 goals.
+least 3 of its 4 goals. When the person leaves while the arm waits, the arm moves again
+within 0.1 s of the map holding nothing within its margin.
 
 Each run simulates 24 s of a 160 x 120 camera fused at 30 frames/s into a 3 cm map at
 dt = 10 ms, at full rate; the baselines stop after the hand's pass through the
@@ -19,10 +20,10 @@ import reachwise
 from reachwise.sim.log import SimulationLog
 from tests._real_arms import needs_erd
 
-SCENARIOS = ("panda-memory-arm-blocks-view",)
+SCENARIOS = ("panda-memory-arm-blocks-view", "panda-memory-person-leaves")
 pytestmark = [needs_erd, pytest.mark.memory_scenarios]
 #: How long each baseline runs (s): past the hand's first pass through the person.
-BASELINE_S = dict.fromkeys(SCENARIOS, 6.0)
+BASELINE_S = dict.fromkeys(SCENARIOS, 6.0) | {"panda-memory-person-leaves": 14.0}
 
 
 def person_clearance(log: SimulationLog) -> NDArray[np.float64]:
@@ -52,3 +53,27 @@ def test_with_the_memory_the_arm_keeps_2_cm_from_the_true_person_and_finishes(
     assert float(clearance.min()) >= 0.02, float(clearance.min())
     reached = [g for g in log.goals if g.reached_at is not None]
     assert len(reached) >= 3, [(g.name, g.reached_at) for g in log.goals]
+
+
+def resume_delay(log: SimulationLog, after: float) -> tuple[float, float]:
+    """After ``after`` (s): the first time every memory pair is at least its margin
+    away (the map holds nothing the controller must keep clear of), and the delay from
+    then to the first tick the tool moves faster than 1 cm/s."""
+    t = log.t
+    clear = np.all(log.distance >= log.margins[None, :], axis=1) & (t >= after)
+    t_clear = float(t[np.argmax(clear)])
+    tool = log.tool["arm"][:, :3, 3]
+    speed = np.r_[0.0, np.linalg.norm(np.diff(tool, axis=0), axis=1) / log.dt]
+    moving = (speed > 0.01) & (t >= t_clear)
+    return t_clear, float(t[np.argmax(moving)]) - t_clear
+
+
+def test_the_arm_resumes_within_0_1_s_of_the_person_seen_gone(
+    runs: tuple[SimulationLog, SimulationLog],
+) -> None:
+    log = runs[0]
+    if log.scenario != "panda-memory-person-leaves":
+        pytest.skip("the person-leaves scenario's property")
+    t_clear, delay = resume_delay(log, 13.0)
+    assert 13.0 < t_clear < 17.0
+    assert 0.0 <= delay <= 0.1, (t_clear, delay)
