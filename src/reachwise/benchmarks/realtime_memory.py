@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-from reachwise.benchmarks import realtime
+import reachwise.benchmarks.realtime as realtime
 from reachwise.benchmarks._harness import BenchReport, Target
 from reachwise.distance.scene import Scene
 from reachwise.distance.scene_memory import MemoryConfig, SceneMemory, ViewIntrinsics

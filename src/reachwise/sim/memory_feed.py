@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from itertools import product
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -41,11 +41,25 @@ if TYPE_CHECKING:
     from reachwise.distance.scene import SceneLike
     from reachwise.geometry.depth_camera import DepthCamera, DepthFrame
     from reachwise.sim.scenarios import MemorySpec
-    from reachwise.sim.sensors import BodySurface
 
 __all__ = ["BodyPiece", "MemoryFeed", "body_pieces"]
 
 F64 = NDArray[np.float64]
+
+
+class LinkSurface(Protocol):
+    """A robot link's collision surface as :func:`body_pieces` reads it (the
+    simulation's ``BodySurface``): its ``mesh`` ``(vertices, faces)`` in the frame
+    ``index`` of scenario robot ``robot``."""
+
+    @property
+    def robot(self) -> str: ...
+
+    @property
+    def index(self) -> int: ...
+
+    @property
+    def mesh(self) -> tuple[F64, NDArray[np.int64]]: ...
 
 
 def _dop_directions() -> F64:
@@ -74,7 +88,7 @@ class BodyPiece(NamedTuple):
         return np.column_stack([n, self.offsets + n @ pose[:3, 3]])
 
 
-def body_pieces(bodies: Iterable[BodySurface]) -> tuple[BodyPiece, ...]:
+def body_pieces(bodies: Iterable[LinkSurface]) -> tuple[BodyPiece, ...]:
     """The 26-DOP of each connected piece of each link surface in ``bodies``."""
     out = []
     for b in bodies:
