@@ -341,8 +341,9 @@ def _write(
     cloud, pngs = None, None
     if figures:
         from reachwise.report.sim_plots import save_figures
+        from reachwise.report.simulate import scene_cloud
 
-        cloud = _object_cloud(sc)
+        cloud = scene_cloud(sc)
         pngs = {p.stem: p for p in save_figures(out, main, base, cloud)}
     atomic_write(out / "summary.json", json.dumps(data, indent=2))
     data["out"] = str(out)
@@ -351,23 +352,6 @@ def _write(
     report = write_simulation_report(out, sc, logs, pngs or False, cloud)
     data["report"] = str(report)
     return data
-
-
-def _object_cloud(sc: Any) -> Any:
-    """The scenario's objects' clouds at their start poses, in one array (``None``
-    without objects), for the figures."""
-    from reachwise.sim.world import build_world
-
-    world = build_world(sc)
-    objs = [o for o in world.scene.objects.values() if "/" not in o.name]
-    if not objs:
-        return None
-    import numpy as np
-
-    poses = world.scene.poses()
-    return np.concatenate(
-        [o.cloud.points @ poses[o.name][:3, :3].T + poses[o.name][:3, 3] for o in objs]
-    )
 
 
 def _print(data: dict, console: Console) -> None:  # type: ignore[type-arg]
