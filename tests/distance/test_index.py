@@ -67,7 +67,8 @@ def test_an_index_lives_as_long_as_its_cloud() -> None:
 def test_point_cloud_holds_only_its_points() -> None:
     a, _ = clouds(3)
     closest_points(a, a.points + 1.0)
-    assert [f.name for f in dataclasses.fields(a)] == ["points", "frame", "name"]
+    # its data and the coverage it guarantees, never the index built for it
+    assert [f.name for f in dataclasses.fields(a)] == ["points", "frame", "name", "resolution"]
     with pytest.raises(dataclasses.FrozenInstanceError):
         a.points = np.zeros((1, 3))  # type: ignore[misc]
     with pytest.raises(ValueError, match="read-only"):
