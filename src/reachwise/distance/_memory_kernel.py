@@ -49,7 +49,6 @@ _W_F8_3D = types.Array(types.float64, 3, "C")
 _RO_F8_2D = types.Array(types.float64, 2, "C", readonly=True)
 _RO_B1_2D = types.Array(types.boolean, 2, "C", readonly=True)
 _RO_F8_1D = types.Array(types.float64, 1, "C", readonly=True)
-_RO_F8_3D = types.Array(types.float64, 3, "C", readonly=True)
 _W_F8_2D = types.Array(types.float64, 2, "C")
 
 _W_F4_2D = types.Array(types.float32, 2, "C")
