@@ -112,8 +112,7 @@ def index_of_checked(
     found them while copying a handed-over frame): only the tree is built here."""
     _check_leaf_size(leaf_size)
     tp, perm, boxes, info = build_tree_in(points, bounds, leaf_size)
-    aabb = AABB(boxes[0, :3].copy(), boxes[0, 3:].copy())  # the root box: exact min, max
-    return CloudIndex(tp, perm, boxes, info, centroid, aabb, int(version))
+    return _index(tp, perm, boxes, info, centroid, version)
 
 
 def index_of_ordered(
@@ -144,6 +143,18 @@ def index_of_ordered(
         raise InputError("index", "codes", f"expected {n} codes for {n} points, got {codes.shape}")
     perm = np.arange(n, dtype=np.int64)
     tp, perm, boxes, info = tree_of_sorted(points, perm, codes, leaf_size, False)
+    return _index(tp, perm, boxes, info, centroid, version)
+
+
+def _index(
+    tp: NDArray[np.float64],
+    perm: NDArray[np.int64],
+    boxes: NDArray[np.float64],
+    info: NDArray[np.int64],
+    centroid: NDArray[np.float64],
+    version: int,
+) -> CloudIndex:
+    """A built tree as an index, its bounding box the root's (exact min, max)."""
     aabb = AABB(boxes[0, :3].copy(), boxes[0, 3:].copy())
     return CloudIndex(tp, perm, boxes, info, centroid, aabb, int(version))
 
