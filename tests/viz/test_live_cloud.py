@@ -3,7 +3,6 @@ tick, in playback of a log and in a live run (server side, no browser)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -15,15 +14,6 @@ from reachwise.sim.world import build_world
 from reachwise.viz.viewer import Viewer
 
 HALF = np.array([0.2, 0.2, 0.85])  # the walker's half sizes
-
-
-@pytest.fixture
-def viewer() -> Iterator[Viewer]:
-    v = Viewer(port=0)
-    try:
-        yield v
-    finally:
-        v.stop()
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,6 @@ handed-over ones, thinned."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -23,15 +22,6 @@ from tests.viz.test_viewer import assert_robot_at, our_threads
 @pytest.fixture(scope="module")
 def cell(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return _cell.write_cell(tmp_path_factory.mktemp("cell") / "cell.mcap")
-
-
-@pytest.fixture
-def viewer() -> Iterator[Viewer]:
-    v = Viewer(port=0)
-    try:
-        yield v
-    finally:
-        v.stop()
 
 
 def test_replay_playback_shows_each_frames_answers(viewer: Viewer, cell: Path) -> None:

@@ -11,7 +11,7 @@ import subprocess
 import sys
 import time
 import urllib.request
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -85,15 +85,6 @@ def sim_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
     reachwise.simulate("p5-crane-obstacle", duration=3.0).save(out / "avoidance")
     reachwise.simulate("p5-crane-obstacle", avoidance=False, duration=3.0).save(out / "baseline")
     return out
-
-
-@pytest.fixture
-def viewer() -> Iterator[Viewer]:
-    v = Viewer(port=0)
-    try:
-        yield v
-    finally:
-        v.stop()
 
 
 # --------------------------------------------------------------------------- pure parts

@@ -3,10 +3,7 @@ them (the meshes read by trimesh directly, not through reachwise)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import numpy as np
-import pytest
 import trimesh
 import yourdfpy
 
@@ -16,15 +13,6 @@ from reachwise.viz.viewer import Viewer
 from tests._real_arms import arm_path, needs_erd, package_file
 
 pytestmark = needs_erd
-
-
-@pytest.fixture
-def viewer() -> Iterator[Viewer]:
-    v = Viewer(port=0)
-    try:
-        yield v
-    finally:
-        v.stop()
 
 
 def test_ur5_visual_meshes_sit_where_yourdfpy_puts_them(
