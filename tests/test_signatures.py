@@ -17,8 +17,6 @@ MAX_PARAMETERS = 10
 #: Functions over the bound not converted yet (module path: function): each an entry
 #: to remove once it takes typed groups; a stale entry fails the test.
 PENDING = {
-    # the active-set step's matrices and bounds (11): a typed input of the solver
-    "synthesis/active_set.py:bounded_step",
     # keyword-only per-point arrays (11): a PointArrays group would rename 21 calls
     "tasks/task.py:from_arrays",
     # reachwise.simulate's documented keywords (11): a group beside them, as solve_ik's

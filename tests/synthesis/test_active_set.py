@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import lsq_linear
 
-from reachwise.synthesis.active_set import bounded_step
+from reachwise.synthesis.active_set import VariableBox, bounded_step
 
 K, P, NF = 4, 3, 2
 
@@ -44,8 +44,10 @@ def iterate(D: np.ndarray, J: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.
         e = (b.ravel() - A @ z).reshape(K, 6)
         bs = bounded_step(
             D, J, np.ones((K, 6), bool), e, 1e-12,
-            (z[:P], z[P:].reshape(K, NF)), (lo[:P], lo[P:].reshape(K, NF)),
-            (hi[:P], hi[P:].reshape(K, NF)), (np.ones(P), np.ones((K, NF))),
+            VariableBox(
+                (z[:P], z[P:].reshape(K, NF)), (lo[:P], lo[P:].reshape(K, NF)),
+                (hi[:P], hi[P:].reshape(K, NF)), (np.ones(P), np.ones((K, NF))),
+            ),
             release=release and stalled,
         )  # fmt: skip
         zn = np.clip(z + np.concatenate([bs.design, bs.joints.ravel()]), lo, hi)
@@ -76,8 +78,11 @@ def test_a_variable_at_a_bound_with_an_outward_gradient_stays() -> None:
     e = np.zeros((1, 6))
     e[0, 0] = 2.0  # wants the design variable up by 2
     bs = bounded_step(
-        D, J, np.ones((1, 6), bool), e, 1e-12, (np.array([1.0]), np.zeros((1, 1))),
-        (np.array([-1.0]), -np.ones((1, 1))), (np.array([1.0]), np.ones((1, 1))),
-        (np.ones(1), np.ones((1, 1))), release=True,
+        D, J, np.ones((1, 6), bool), e, 1e-12,
+        VariableBox(
+            (np.array([1.0]), np.zeros((1, 1))), (np.array([-1.0]), -np.ones((1, 1))),
+            (np.array([1.0]), np.ones((1, 1))), (np.ones(1), np.ones((1, 1))),
+        ),
+        release=True,
     )  # fmt: skip
     assert bs.weight_design[0] == 0.0 and bs.design[0] == 0.0

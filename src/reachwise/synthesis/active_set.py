@@ -37,6 +37,18 @@ Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
+class VariableBox:
+    """The variables of a step and their box, each a ``(design (p,), joints (K, n_f))``
+    pair: the values ``z``, the ``lower`` and ``upper`` bounds and the ``scale`` that
+    puts multipliers of different units on one footing (e.g. the step caps)."""
+
+    z: tuple[Array, Array]
+    lower: tuple[Array, Array]
+    upper: tuple[Array, Array]
+    scale: tuple[Array, Array]
+
+
+@dataclass(frozen=True)
 class BoundedStep:
     """A step and the column weights it was solved with (0 = fixed at its bound)."""
 
@@ -58,24 +70,21 @@ def bounded_step(
     active: NDArray[np.bool_],
     e: Array,
     lam2: float,
-    z: tuple[Array, Array],
-    lower: tuple[Array, Array],
-    upper: tuple[Array, Array],
-    scale: tuple[Array, Array],
+    box: VariableBox,
     release: bool = False,
     passes: int = 4,
 ) -> BoundedStep:
     """The weighted DLS step (P-II Eq. 27–28) with the working set of the bounds.
 
-    ``D (K, 6, p)``, ``J (K, 6, n_f)`` and ``e (K, 6)`` are row-weighted; ``z``,
-    ``lower``, ``upper`` and ``scale`` are ``(design (p,), joints (K, n_f))`` pairs;
-    ``scale`` puts multipliers of different units on one footing (e.g. the step caps).
+    ``D (K, 6, p)``, ``J (K, 6, n_f)`` and ``e (K, 6)`` are row-weighted; ``box`` holds
+    the variables, their bounds and scales.
     ``release`` (when the iteration has stalled on its working set) frees the one fixed
     variable whose multiplier has the wrong sign by the most (module docstring).
     """
-    zd, zq = z
-    lo_d, hi_d = zd <= lower[0], zd >= upper[0]
-    lo_q, hi_q = zq <= lower[1], zq >= upper[1]
+    zd, zq = box.z
+    lo_d, hi_d = zd <= box.lower[0], zd >= box.upper[0]
+    lo_q, hi_q = zq <= box.lower[1], zq >= box.upper[1]
+    scale = box.scale
     wd, wq = np.ones(zd.shape), np.ones(zq.shape)
 
     def outward(sd: Array, sq: Array) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise.synthesis.active_set import bounded_step
+from reachwise.synthesis.active_set import VariableBox, bounded_step
 from reachwise.synthesis.clearance import ClearanceModel
 from reachwise.synthesis.clearance_rows import clearance_barrier
 from reachwise.synthesis.keep import keep_barrier, kept_floors
@@ -175,8 +175,10 @@ def restore(
             D = np.zeros_like(D)
         bs = bounded_step(
             D, J, problem.active_rows, ev.e * wx, 1e-12,
-            (z[:p], z[p:].reshape(K, nf)), (lo[:p], lo[p:].reshape(K, nf)),
-            (hi[:p], hi[p:].reshape(K, nf)), (span[:p], span[p:].reshape(K, nf)),
+            VariableBox(
+                (z[:p], z[p:].reshape(K, nf)), (lo[:p], lo[p:].reshape(K, nf)),
+                (hi[:p], hi[p:].reshape(K, nf)), (span[:p], span[p:].reshape(K, nf)),
+            ),
         )  # fmt: skip
         z = np.clip(z + np.concatenate([bs.design, bs.joints.ravel()]), lo, hi)
         ev = problem.evaluate(z)

@@ -46,7 +46,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from reachwise.kinematics.dls import EPSILON_SOLVER, LAMBDA_MAX, damping_squared
-from reachwise.synthesis.active_set import bounded_step
+from reachwise.synthesis.active_set import VariableBox, bounded_step
 from reachwise.synthesis.clearance import ClearanceModel
 from reachwise.synthesis.clearance_rows import (
     Rows,
@@ -184,10 +184,7 @@ def solve_dls(
             active,
             e,
             lam2,
-            (zd, zq),
-            (lod, loq),
-            (hid, hiq),
-            (cap_d, np.tile(cap_q, (K, 1))),
+            VariableBox((zd, zq), (lod, loq), (hid, hiq), (cap_d, np.tile(cap_q, (K, 1)))),
             release,
         )
         sd, sq, wd, wq = bs.design, bs.joints, bs.weight_design, bs.weight_joints
