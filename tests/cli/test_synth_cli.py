@@ -14,6 +14,7 @@ from typer.testing import CliRunner
 from reachwise import load_robot, load_task
 from reachwise.cli import app
 from reachwise.errors import InputError
+from reachwise.io.ros.joint_state import robot_joint_names
 
 runner = CliRunner()
 
@@ -43,7 +44,8 @@ def test_synth_writes_every_output(tmp_path: Path) -> None:
     rows = list(csv.DictReader(open(out / "points.csv")))
     assert len(rows) == 10
     # the written design and joints really reach the written points
-    Q = np.array([[float(r[f"q{i}"]) for i in range(robot.n)] for r in rows])
+    joints = robot_joint_names(robot)  # the joint columns are named after the joints
+    Q = np.array([[float(r[j]) for j in joints] for r in rows])
     P = np.array([[float(r["x"]), float(r["y"]), float(r["z"])] for r in rows])
     err = np.linalg.norm(robot.fk(Q)[:, :3, 3] - P, axis=1)
     for r, e in zip(rows, err, strict=True):

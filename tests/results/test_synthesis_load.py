@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 from pathlib import Path
 
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 
 from reachwise import load_task, synthesize
 from reachwise.errors import InputError
+from reachwise.io.ros.joint_state import robot_joint_names
 from reachwise.io.task_file import save_task
 from reachwise.results.synthesis_out import load_synthesis, write_synthesis
 
@@ -64,6 +66,30 @@ def test_missing_parts_name_file_and_field(tmp_path: Path, result) -> None:  # t
     (folder / "points.csv").write_text("\n".join([lines[0], lines[1].replace("full", "maybe")]))
     with pytest.raises(InputError, match=r"points\[0\]\.status"):
         load_synthesis(folder)
-    (folder / "points.csv").write_text(lines[0].replace(",q7", "") + "\n" + lines[1] + "\n")
-    with pytest.raises(InputError, match="q7"):
+    (folder / "points.csv").write_text(
+        lines[0].replace(",feed_extension", "") + "\n" + lines[1] + "\n"
+    )
+    with pytest.raises(InputError, match="feed_extension"):
         load_synthesis(folder)
+
+
+def test_joint_columns_are_the_robots_joint_names_and_numbered_ones_still_read(
+    tmp_path: Path,
+    result,  # type: ignore[no-untyped-def]
+) -> None:
+    """``points.csv`` names each joint column after the design's joint (sb60's
+    ``boom_swing`` … ``feed_extension``), in ``q`` order; a file written with the
+    numbered columns ``q0`` … of earlier versions reads back the same joint vectors."""
+    folder = write_synthesis(result, tmp_path / "s")
+    with (folder / "points.csv").open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    names = robot_joint_names(result.best.robot)
+    assert names[0] == "boom_swing" and names[-1] == "feed_extension"
+    got = np.array([[float(r[n]) for n in names] for r in rows])
+    np.testing.assert_array_equal(got, result.best.q)
+    text = (folder / "points.csv").read_text()
+    head, rest = text.split("\n", 1)
+    for i, n in enumerate(names):
+        head = head.replace(f",{n}", f",q{i}")
+    (folder / "points.csv").write_text(head + "\n" + rest)
+    np.testing.assert_array_equal(load_synthesis(folder).q, result.best.q)

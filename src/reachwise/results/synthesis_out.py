@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 
 from reachwise._version import __version__
 from reachwise.io.atomic import atomic_open, atomic_write
+from reachwise.io.ros.joint_state import robot_joint_names
 from reachwise.kinematics.indices import gci, kci
 from reachwise.results.design_file import save_design
 from reachwise.synthesis.synthesize import SynthesisResult
@@ -122,6 +123,16 @@ def _design_objectives(result: SynthesisResult) -> dict[str, Any]:
     }  # fmt: skip
 
 
+def joint_columns(robot: Robot, taken: list[str]) -> list[str]:
+    """The ``points.csv`` column of each joint of ``robot``: its joint name (the robot
+    file's or URDF's), or ``q0``, ``q1``, … when two names are equal or one is a column
+    name already ``taken``."""
+    names = list(robot_joint_names(robot))
+    if len(set(names)) < len(names) or set(names) & set(taken):
+        return [f"q{i}" for i in range(robot.n)]
+    return names
+
+
 def write_synthesis(result: SynthesisResult, out: str | Path) -> Path:
     """Write the files of ``result`` (module docstring) into folder ``out``; return it."""
     folder = Path(out)
@@ -136,9 +147,9 @@ def write_synthesis(result: SynthesisResult, out: str | Path) -> Path:
     task = prob.task
     with atomic_open(folder / "points.csv", "w", newline="") as fh:
         w = csv.writer(fh)
-        qcols = [f"q{i}" for i in range(best.q.shape[1])]
         header = ["index", "name", "group", "dims", "x", "y", "z", "position_error_m",
                   "orientation_error_rad", "status", "lci_initial", "lci_final"]  # fmt: skip
+        qcols = joint_columns(best.robot, header)
         clear = best.clearance
         # with the bodies' clearance: each pose's smallest clearance (m) and its pair
         extra = ["clearance_m", "clearance_pair"] if clear is not None else []
@@ -233,9 +244,12 @@ def load_synthesis(folder: str | Path) -> SynthesisOutput:
     where = str(paths["points.csv"])
     if not rows:
         raise InputError(where, "", "no task points")
-    qcols = [f"q{i}" for i in range(robot.n)]
     need = ["index", "name", "group", "dims", "x", "y", "z", "status", "position_error_m",
-            "orientation_error_rad", "lci_initial", "lci_final", *qcols]  # fmt: skip
+            "orientation_error_rad", "lci_initial", "lci_final"]  # fmt: skip
+    qcols = joint_columns(robot, need)
+    if qcols[0] not in rows[0] and "q0" in rows[0]:  # written before joints were named
+        qcols = [f"q{i}" for i in range(robot.n)]
+    need += qcols
     for c in need:
         if c not in rows[0]:
             raise InputError(where, c, f"missing column (the design has {robot.n} joints)")
