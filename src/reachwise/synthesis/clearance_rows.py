@@ -56,6 +56,12 @@ class Rows:
         return self.terms is None or bool(np.all(self.terms.distance >= clearance))
 
 
+def clearance_excess(distance: Array, target: float) -> Array:
+    """The residual of each clearance row: ``max(0, target − d)`` per term, 0 for a term
+    at least ``target`` away (such a term adds no row)."""
+    return np.maximum(target - distance, 0.0)
+
+
 def stacked_rows(
     problem: SynthesisProblem,
     ev: Evaluation,
@@ -73,17 +79,16 @@ def stacked_rows(
     if model is None:
         return Rows(e, D, J, active, None)
     terms = model.terms(problem, z)
-    target = model.clearance + band
-    near = terms.distance < target  # (K, m)
+    excess = clearance_excess(terms.distance, model.clearance + band)  # (K, m)
+    near = excess > 0.0
     r = int(near.sum(axis=1).max(initial=0))
     if r == 0:
         return Rows(e, D, J, active, terms)
     idx = np.argsort(~near, axis=1, kind="stable")[:, :r]  # the near terms first
     on = np.take_along_axis(near, idx, 1)
-    dist = np.take_along_axis(terms.distance, idx, 1)
+    ec = np.take_along_axis(excess, idx, 1)
     gd = np.take_along_axis(terms.grad_design, idx[:, :, None], 1)
     gq = np.take_along_axis(terms.grad_joints, idx[:, :, None], 1)
-    ec = np.where(on, target - dist, 0.0)
     Dc = np.where(on[:, :, None], gd, 0.0)
     Jc = np.where(on[:, :, None], gq, 0.0)
     return Rows(
@@ -110,7 +115,7 @@ def pose_merits(
     out = 0.5 * np.sum(e * e, axis=1)
     if model is None:
         return np.asarray(out)
-    ec = np.maximum(model.clearance + band - model.distances(problem, z), 0.0)
+    ec = clearance_excess(model.distances(problem, z), model.clearance + band)
     return np.asarray(out + 0.5 * np.sum(ec * ec, axis=1))
 
 
@@ -137,7 +142,7 @@ def clearance_motion(
     """``Σ k (clearance + band − d) ∇d`` over the terms closer than ``clearance + band``:
     design part ``(p,)`` and joint part ``(K, n_f)`` (the Khatib-style push of P-II
     Eq. 29–31 on the clearance terms), or None when every term is farther."""
-    push = np.maximum(clearance + band - terms.distance, 0.0) * gain  # (K, m)
+    push = clearance_excess(terms.distance, clearance + band) * gain  # (K, m)
     if not np.any(push > 0):
         return None
     nd = np.einsum("km,kma->a", push, terms.grad_design)
@@ -154,7 +159,7 @@ def clearance_barrier(
     terms = model.terms(problem, z)
     c = model.clearance
     ok = bool(np.all(terms.distance >= c))
-    depth = np.maximum(c + band - terms.distance, 0.0)
+    depth = clearance_excess(terms.distance, c + band)
     g = np.zeros(problem.size)
     if not np.any(depth > 0):
         return 0.0, g, ok

@@ -39,14 +39,14 @@ exact sparse Jacobian and the same workspace penalty as extra residuals: the bas
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from reachwise.kinematics.dls import EPSILON_SOLVER, LAMBDA_MAX, damping_squared
-from reachwise.synthesis.active_set import VariableBox, bounded_step
+from reachwise.synthesis.active_set import BoundedStep, VariableBox, bounded_step
 from reachwise.synthesis.clearance import ClearanceModel
 from reachwise.synthesis.clearance_rows import (
     Rows,
@@ -129,6 +129,27 @@ def _max_steps(problem: SynthesisProblem) -> tuple[NDArray[np.bool_], NDArray[np
     return angle_d, tpl.prismatic[problem.free_joints]
 
 
+@dataclass(frozen=True)
+class _Iterate:
+    """The solver's current point: vector, evaluation, rows and merit ``½‖e‖²``."""
+
+    z: Array
+    ev: Evaluation
+    rows: Rows
+    cost: float
+
+
+@dataclass(frozen=True)
+class _Trial:
+    """The outcome of a line search: the point (None when no step lowered the merit),
+    its evaluation, the merit of the last step tried and that step's length."""
+
+    z: Array | None
+    ev: Evaluation | None
+    cost: float
+    alpha: float
+
+
 def solve_dls(
     problem: SynthesisProblem,
     z0: Array,
@@ -147,90 +168,32 @@ def solve_dls(
     opt = options or SolverOptions()
     rng = rng if rng is not None else np.random.default_rng(0)
     lo, hi = problem.bounds
-    p, K, nf = problem.p, problem.K, problem.n_free_joints
-    angle_d, pris_q = _max_steps(problem)
-    cap_d = np.where(angle_d, opt.max_step_angle, opt.max_step_length)
-    cap_q = np.where(pris_q, opt.max_step_length, opt.max_step_angle)
     wx = row_weights(problem)
-    z = np.clip(z0, lo, hi)
-    ev = problem.evaluate(z)
-    rows = stacked_rows(problem, ev, wx, z, clearance)
-    cost = rows.cost
+    caps = _step_caps(problem, opt)
     c_min = clearance.clearance if clearance is not None else 0.0
-    history = [cost]
+    cur = _iterate(problem, np.clip(z0, lo, hi), wx, clearance)
+    history = [cur.cost]
     boost = 0.0
-    best_cost, since_best = cost, 0
+    best_cost, since_best = cur.cost, 0
     release = False  # stalled on the working set of the bounds: check the multipliers
-    window_start = cost  # merit when the current re-seeding window began
+    window_start = cur.cost  # merit when the current re-seeding window began
     it = 0
     for it in range(1, opt.max_iter + 1):
-        if _done(problem, ev, rows, c_min, z, workspace, opt):
-            return SolveOutcome(z, ev, it - 1, True, history)
-        e, D, J, active = rows.e, rows.D, rows.J, rows.active
-        zd, zq = z[:p], z[p:].reshape(K, nf)
-        lod, hid = lo[:p], hi[:p]
-        loq, hiq = lo[p:].reshape(K, nf), hi[p:].reshape(K, nf)
-        wd, wq = np.ones(p), np.ones((K, nf))
-        # σ_min of the weighted stacked Jacobian, for the Eq. 14 schedule
-        Dw, Jw = weighted(D, J, wd, wq)
-        sys0 = BlockSystem.build(Dw, Jw, active, 1e-12)
-        smin = smallest_singular_value(sys0, active, 1e-12)
-        lam2 = damping_squared(smin, opt.epsilon, opt.lambda_max)
-        lam2 *= min(1.0, np.sqrt(2 * cost) / opt.err_ref) ** 2
-        lam2 += boost
-        bs = bounded_step(
-            D,
-            J,
-            active,
-            e,
-            lam2,
-            VariableBox((zd, zq), (lod, loq), (hid, hiq), (cap_d, np.tile(cap_q, (K, 1)))),
-            release,
-        )
-        sd, sq, wd, wq = bs.design, bs.joints, bs.weight_design, bs.weight_joints
-        task_step = np.concatenate([sd, sq.ravel()])
-        steps = [task_step]
-        nd, nq = (
-            (None, None) if workspace is None else _workspace_motion(problem, z, workspace, opt)
-        )
-        if rows.terms is not None:
-            push = clearance_motion(rows.terms, c_min, opt.workspace_gain)
-            if push is not None:
-                nd = push[0] if nd is None else nd + push[0]
-                nq = push[1] if nq is None else nq + push[1]
-        if nd is not None and nq is not None:
-            Dw, Jw = weighted(D, J, wd, wq)
-            sysn = BlockSystem.build(Dw, Jw, active, 1e-12)
-            pd, pq = null_space_project(sysn, wd * nd, wq * nq, active)
-            # the wall motion first together with the task step, alone the task step
-            steps.insert(0, task_step + np.concatenate([wd * pd, (wq * pq).ravel()]))
-        caps = np.concatenate([cap_d, np.tile(cap_q, K)])
-        accepted = False
-        alpha = 1.0
-        c_try = cost
-        for step in steps:
-            step, _ = _capped(step, caps, p, K, nf)
-            alpha = 1.0
-            for _ in range(5):
-                z_try = np.clip(z + alpha * step, lo, hi)
-                ev_try = problem.evaluate(z_try)
-                c_try = merit(problem, ev_try, wx, z_try, clearance)
-                if c_try < cost or (step is not task_step and c_try <= cost * 1.000001 + 1e-12):
-                    accepted = True
-                    break
-                alpha *= 0.5
-            if accepted:
-                break
-        release = not accepted or c_try > cost * (1 - opt.stall_decrease)
-        if accepted:
-            z, ev, cost = z_try, ev_try, c_try
-            rows = stacked_rows(problem, ev, wx, z, clearance)
-            boost = boost / 4.0 if alpha == 1.0 else boost
+        if _done(problem, cur.ev, cur.rows, c_min, cur.z, workspace, opt):
+            return SolveOutcome(cur.z, cur.ev, it - 1, True, history)
+        lam2 = _damping(problem, cur, opt) + boost
+        bs = _bounded_task_step(problem, cur, lam2, caps, release)
+        steps = _candidate_steps(problem, cur, bs, workspace, c_min, opt)
+        trial = _line_search(problem, cur, steps, caps, wx, clearance)
+        release = trial.z is None or trial.cost > cur.cost * (1 - opt.stall_decrease)
+        if trial.z is not None:
+            cur = replace(_iterate(problem, trial.z, wx, clearance, trial.ev), cost=trial.cost)
+            boost = boost / 4.0 if trial.alpha == 1.0 else boost
         else:
             boost = min(max(4.0 * boost, 1e-6), opt.max_boost)
-        history.append(cost)
-        if cost < best_cost * (1 - 1e-4):
-            best_cost, since_best = cost, 0
+        history.append(cur.cost)
+        if cur.cost < best_cost * (1 - 1e-4):
+            best_cost, since_best = cur.cost, 0
         else:
             since_best += 1
             if since_best >= opt.stall_iterations:
@@ -238,20 +201,152 @@ def solve_dls(
         if opt.reseed_every and it % opt.reseed_every == 0:
             # re-seed only when the window made little progress (a trapped branch), not
             # while the iteration converges on its own
-            slow = cost > (1.0 - opt.reseed_progress) * window_start
-            z2 = reseed_points(problem, z, ev, rng, opt.reseed_restarts) if slow else None
-            if z2 is not None and clearance is not None:
-                z2 = _keep_clearer(problem, z, ev, z2, wx, clearance)
-            if z2 is not None:
-                ev2 = problem.evaluate(z2)
-                rows2 = stacked_rows(problem, ev2, wx, z2, clearance)
-                c2 = rows2.cost
-                if c2 < cost * (1 - 1e-4):  # a real improvement restarts the stall count
-                    best_cost, since_best = c2, 0
-                z, ev, cost, rows = z2, ev2, c2, rows2
-            window_start = cost
-    done = _done(problem, ev, rows, c_min, z, workspace, opt)
-    return SolveOutcome(z, ev, it, done, history)
+            if cur.cost > (1.0 - opt.reseed_progress) * window_start:
+                new = _reseeded(problem, cur, rng, opt, wx, clearance)
+                if new is not None:
+                    if new.cost < cur.cost * (1 - 1e-4):  # a real improvement restarts
+                        best_cost, since_best = new.cost, 0  # the stall count
+                    cur = new
+            window_start = cur.cost
+    done = _done(problem, cur.ev, cur.rows, c_min, cur.z, workspace, opt)
+    return SolveOutcome(cur.z, cur.ev, it, done, history)
+
+
+@dataclass(frozen=True)
+class _StepCaps:
+    """Step caps (``max_step_angle`` / ``max_step_length``) of the design variables
+    ``(p,)`` and of each task point's joints ``(K, n_f)``, and both as one vector."""
+
+    design: Array
+    joints: Array
+    flat: Array
+
+
+def _step_caps(problem: SynthesisProblem, opt: SolverOptions) -> _StepCaps:
+    angle_d, pris_q = _max_steps(problem)
+    cap_d = np.where(angle_d, opt.max_step_angle, opt.max_step_length)
+    cap_q = np.tile(np.where(pris_q, opt.max_step_length, opt.max_step_angle), (problem.K, 1))
+    return _StepCaps(cap_d, cap_q, np.concatenate([cap_d, cap_q.ravel()]))
+
+
+def _iterate(
+    problem: SynthesisProblem,
+    z: Array,
+    wx: Array,
+    clearance: ClearanceModel | None,
+    ev: Evaluation | None = None,
+) -> _Iterate:
+    """The point ``z`` with its rows (gradients of the clearance terms included)."""
+    ev = problem.evaluate(z) if ev is None else ev
+    rows = stacked_rows(problem, ev, wx, z, clearance)
+    return _Iterate(z, ev, rows, rows.cost)
+
+
+def _damping(problem: SynthesisProblem, cur: _Iterate, opt: SolverOptions) -> float:
+    """``λ²`` of the P-I Eq. 14 schedule on σ_min of the stacked Jacobian, faded with
+    the residual like the IK (quadratic final convergence)."""
+    rows = cur.rows
+    Dw, Jw = weighted(
+        rows.D, rows.J, np.ones(problem.p), np.ones((problem.K, problem.n_free_joints))
+    )
+    smin = smallest_singular_value(
+        BlockSystem.build(Dw, Jw, rows.active, 1e-12), rows.active, 1e-12
+    )
+    lam2 = damping_squared(smin, opt.epsilon, opt.lambda_max)
+    return float(lam2 * min(1.0, np.sqrt(2 * cur.cost) / opt.err_ref) ** 2)
+
+
+def _bounded_task_step(
+    problem: SynthesisProblem, cur: _Iterate, lam2: float, caps: _StepCaps, release: bool
+) -> BoundedStep:
+    """The task's DLS step with the working set of the bounds (``active_set``)."""
+    p, K, nf = problem.p, problem.K, problem.n_free_joints
+    lo, hi = problem.bounds
+    rows, z = cur.rows, cur.z
+    return bounded_step(
+        rows.D, rows.J, rows.active, rows.e, lam2,
+        VariableBox(
+            (z[:p], z[p:].reshape(K, nf)),
+            (lo[:p], lo[p:].reshape(K, nf)),
+            (hi[:p], hi[p:].reshape(K, nf)),
+            (caps.design, caps.joints),
+        ),
+        release,
+    )  # fmt: skip
+
+
+def _candidate_steps(
+    problem: SynthesisProblem,
+    cur: _Iterate,
+    bs: BoundedStep,
+    workspace: Workspace | None,
+    c_min: float,
+    opt: SolverOptions,
+) -> list[Array]:
+    """The steps to try, in order: the task step plus the null-space motion away from
+    the workspace boundary and the bodies (P-II Eq. 29–33) when any is near, then the
+    task step alone."""
+    wd, wq = bs.weight_design, bs.weight_joints
+    task_step = np.concatenate([bs.design, bs.joints.ravel()])
+    nd, nq = (
+        (None, None) if workspace is None else _workspace_motion(problem, cur.z, workspace, opt)
+    )
+    if cur.rows.terms is not None:
+        push = clearance_motion(cur.rows.terms, c_min, opt.workspace_gain)
+        if push is not None:
+            nd = push[0] if nd is None else nd + push[0]
+            nq = push[1] if nq is None else nq + push[1]
+    if nd is None or nq is None:
+        return [task_step]
+    rows = cur.rows
+    Dw, Jw = weighted(rows.D, rows.J, wd, wq)
+    sysn = BlockSystem.build(Dw, Jw, rows.active, 1e-12)
+    pd, pq = null_space_project(sysn, wd * nd, wq * nq, rows.active)
+    return [task_step + np.concatenate([wd * pd, (wq * pq).ravel()]), task_step]
+
+
+def _line_search(
+    problem: SynthesisProblem,
+    cur: _Iterate,
+    steps: list[Array],
+    caps: _StepCaps,
+    wx: Array,
+    clearance: ClearanceModel | None,
+) -> _Trial:
+    """The first of ``steps`` (capped per block, then halved up to four times) that
+    lowers the merit; a step with the null-space motion (all but the last) is also
+    kept when it leaves the merit unchanged. The merit of a trial is computed from the
+    distances alone (``clearance_rows.merit``)."""
+    lo, hi = problem.bounds
+    c_try, alpha = cur.cost, 1.0
+    for i, raw in enumerate(steps):
+        step, _ = _capped(raw, caps.flat, problem.p, problem.K, problem.n_free_joints)
+        with_motion = i < len(steps) - 1
+        alpha = 1.0
+        for _ in range(5):
+            z_try = np.clip(cur.z + alpha * step, lo, hi)
+            ev_try = problem.evaluate(z_try)
+            c_try = merit(problem, ev_try, wx, z_try, clearance)
+            if c_try < cur.cost or (with_motion and c_try <= cur.cost * 1.000001 + 1e-12):
+                return _Trial(z_try, ev_try, c_try, alpha)
+            alpha *= 0.5
+    return _Trial(None, None, c_try, alpha)
+
+
+def _reseeded(
+    problem: SynthesisProblem,
+    cur: _Iterate,
+    rng: np.random.Generator,
+    opt: SolverOptions,
+    wx: Array,
+    clearance: ClearanceModel | None,
+) -> _Iterate | None:
+    """The point with the unreached poses' joints re-solved by IK (``reseed_points``),
+    with the clearance only where they lower their pose's merit; None if none moved."""
+    z2 = reseed_points(problem, cur.z, cur.ev, rng, opt.reseed_restarts)
+    if z2 is not None and clearance is not None:
+        z2 = _keep_clearer(problem, cur.z, cur.ev, z2, wx, clearance)
+    return None if z2 is None else _iterate(problem, z2, wx, clearance)
 
 
 def _done(
