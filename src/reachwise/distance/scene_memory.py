@@ -77,7 +77,14 @@ from reachwise.distance._memory_kernel import (
 )
 from reachwise.errors import InputError
 
-__all__ = ["STATES", "MemoryConfig", "MemoryCounts", "SceneMemory", "ViewIntrinsics"]
+__all__ = [
+    "STATES",
+    "MemoryConfig",
+    "MemoryCounts",
+    "MemorySnapshot",
+    "SceneMemory",
+    "ViewIntrinsics",
+]
 
 _SRC = "scene memory"
 #: Most voxels one memory may hold (about 140 MB of state).
@@ -153,6 +160,17 @@ class MemoryCounts(NamedTuple):
     free: int
     occupied: int
     shadow: int
+
+
+class MemorySnapshot(NamedTuple):
+    """A copy of a :class:`SceneMemory`'s state (:meth:`SceneMemory.snapshot`): every
+    voxel's state, when it was last seen occupied and seen free (s), and the newest
+    frame's capture time."""
+
+    state: NDArray[np.uint8]
+    seen_at: NDArray[np.float64]
+    freed_at: NDArray[np.float64]
+    stamp: float
 
 
 class SceneMemory:
@@ -288,6 +306,30 @@ class SceneMemory:
         """How many voxels hold each state now."""
         c = np.bincount(self.state.reshape(-1), minlength=4)
         return MemoryCounts(int(c[UNKNOWN]), int(c[FREE]), int(c[OCCUPIED]), int(c[SHADOW]))
+
+    def clear(self) -> None:
+        """Forget everything: every voxel unknown, no frame fused."""
+        self.state.fill(UNKNOWN)
+        self.seen_at.fill(-np.inf)
+        self.freed_at.fill(-np.inf)
+        self._stamp = -math.inf
+
+    def snapshot(self) -> MemorySnapshot:
+        """A copy of the memory now, for :meth:`restore` (a replay that seeks back)."""
+        return MemorySnapshot(
+            self.state.copy(), self.seen_at.copy(), self.freed_at.copy(), self._stamp
+        )
+
+    def restore(self, snapshot: MemorySnapshot) -> None:
+        """Return to ``snapshot`` (taken from a memory of the same grid)."""
+        if snapshot.state.shape != self.shape:
+            raise InputError(
+                _SRC, "snapshot", f"a {snapshot.state.shape} grid, this memory is {self.shape}"
+            )
+        np.copyto(self.state, snapshot.state)
+        np.copyto(self.seen_at, snapshot.seen_at)
+        np.copyto(self.freed_at, snapshot.freed_at)
+        self._stamp = snapshot.stamp
 
     def voxel_of(self, point: ArrayLike) -> tuple[int, int, int] | None:
         """The index of the voxel holding ``point`` (m, world), or None outside the grid."""

@@ -123,6 +123,12 @@ class MemoryFeed:
         self.dirty = False  # a frame was fused since the last hand-over
         self._added = False
 
+    def reset(self) -> None:
+        """Forget every frame fused: the map as at the start of a run, all unknown (a
+        replay that fuses the frames again)."""
+        self.memory.clear()
+        self.dirty = True
+
     @property
     def inflation(self) -> float:
         """What the pairs against this memory add to their margin (m)."""
