@@ -95,6 +95,8 @@ class LiveRun:
             tick = round(t / self.scenario.spec.dt)
             self._history[tick] = {r: np.array(q) for r, q in qs.items()}
             oldest = min(s.capture_tick(s.frame_in_use(tick)) for s in self.world.sensors)
+            needs = self.sim.memory_needs()  # frames a memory has still to fuse
+            oldest = oldest if needs is None else min(oldest, needs)
             for old in [k for k in self._history if k < oldest]:
                 del self._history[old]
         now = time.monotonic()

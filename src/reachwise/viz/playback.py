@@ -9,6 +9,9 @@ P-V Fig. 4: red within the collision margin ρ_O, amber in the monitored band). 
 camera's live cloud is its environment cloud, replaced as frames arrive (each frame
 rendered again from the state at its capture, :mod:`reachwise.sim.sensors`); an object
 only the cameras see (``scene: false``) is drawn as grey points on its true surface.
+A scene memory fed by cameras is rebuilt from their frames
+(:class:`~reachwise.viz.memory_replay.MemoryReplay`) and drawn as its occupied (red),
+shadow (purple) and free (green, hidden at first) voxels.
 
 :class:`Playback` replays a :class:`~reachwise.sim.log.SimulationLog`: a play /
 pause button and a time slider (scrub), the speed, the tool paths; at each shown tick
@@ -27,14 +30,18 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from reachwise.distance.scene_memory import STATES
 from reachwise.errors import InputError
+from reachwise.viz.memory_replay import MemoryReplay
 from reachwise.viz.scene_data import (
+    MEMORY_RGB,
     distance_colours,
     height_colours,
     legend,
     node_name,
     pair_segments,
     polyline_segments,
+    voxel_centres,
     wxyz_position,
 )
 from reachwise.viz.timeline import Timeline
@@ -49,6 +56,8 @@ __all__ = ["GoalEntry", "Playback", "SimScene", "goal_reached_at", "goal_table"]
 
 PATH_RGB = (200, 60, 160)
 HIDDEN_RGB = (150, 150, 150)  # the true surface of an object only the sensors see
+#: Most voxels drawn per memory and state (every n-th beyond).
+MAX_VOXELS_SHOWN = {"occupied": 150_000, "shadow": 150_000, "free": 60_000}
 
 
 @dataclass(frozen=True)
@@ -163,6 +172,11 @@ class SimScene:
             )
         self._cloud_version: dict[str, int] = {}
         self._frame = {sensor.name: 0 for sensor in getattr(world, "sensors", [])}
+        sensors = getattr(world, "sensors", [])
+        self.memories = [
+            MemoryReplay(feed, [s for s in sensors if s.feed is feed])
+            for feed in getattr(world, "memories", [])
+        ]
         self.hidden_nodes = self._add_hidden(world)
         self.n_goals = len(self.goals)
         if self.goals:
@@ -240,6 +254,8 @@ class SimScene:
         (for the closest-point lines)."""
         sight = getattr(self.world, "sight", None)
         for sensor in getattr(self.world, "sensors", []):
+            if sensor.feed is not None:  # its frames go into a memory
+                continue
             k = sensor.frame_in_use(tick)
             qs = q_at(sensor.capture_tick(k))
             if sight is None or k == self._frame.get(sensor.name) or qs is None:
@@ -251,6 +267,34 @@ class SimScene:
                 h.points = np.asarray(cloud.points, dtype=np.float32)
                 h.colors = height_colours(cloud.points)
             self._frame[sensor.name] = k
+        if sight is not None:
+            for replay in self.memories:
+                if replay.advance(tick, q_at, sight):
+                    replay.feed.flush(self.world.scene, sight.frames(self.q))
+                    self._show_memory(replay)
+
+    def _show_memory(self, replay: MemoryReplay) -> None:
+        """The occupied, shadow and free voxels of a memory now."""
+        memory = replay.feed.memory
+        for state in ("occupied", "shadow", "free"):
+            pts = voxel_centres(
+                memory.state,
+                memory.origin,
+                memory.config.voxel,
+                STATES[state],
+                MAX_VOXELS_SHOWN[state],
+            )
+            self.viewer.set_points(
+                f"/memory/{node_name(replay.feed.name)}/{state}",
+                pts,
+                np.broadcast_to(np.array(MEMORY_RGB[state], np.uint8), pts.shape),
+                "free voxels" if state == "free" else "memory voxels",
+                (0.35 if state == "free" else 0.8) * memory.config.voxel,
+            )
+
+    def memory_needs(self) -> int | None:
+        """The earliest tick whose joints the memories' replays may still ask for."""
+        return min((r.needs() for r in self.memories), default=None)
 
     def _original(self, name: str) -> Any:
         for o in self.env:

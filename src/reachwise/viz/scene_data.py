@@ -32,6 +32,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "COLOUR_WORDS",
+    "MEMORY_RGB",
     "STATUS_RGB",
     "axis_segments",
     "camera_view",
@@ -45,6 +46,7 @@ __all__ = [
     "skeleton_segments",
     "status_colours",
     "tunnel_wireframe",
+    "voxel_centres",
     "wxyz_position",
 ]
 
@@ -224,3 +226,24 @@ COLOUR_WORDS = {
     "unreached": "red",
     "pending": "grey",
 }
+
+
+#: Colours of a scene memory's voxels by state (:mod:`reachwise.distance.scene_memory`).
+MEMORY_RGB: dict[str, tuple[int, int, int]] = {
+    "occupied": (230, 70, 50),
+    "shadow": (130, 80, 200),
+    "free": (110, 200, 140),
+}
+
+
+def voxel_centres(
+    state: NDArray[np.uint8], origin: ArrayLike, voxel: float, code: int, limit: int
+) -> F64:
+    """The centres ``(k, 3)`` (m) of the voxels of the grid ``state`` (its corner at
+    ``origin``, edge ``voxel``) that hold ``code``; at most ``limit`` of them: every
+    ⌈n / limit⌉-th in index order when there are more."""
+    idx = np.flatnonzero(state.reshape(-1) == code)
+    if len(idx) > limit:
+        idx = idx[:: -(-len(idx) // max(1, limit))]
+    ijk = np.column_stack(np.unravel_index(idx, state.shape)).astype(np.float64)
+    return np.asarray(np.asarray(origin, dtype=np.float64) + (ijk + 0.5) * voxel)

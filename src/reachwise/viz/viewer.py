@@ -58,11 +58,13 @@ CATEGORIES = (
     "tool axes",
     "environment",
     "distance lines",
+    "memory voxels",
+    "free voxels",
     "tool paths",
     "configurations",
     "tunnel",
 )
-_HIDDEN_AT_START = frozenset({"configurations"})
+_HIDDEN_AT_START = frozenset({"configurations", "free voxels"})
 
 
 class Viewer:
