@@ -8,21 +8,21 @@ breaks it."""
 from __future__ import annotations
 
 import ast
+from dataclasses import fields
 from pathlib import Path
 
+import pytest
+
 import reachwise
+from reachwise.sim.run_options import RunKeywords, RunOptions
+from reachwise.tasks.task import PointArrayKeywords, PointArrays
 
 PACKAGE = Path(reachwise.__file__).parent
 MAX_PARAMETERS = 10
 #: Functions over the bound not converted yet (module path: function): each an entry
-#: to remove once it takes typed groups; a stale entry fails the test.
-PENDING = {
-    # keyword-only per-point arrays (11): a PointArrays group would rename 21 calls
-    "tasks/task.py:from_arrays",
-    # reachwise.simulate's documented keywords (11): a group beside them, as solve_ik's
-    # IKOptions and synthesize's SynthesisSettings, is still to come
-    "api.py:simulate",
-}
+#: to remove once it takes typed groups; a stale entry fails the test. Empty: every
+#: function takes typed groups.
+PENDING: set[str] = set()
 
 
 def _parameters(fn: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
@@ -72,3 +72,13 @@ def test_the_check_finds_a_long_signature_and_exempts_a_documented_kernel(
         f"def starred(a, *args, b, **kw):\n    pass\n"
     )
     assert long_signatures(tmp_path) == {"m.py:long": 11, "m.py:silent_kernel": 11}
+
+
+@pytest.mark.parametrize(
+    ("group", "keywords"),
+    [(RunOptions, RunKeywords), (PointArrays, PointArrayKeywords)],
+)
+def test_a_group_and_its_keywords_name_the_same_fields(group: type, keywords: type) -> None:
+    """A typed group taken also as keywords (``options=`` or ``duration=``, …) lists
+    the same fields in both, so a field added to one cannot be missing from the other."""
+    assert list(keywords.__annotations__) == [f.name for f in fields(group)]

@@ -11,10 +11,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
-
-import numpy as np
-from numpy.typing import NDArray
+from typing import Any, Unpack
 
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
@@ -29,15 +26,13 @@ from reachwise.sim.bag_recorder import BagRecorder
 from reachwise.sim.log import SimulationLog
 from reachwise.sim.plant import PlantName
 from reachwise.sim.resolve import ResolvedScenario, resolve_scenario
-from reachwise.sim.scenarios import EscapeSpec, Scenario
-from reachwise.sim.simulate import RunRecorder, run_world
+from reachwise.sim.run_options import RunKeywords, RunOptions, run_options
+from reachwise.sim.scenarios import Scenario
+from reachwise.sim.simulate import run_world
 from reachwise.sim.world import SceneFactory, SimClock, build_world
 from reachwise.synthesis.synthesize import SynthesisResult
 from reachwise.synthesis.synthesize import synthesize as synthesize_objects
 from reachwise.tasks.task import Task
-
-if TYPE_CHECKING:
-    from reachwise.distance.scene import SceneResult
 
 __all__ = ["replay", "resolve_design", "server_scene", "simulate", "synthesize"]
 
@@ -141,21 +136,20 @@ def simulate(
     scenario: ResolvedScenario | Scenario | str | Path,
     avoidance: bool = True,
     *,
-    duration: float | None = None,
-    progress: Callable[[float, float], None] | None = None,
-    on_tick: Callable[[float, dict[str, NDArray[np.float64]], SceneResult], None] | None = None,
     plant: PlantName = "scenario",
-    static_world: bool = False,
     server: str | ServerOptions | None = None,
-    escape: bool | EscapeSpec | None = None,
-    recorder: RunRecorder | None = None,
     bag: str | Path | None = None,
+    options: RunOptions | None = None,
+    **keywords: Unpack[RunKeywords],
 ) -> SimulationLog:
     """Run ``scenario`` (a built-in name, a file, a ``Scenario`` or a resolved one) in
     simulated time, in three stages, each once: *resolve* (every file read and checked,
     ``reachwise.sim.resolve.resolve_scenario``), *build* (the world from that object
     alone, ``reachwise.sim.world.build_world``) and *run* (the loop,
-    ``reachwise.sim.simulate.run_world``). The options are those of
+    ``reachwise.sim.simulate.run_world``). ``plant`` and the run's options (one
+    ``options`` group, ``reachwise.sim.run_options.RunOptions``: ``duration``,
+    ``progress``, ``on_tick``, ``static_world``, ``escape``, ``recorder``; or its
+    fields as keywords, which override the group's) are those of
     ``reachwise.sim.simulate.simulate``; ``server`` (an address or
     ``reachwise.server.client.ServerOptions``) runs the distance queries on that
     collision server instead of in process (:func:`~reachwise.api.server_scene`).
@@ -165,8 +159,9 @@ def simulate(
     ``reachwise simulate --bag`` does (``reachwise.sim.bag_recorder.BagRecorder``: joint states, the
     cameras' depth images, CameraInfo and clouds, TF), for :func:`replay` to read
     back; it replaces ``recorder``, so give one or the other."""
+    run = run_options(options, keywords)
     if bag is not None:
-        if recorder is not None:
+        if run.recorder is not None:
             raise InputError("simulate", "bag", "give bag or recorder, not both")
         if Path(bag).exists():
             raise InputError(str(bag), "bag", "exists already; not overwriting a recording")
@@ -176,10 +171,7 @@ def simulate(
     world = build_world(resolved, avoidance, plant=plant, make_scene=make_scene, clock=clock)
     writer = BagRecorder(bag) if bag is not None else None
     try:
-        return run_world(
-            world, clock, duration=duration, progress=progress, on_tick=on_tick,
-            static_world=static_world, escape=escape, recorder=writer or recorder,
-        )  # fmt: skip
+        return run_world(world, clock, run, recorder=writer or run.recorder)
     finally:
         if writer is not None:
             writer.close()

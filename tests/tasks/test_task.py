@@ -10,6 +10,7 @@ from scipy.spatial.transform import Rotation
 
 from reachwise.errors import TaskError
 from reachwise.tasks import Task, TaskPoint, TunnelEnvelope, TunnelProfile, frame_from_axis
+from reachwise.tasks.task import PointArrays
 
 
 def mixed_task() -> Task:
@@ -147,3 +148,20 @@ def test_frame_from_axis_is_batched_and_handles_vertical_axes() -> None:
     for i in range(4):
         assert np.allclose(R[i], frame_from_axis(A[i], [0.0, 0.1, 0.2, 0.3][i]))
         assert np.isclose(np.linalg.det(R[i]), 1.0)
+
+
+def test_from_arrays_takes_the_per_point_fields_as_a_group_or_as_keywords() -> None:
+    P = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    group = PointArrays(axes=[0.0, 0.0, 2.0], tol_position=[0.01, 0.02], names=["a", "b"])
+    by_group = Task.from_arrays("t", P, arrays=group)
+    by_keywords = Task.from_arrays(
+        "t", P, axes=[0.0, 0.0, 2.0], tol_position=[0.01, 0.02], names=["a", "b"]
+    )
+    assert by_group.dims.tolist() == by_keywords.dims.tolist() == [5, 5]
+    assert np.array_equal(by_group.tol_position, [0.01, 0.02])
+    assert [p.name for p in by_group] == [p.name for p in by_keywords] == ["a", "b"]
+    # a keyword beside the group overrides its field
+    assert Task.from_arrays("t", P, arrays=group, dims=3).dims.tolist() == [3, 3]
+    with pytest.raises(TaskError, match="expected 2 entries") as info:
+        Task.from_arrays("t", P, arrays=group, groups=["g"])
+    assert info.value.field == "groups"

@@ -28,10 +28,9 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any, Unpack
 
 import numpy as np
 from numpy.typing import NDArray
@@ -42,6 +41,7 @@ from reachwise.sim.contact import true_clearance
 from reachwise.sim.log import Event, GoalRecord, SimulationLog, joint_names_of
 from reachwise.sim.plant import PlantName
 from reachwise.sim.resolve import ResolvedScenario, resolve_scenario
+from reachwise.sim.run_options import RunKeywords, RunOptions, RunRecorder, run_options
 from reachwise.sim.scenarios import EscapeSpec, Scenario
 from reachwise.sim.world import (
     Agent,
@@ -58,7 +58,14 @@ from reachwise.sim.world import (
 if TYPE_CHECKING:
     from reachwise.sim.escape import Escape
 
-__all__ = ["RunRecorder", "SimulationInterrupted", "run_world", "simulate"]
+__all__ = [
+    "RunKeywords",
+    "RunOptions",
+    "RunRecorder",
+    "SimulationInterrupted",
+    "run_world",
+    "simulate",
+]
 
 
 class SimulationInterrupted(KeyboardInterrupt):
@@ -75,29 +82,14 @@ class SimulationInterrupted(KeyboardInterrupt):
 logger = logging.getLogger("reachwise.sim")
 
 
-class RunRecorder(Protocol):
-    """Something that records a run: started with the built world, told each tick
-    (index, time) after the distance query, closed at the end."""
-
-    def start(self, world: World) -> None: ...
-
-    def tick(self, k: int, t: float, world: World) -> None: ...
-
-    def close(self) -> None: ...
-
-
 def simulate(
     scenario: ResolvedScenario | Scenario | str | Path,
     avoidance: bool = True,
     *,
-    duration: float | None = None,
-    progress: Callable[[float, float], None] | None = None,
-    on_tick: Callable[[float, dict[str, NDArray[np.float64]], SceneResult], None] | None = None,
     plant: PlantName = "scenario",
-    static_world: bool = False,
     make_scene: SceneFactory | None = None,
-    escape: bool | EscapeSpec | None = None,
-    recorder: RunRecorder | None = None,
+    options: RunOptions | None = None,
+    **keywords: Unpack[RunKeywords],
 ) -> SimulationLog:
     """Run ``scenario`` (a built-in name, a file, a ``Scenario`` or a
     :class:`~reachwise.sim.resolve.ResolvedScenario`) in simulated time, in three
@@ -106,64 +98,53 @@ def simulate(
     (:func:`~reachwise.sim.world.build_world`, no file read) and run
     (:func:`run_world`). ``avoidance=False`` runs the conventional controller (the
     baseline).
-    ``duration`` overrides the scenario's; ``progress(t, duration)`` is called each
-    tick; ``on_tick(t, {robot: q}, distances)`` too, after the distance query (a live
-    viewer attaches here). ``plant="mujoco"`` runs every robot on its MuJoCo model
+    ``plant="mujoco"`` runs every robot on its MuJoCo model
     (``reachwise.sim.mujoco_plant``, the ``sim`` extra) instead of the scenario's
     plants and records each robot's tracking error in ``extras["tracking"]``.
-    ``static_world=True`` is the static-world baseline for moving obstacles: the
-    controllers see every object where it was at the start, while the logged
-    distances and the contact check follow the objects' true motion.
+    The run's options (``duration``, ``progress``, ``on_tick``, ``static_world``,
+    ``escape``, ``recorder``) come as one group, ``options``
+    (:class:`~reachwise.sim.run_options.RunOptions`, whose fields say what each
+    does), or one by one as keywords, which override the group's fields.
     ``make_scene`` makes the distance scene (:data:`reachwise.sim.world.SceneFactory`;
     default: in process); :func:`reachwise.simulate` passes a collision server's
     client here for its ``server`` option. With a server, a reply that misses its
     deadline (a server lost or restarting) reaches the controllers as missing data
-    (protective stop), and the run goes on when the server answers again.
-    ``escape`` (default: the scenario's ``escape:`` block; True: on, with its options
-    or the defaults; False: off; or an ``EscapeSpec``): a robot whose controller
-    stalls plans a path out with OMPL and follows it (``reachwise.sim.escape``);
-    the plans are in ``extras["escape"]``.
-    ``recorder`` (e.g. a ``reachwise.sim.bag_recorder.BagRecorder``) is started
-    with the built world, told each tick after the distance query and closed at the end."""
+    (protective stop), and the run goes on when the server answers again. Escape
+    plans are in ``extras["escape"]``."""
     clock = SimClock()
     world = build_world(
         resolve_scenario(scenario), avoidance, plant=plant, make_scene=make_scene, clock=clock
     )
-    return run_world(
-        world, clock, duration=duration, progress=progress, on_tick=on_tick,
-        static_world=static_world, escape=escape, recorder=recorder,
-    )  # fmt: skip
+    return run_world(world, clock, options, **keywords)
 
 
 def run_world(
     world: World,
     clock: SimClock,
-    *,
-    duration: float | None = None,
-    progress: Callable[[float, float], None] | None = None,
-    on_tick: Callable[[float, dict[str, NDArray[np.float64]], SceneResult], None] | None = None,
-    static_world: bool = False,
-    escape: bool | EscapeSpec | None = None,
-    recorder: RunRecorder | None = None,
+    options: RunOptions | None = None,
+    **keywords: Unpack[RunKeywords],
 ) -> SimulationLog:
     """The third stage of a run: the loop over a built ``world`` (whose scene is
-    stamped by ``clock``) until every goal is done or ``duration`` (default: the
-    scenario's) has passed; the options are :func:`simulate`'s. It reads no file.
+    stamped by ``clock``) until every goal is done or the run's ``duration`` (default:
+    the scenario's) has passed; ``options`` and ``keywords`` as :func:`simulate`'s. It
+    reads no file.
 
     Each tick is three named steps: ``_sense`` (joint states and moving objects
     into the scene, the distance query, the controllers' view), ``_check_contact``
     (distances and the first overlap into the ``_Recorder``) and ``_act``
     (each robot's goal bookkeeping in ``_Goals``, controller and plant)."""
+    o = run_options(options, keywords)
+    progress, on_tick, recorder = o.progress, o.on_tick, o.recorder
     avoidance, plant = world.avoidance, world.plant
     spec = world.scenario.spec
     dt = spec.dt
-    T_end = spec.duration if duration is None else float(duration)
+    T_end = spec.duration if o.duration is None else float(o.duration)
     ticks = math.floor(T_end / dt + 1e-9) + 1
     scene = world.scene
     rec = _Recorder(world, ticks)
     goals = _Goals(world)
-    esc = _escape(world, escape, goals.events)
-    seen = frozen_scene(scene) if static_world and world.movers else scene
+    esc = _escape(world, o.escape, goals.events)
+    seen = frozen_scene(scene) if o.static_world and world.movers else scene
     pair_objs = [(p.a, p.b) for p in scene.pairs]
     for a in world.agents:
         goals.next_goal(a, 0.0)
@@ -203,7 +184,7 @@ def run_world(
     close_scene(scene)
     if recorder is not None:
         recorder.close()
-    extras: dict[str, Any] = {"plant": plant, "static_world": static_world}
+    extras: dict[str, Any] = {"plant": plant, "static_world": o.static_world}
     if plant == "mujoco":
         extras["tracking"] = {a.name: a.plant.tracking() for a in world.agents}  # type: ignore[union-attr]
     if esc is not None:

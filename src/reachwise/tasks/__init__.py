@@ -1,6 +1,7 @@
 """reachwise.tasks: what a manipulator must reach, and where it may move (pure math).
 
-``TaskPoint`` / ``Task`` hold 3-, 5- or 6-D poses with tolerances (thesis §2.3, P-II §5);
+``TaskPoint`` / ``Task`` hold 3-, 5- or 6-D poses with tolerances (thesis §2.3, P-II §5),
+built from arrays with a ``PointArrays`` group;
 ``drilling_pattern`` builds a tunnel-face drill plan from a ``DrillLayout`` and
 ``tunnel_87`` the public stand-in for the thesis's 87-point task from 10 customer plans
 (P-I §4);
@@ -30,7 +31,7 @@ from reachwise.tasks.drilling import (
     tunnel_87,
     tunnel_plans,
 )
-from reachwise.tasks.task import Task, TaskPoint, frame_from_axis
+from reachwise.tasks.task import PointArrayKeywords, PointArrays, Task, TaskPoint, frame_from_axis
 from reachwise.tasks.workspace import TunnelEnvelope, TunnelProfile
 
 __all__ = [
@@ -42,6 +43,8 @@ __all__ = [
     "DrillLayout",
     "LayoutKeywords",
     "LifterLayout",
+    "PointArrayKeywords",
+    "PointArrays",
     "StopingLayout",
     "Task",
     "TaskPoint",

@@ -14,8 +14,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
+from typing import TypedDict, Unpack
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -186,6 +187,79 @@ def _tagged(index: int, exc: TaskError, source: str) -> TaskError:
     )
 
 
+@dataclass(frozen=True)
+class PointArrays:
+    """The per-point fields of a task built from arrays (:meth:`Task.from_arrays`),
+    for ``m`` points: each a scalar for every point or one entry per point."""
+
+    #: Tool orientations ``(m, 3, 3)`` (6-D points), or ``None``.
+    rotations: ArrayLike | None = None
+    #: Tool z axes ``(m, 3)`` (5-D points; normalized), or ``None``.
+    axes: ArrayLike | None = None
+    #: Task-space dimension 3, 5 or 6 per point (scalar or ``(m,)``); 0 infers it.
+    dims: int | Sequence[int] = 0
+    #: Position tolerance (m), scalar or ``(m,)``.
+    tol_position: float | ArrayLike = DEFAULT_TOL_POSITION
+    #: Orientation tolerance (rad), scalar or ``(m,)``.
+    tol_orientation: float | ArrayLike = DEFAULT_TOL_ORIENTATION
+    #: The points' names (``m`` entries), or ``None``.
+    names: Sequence[str] | None = None
+    #: The points' groups (``m`` entries), or ``None``.
+    groups: Sequence[str] | None = None
+
+    def points(self, positions: FloatArray, source: str) -> tuple[TaskPoint, ...]:
+        """The task points at ``positions (m, 3)`` (m); a field of the wrong shape or
+        a bad point is a ``TaskError`` naming it (``points[i].field``) in ``source``."""
+        m = positions.shape[0]
+
+        def per_point(value: object, label: str, shape: tuple[int, ...]) -> NDArray[np.generic]:
+            a = np.asarray(value)
+            if a.shape == shape:
+                a = np.broadcast_to(a, (m, *shape))
+            if a.shape != (m, *shape):
+                raise TaskError(source, label, f"expected shape {(m, *shape)}, got {a.shape}")
+            return a
+
+        R = None if self.rotations is None else per_point(self.rotations, "rotations", (3, 3))
+        A = None if self.axes is None else per_point(self.axes, "axes", (3,))
+        D = per_point(self.dims, "dims", ())
+        tp = per_point(self.tol_position, "tol_position", ())
+        to = per_point(self.tol_orientation, "tol_orientation", ())
+        for label, seq in (("names", self.names), ("groups", self.groups)):
+            if seq is not None and len(seq) != m:
+                raise TaskError(source, label, f"expected {m} entries, got {len(seq)}")
+        pts = []
+        for i in range(m):
+            try:
+                pts.append(
+                    TaskPoint(
+                        positions[i],
+                        rotation=None if R is None else R[i],
+                        axis=None if A is None else A[i],
+                        dims=int(D[i]),
+                        tol_position=float(tp[i]),
+                        tol_orientation=float(to[i]),
+                        name="" if self.names is None else self.names[i],
+                        group="" if self.groups is None else self.groups[i],
+                    )
+                )
+            except TaskError as exc:
+                raise _tagged(i, exc, source) from None
+        return tuple(pts)
+
+
+class PointArrayKeywords(TypedDict, total=False):
+    """:class:`PointArrays`'s fields as keywords (the same names and types)."""
+
+    rotations: ArrayLike | None
+    axes: ArrayLike | None
+    dims: int | Sequence[int]
+    tol_position: float | ArrayLike
+    tol_orientation: float | ArrayLike
+    names: Sequence[str] | None
+    groups: Sequence[str] | None
+
+
 @dataclass(frozen=True, eq=False)
 class Task:
     """A named, non-empty sequence of task points, with vectorized accessors.
@@ -220,60 +294,23 @@ class Task:
         name: str,
         positions: ArrayLike,
         *,
-        rotations: ArrayLike | None = None,
-        axes: ArrayLike | None = None,
-        dims: int | Sequence[int] = 0,
-        tol_position: float | ArrayLike = DEFAULT_TOL_POSITION,
-        tol_orientation: float | ArrayLike = DEFAULT_TOL_ORIENTATION,
-        names: Sequence[str] | None = None,
-        groups: Sequence[str] | None = None,
+        arrays: PointArrays | None = None,
         envelope: TunnelEnvelope | None = None,
         source: str = "task",
+        **keywords: Unpack[PointArrayKeywords],
     ) -> Task:
-        """Build a task from arrays: ``positions (m, 3)``, ``rotations (m, 3, 3)``,
-        ``axes (m, 3)``, ``dims`` (scalar or per point; 0 infers), tolerances (scalar or
-        per point). Errors name ``points[i].field``."""
+        """Build a task from arrays: ``positions (m, 3)`` (m) and the per-point
+        fields as one :class:`PointArrays` group ``arrays`` or as its fields one by one
+        (``rotations``, ``axes``, ``dims``, ``tol_position``, ``tol_orientation``,
+        ``names``, ``groups``), which override the group's. Errors name
+        ``points[i].field``."""
         P = np.asarray(positions, dtype=float)
         if P.ndim != 2 or P.shape[1] != 3:
             raise TaskError(source, "positions", f"expected shape (m, 3), got {P.shape}")
-        m = P.shape[0]
-        if m == 0:
+        if P.shape[0] == 0:
             raise TaskError(source, "points", "a task needs at least one point (empty task)")
-
-        def per_point(value: object, label: str, shape: tuple[int, ...]) -> NDArray[np.generic]:
-            a = np.asarray(value)
-            if a.shape == shape:
-                a = np.broadcast_to(a, (m, *shape))
-            if a.shape != (m, *shape):
-                raise TaskError(source, label, f"expected shape {(m, *shape)}, got {a.shape}")
-            return a
-
-        R = None if rotations is None else per_point(rotations, "rotations", (3, 3))
-        A = None if axes is None else per_point(axes, "axes", (3,))
-        D = per_point(dims, "dims", ())
-        tp = per_point(tol_position, "tol_position", ())
-        to = per_point(tol_orientation, "tol_orientation", ())
-        for label, seq in (("names", names), ("groups", groups)):
-            if seq is not None and len(seq) != m:
-                raise TaskError(source, label, f"expected {m} entries, got {len(seq)}")
-        pts = []
-        for i in range(m):
-            try:
-                pts.append(
-                    TaskPoint(
-                        P[i],
-                        rotation=None if R is None else R[i],
-                        axis=None if A is None else A[i],
-                        dims=int(D[i]),
-                        tol_position=float(tp[i]),
-                        tol_orientation=float(to[i]),
-                        name="" if names is None else names[i],
-                        group="" if groups is None else groups[i],
-                    )
-                )
-            except TaskError as exc:
-                raise _tagged(i, exc, source) from None
-        return cls(name, tuple(pts), envelope)
+        a = replace(arrays or PointArrays(), **keywords)
+        return cls(name, a.points(P, source), envelope)
 
     # -- sequence protocol ------------------------------------------------------------
     def __len__(self) -> int:
@@ -383,6 +420,8 @@ __all__ = [
     "DEFAULT_TOL_ORIENTATION",
     "DEFAULT_TOL_POSITION",
     "DIMS",
+    "PointArrayKeywords",
+    "PointArrays",
     "Task",
     "TaskPoint",
     "frame_from_axis",
