@@ -20,8 +20,10 @@ Three passes per depth frame and one per hand-over, each over flat arrays:
 - :func:`mark_points` — every returned pixel back-projected to its point, whose voxel
   is marked occupied at time ``t``: a voxel that holds an observed point is occupied,
   whatever its centre's pixel saw (depth edges).
-- :func:`decay_and_collect` — occupied voxels not re-observed for ``memory`` s fade to
-  shadow (never to free); the centres of the occupied and shadow voxels are returned.
+- :func:`collect_ordered` — occupied voxels not re-observed for ``memory`` s fade to
+  shadow (never to free); the centres of the occupied and shadow voxels are returned in
+  Morton order of their voxel indices, with their codes, so that their distance index
+  is built without a sort (``reachwise.distance.index.index_of_ordered``).
 
 The loops are long by design: one pass over millions of voxels, with the camera
 coordinates of each centre updated by three additions along the innermost axis.
@@ -30,9 +32,11 @@ coordinates of each centre updated by three additions along the innermost axis.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit, types
+from numpy.typing import NDArray
 
 UNKNOWN = np.uint8(0)
 FREE = np.uint8(1)
@@ -129,7 +133,7 @@ def prepare_frame(depth, body, near, far, code, tiles):  # type: ignore[no-untyp
 # camera = [fx, fy, cx, cy, near, far]; grid = [ox, oy, oz, voxel];
 # rules = [band, shadow, t, hold, dmax]; pose_cw: world -> camera (4 x 4)
 _SIG_PROJECT = types.int64(
-    _W_U1_3D, _W_F8_3D, _RO_F4_2D, _RO_F8_4D, _RO_F8_1D, _RO_F8_2D, _RO_F8_1D, _RO_F8_1D
+    _W_U1_3D, _W_F8_3D, _W_U1_3D, _RO_F4_2D, _RO_F8_4D, _RO_F8_1D, _RO_F8_2D, _RO_F8_1D, _RO_F8_1D
 )
 
 # what a brick test decides for every voxel of a brick
@@ -234,9 +238,11 @@ def _brick_test(lo3, ext, view, tiles, rules, W, H):  # type: ignore[no-untyped-
 
 
 @njit(cache=True, nogil=True)
-def _apply(decision, lo3, ext, state, freed_at, code, view, rules, W, H):  # type: ignore[no-untyped-def]
-    """Apply a brick test's ``decision`` to its voxels (voxel by voxel for ``_EACH``);
-    returns how many of them projected onto a pixel with a return."""
+def _apply(decision, lo3, ext, state, freed_at, held, code, view, rules, W, H):  # type: ignore[no-untyped-def]
+    """Apply a brick test's ``decision`` to its voxels (voxel by voxel for ``_EACH``),
+    flagging their brick in ``held`` (:func:`collect_ordered`) when one turns shadow;
+    returns how many of them projected onto a pixel with a return. The voxels lie in
+    one brick of ``BRICK``³."""
     band, shadow, t, hold = rules[0], rules[1], rules[2], rules[3]
     bi, bj, bk = lo3[0], lo3[1], lo3[2]
     ei, ej, ek = ext[0], ext[1], ext[2]
@@ -250,6 +256,7 @@ def _apply(decision, lo3, ext, state, freed_at, code, view, rules, W, H):  # typ
                     freed_at[i, j, k] = t
         return ei * ej * ek
     if decision == _ALL_SHADOW:
+        held[bi // BRICK, bj // BRICK, bk // BRICK] = 1
         for i in range(bi, bi + ei):
             for j in range(bj, bj + ej):
                 for k in range(bk, bk + ek):
@@ -281,6 +288,7 @@ def _apply(decision, lo3, ext, state, freed_at, code, view, rules, W, H):  # typ
                                 elif pz <= d + shadow:
                                     if state[i, j, k] != OCCUPIED and t - freed_at[i, j, k] > hold:
                                         state[i, j, k] = SHADOW
+                                        held[bi // BRICK, bj // BRICK, bk // BRICK] = 1
                             elif pz < -d - band:
                                 state[i, j, k] = FREE
                                 freed_at[i, j, k] = t
@@ -291,11 +299,13 @@ def _apply(decision, lo3, ext, state, freed_at, code, view, rules, W, H):  # typ
 
 
 @njit(_SIG_PROJECT, cache=True, nogil=True)
-def project_frame(state, freed_at, code, tiles, camera, pose_cw, grid, rules):  # type: ignore[no-untyped-def]
+def project_frame(state, freed_at, held, code, tiles, camera, pose_cw, grid, rules):  # type: ignore[no-untyped-def]
     """Free and shadow marks of one frame (module docstring) from its ``code`` image and
     ``tiles`` (:func:`prepare_frame`); ``rules`` = [band, shadow, t, hold, farthest
-    return]. Bricks of ``BRICK``³ voxels are decided at once where their corners allow
-    (:func:`_brick_test`), else split into bricks of half the edge, then voxel by voxel.
+    return]; a brick where a voxel turns shadow is flagged in ``held``
+    (:func:`collect_ordered`). Bricks of ``BRICK``³ voxels are decided at once where
+    their corners allow (:func:`_brick_test`), else split into bricks of half the edge,
+    then voxel by voxel.
     Returns the number of voxels whose centre projected onto a pixel with a return."""
     ox, oy, oz, vox = grid[0], grid[1], grid[2], grid[3]
     H, W = code.shape
@@ -335,7 +345,9 @@ def project_frame(state, freed_at, code, tiles, camera, pose_cw, grid, rules):  
                 )
                 decision = _brick_test(lo3, ext, view, tiles, rules, W, H)
                 if decision != _EACH:
-                    seen += _apply(decision, lo3, ext, state, freed_at, code, view, rules, W, H)
+                    seen += _apply(
+                        decision, lo3, ext, state, freed_at, held, code, view, rules, W, H
+                    )
                     continue
                 for si in range(bi, bi + ext[0], half):
                     for sj in range(bj, bj + ext[1], half):
@@ -345,19 +357,22 @@ def project_frame(state, freed_at, code, tiles, camera, pose_cw, grid, rules):  
                             sext[1] = min(half, bj + ext[1] - sj)
                             sext[2] = min(half, bk + ext[2] - sk)
                             d = _brick_test(sub, sext, view, tiles, rules, W, H)
-                            seen += _apply(d, sub, sext, state, freed_at, code, view, rules, W, H)
+                            seen += _apply(
+                                d, sub, sext, state, freed_at, held, code, view, rules, W, H
+                            )
     return seen
 
 
 _SIG_MARK = types.int64(
-    _W_U1_3D, _W_F8_3D, _RO_F4_2D, _RO_F8_1D, _RO_F8_2D, _RO_F8_1D, types.float64
+    _W_U1_3D, _W_F8_3D, _W_U1_3D, _RO_F4_2D, _RO_F8_1D, _RO_F8_2D, _RO_F8_1D, types.float64
 )
 
 
 @njit(_SIG_MARK, cache=True, nogil=True)
-def mark_points(state, seen_at, code, camera, pose_wc, grid, t):  # type: ignore[no-untyped-def]
+def mark_points(state, seen_at, held, code, camera, pose_wc, grid, t):  # type: ignore[no-untyped-def]
     """Mark the voxel of every scene pixel's point (``code`` > 0, :func:`prepare_frame`)
-    occupied at time ``t``; returns the number of points that fell inside the grid."""
+    occupied at time ``t``, its brick flagged in ``held`` (:func:`collect_ordered`);
+    returns the number of points that fell inside the grid."""
     fx, fy, cx, cy = camera[0], camera[1], camera[2], camera[3]
     ox, oy, oz, vox = grid[0], grid[1], grid[2], grid[3]
     inv_vox = 1.0 / vox
@@ -392,33 +407,112 @@ def mark_points(state, seen_at, code, camera, pose_wc, grid, t):  # type: ignore
                 if i != li or j != lj or k != lk:
                     state[i, j, k] = OCCUPIED
                     seen_at[i, j, k] = t
+                    held[i // BRICK, j // BRICK, k // BRICK] = 1
                     li, lj, lk = i, j, k
     return marked
 
 
-_SIG_COLLECT = types.int64(_W_U1_3D, _W_F8_3D, _RO_F8_1D, types.float64, types.float64, _W_F8_2D)
+#: Bits per axis of a voxel's Morton code (:func:`collect_ordered`): codes stay below
+#: 2**60, as the ordered tree build (``index_of_ordered``) needs.
+MORTON_AXIS_BITS = 20
+_LOCAL_BITS = 9  # the Morton code of a voxel within its BRICK**3 brick
+
+
+def morton_codes(i: NDArray[np.int64], j: NDArray[np.int64], k: NDArray[np.int64]) -> Any:
+    """The Morton codes of the voxel indices ``i``, ``j``, ``k`` (each below
+    2**:data:`MORTON_AXIS_BITS`): their bits interleaved, ``i``'s highest."""
+    out = np.zeros(np.broadcast(i, j, k).shape, dtype=np.int64)
+    for b in range(MORTON_AXIS_BITS):
+        for shift, axis in ((2, i), (1, j), (0, k)):
+            out |= ((np.asarray(axis, dtype=np.int64) >> b) & 1) << (3 * b + shift)
+    return out
+
+
+def brick_order(shape: tuple[int, int, int]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """The traversal of :func:`collect_ordered` over a grid of ``shape``: the bricks
+    (rows: first voxel's i, j, k and the Morton code of that voxel) and the voxels of a
+    brick (rows: offsets i, j, k and their Morton code), each in increasing code. A
+    brick's first index is a multiple of ``BRICK`` (a power of two), so a voxel's code
+    is its brick's code plus its offset's: the two orders together visit the voxels in
+    increasing Morton code."""
+    nb = [(n + BRICK - 1) // BRICK for n in shape]
+    b = np.indices(nb, dtype=np.int64).reshape(3, -1) * BRICK
+    bricks = np.column_stack([*b, morton_codes(*b)])
+    local = np.indices((BRICK,) * 3, dtype=np.int64).reshape(3, -1)
+    voxels = np.column_stack([*local, morton_codes(*local)])
+    return (
+        np.ascontiguousarray(bricks[np.argsort(bricks[:, 3])]),
+        np.ascontiguousarray(voxels[np.argsort(voxels[:, 3])]),
+    )
+
+
+_RO_I8_2D = types.Array(types.int64, 2, "C", readonly=True)
+_W_I8_1D = types.Array(types.int64, 1, "C")
+_SIG_COLLECT = types.int64(
+    _W_U1_3D,
+    _W_F8_3D,
+    _W_U1_3D,
+    _RO_F8_1D,
+    types.float64,
+    types.float64,
+    _RO_I8_2D,
+    _RO_I8_2D,
+    _W_F8_2D,
+    _W_I8_1D,
+)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _spread3(x):  # type: ignore[no-untyped-def]
+    """The three low bits of ``x`` spread to every third bit (bit b → bit 3b)."""
+    return (x & 1) | ((x & 2) << 2) | ((x & 4) << 4)
 
 
 @njit(_SIG_COLLECT, cache=True, nogil=True)
-def decay_and_collect(state, seen_at, grid, t, memory, out):  # type: ignore[no-untyped-def]
+def collect_ordered(state, seen_at, held, grid, t, memory, bricks, voxels, out, codes):  # type: ignore[no-untyped-def]
     """Fade occupied voxels older than ``memory`` s to shadow, then write the centres of
-    the occupied and shadow voxels into ``out`` (as many rows as fit); returns their
-    count (call again with a larger ``out`` when it exceeds ``len(out)``)."""
+    the occupied and shadow voxels into ``out`` and their Morton codes into ``codes``
+    (as many rows as fit), in increasing code (the traversal ``bricks``, ``voxels`` of
+    :func:`brick_order`); returns their count (call again with larger arrays when it
+    exceeds ``len(out)``: the fading is done already). Points in Morton order of
+    distinct codes are what the ordered tree build takes without a sort.
+
+    ``held`` flags the bricks (``BRICK``³ voxels, indexed by ``i // BRICK`` …) that
+    may hold an occupied or shadow voxel: every kernel that makes one flags its brick,
+    and only flagged bricks are read here (in memory order: fading, and flagging their
+    obstacle voxels by their code within the brick), a brick found without any
+    unflagged. A brick with some is walked again, in code order over those flags."""
     ox, oy, oz, vox = grid[0], grid[1], grid[2], grid[3]
     nx, ny, nz = state.shape
     cap = out.shape[0]
+    flags = np.zeros(voxels.shape[0], dtype=np.bool_)
     n = 0
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                s = state[i, j, k]
-                if s == OCCUPIED and t - seen_at[i, j, k] > memory:
-                    state[i, j, k] = SHADOW
-                    s = SHADOW
-                if s == OCCUPIED or s == SHADOW:
-                    if n < cap:
-                        out[n, 0] = ox + (i + 0.5) * vox
-                        out[n, 1] = oy + (j + 0.5) * vox
-                        out[n, 2] = oz + (k + 0.5) * vox
-                    n += 1
+    for b in range(bricks.shape[0]):
+        bi, bj, bk, bcode = bricks[b, 0], bricks[b, 1], bricks[b, 2], bricks[b, 3]
+        if held[bi // BRICK, bj // BRICK, bk // BRICK] == 0:
+            continue
+        found = 0
+        for i in range(bi, min(bi + BRICK, nx)):
+            for j in range(bj, min(bj + BRICK, ny)):
+                for k in range(bk, min(bk + BRICK, nz)):
+                    s = state[i, j, k]
+                    if s < OCCUPIED:
+                        continue
+                    if s == OCCUPIED and t - seen_at[i, j, k] > memory:
+                        state[i, j, k] = SHADOW
+                    flags[_spread3(i - bi) << 2 | _spread3(j - bj) << 1 | _spread3(k - bk)] = True
+                    found += 1
+        if found == 0:
+            held[bi // BRICK, bj // BRICK, bk // BRICK] = 0
+            continue
+        for v in range(voxels.shape[0]):
+            if not flags[v]:
+                continue
+            flags[v] = False
+            if n < cap:
+                out[n, 0] = ox + (bi + voxels[v, 0] + 0.5) * vox
+                out[n, 1] = oy + (bj + voxels[v, 1] + 0.5) * vox
+                out[n, 2] = oz + (bk + voxels[v, 2] + 0.5) * vox
+                codes[n] = bcode | v
+            n += 1
     return n

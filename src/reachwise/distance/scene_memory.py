@@ -65,17 +65,22 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from reachwise.distance._memory_kernel import (
+    BRICK,
     FREE,
+    MORTON_AXIS_BITS,
     OCCUPIED,
     SHADOW,
     UNKNOWN,
-    decay_and_collect,
+    brick_order,
+    collect_ordered,
     mark_points,
     prepare_frame,
     project_frame,
     tile_levels,
 )
+from reachwise.distance.index import INDICES, index_of_ordered
 from reachwise.errors import InputError
+from reachwise.geometry.cloud import PointCloud
 
 __all__ = [
     "STATES",
@@ -176,7 +181,10 @@ class MemorySnapshot(NamedTuple):
 class SceneMemory:
     """The voxel memory of the axis-aligned box ``lower`` … ``upper`` (m, world frame)
     under ``config``; :meth:`integrate` fuses one depth frame, :meth:`obstacles` gives
-    the occupied and shadow voxels' centres for the distance scene."""
+    the occupied and shadow voxels' centres for the distance scene (:meth:`obstacle_cloud`
+    with their index). ``state``, ``seen_at`` and ``freed_at`` are the map per voxel:
+    read them, do not write them (only the bricks the kernels flag when they make a
+    voxel occupied or shadow are collected)."""
 
     def __init__(self, lower: ArrayLike, upper: ArrayLike, config: MemoryConfig | None = None):
         self.config = config or MemoryConfig()
@@ -191,6 +199,11 @@ class SceneMemory:
                 _SRC, "voxel", f"{shape[0]} × {shape[1]} × {shape[2]} voxels exceed the "
                 f"{MAX_VOXELS} a memory may hold: a larger voxel or a smaller box"
             )  # fmt: skip
+        if max(shape) > 1 << MORTON_AXIS_BITS:
+            raise InputError(
+                _SRC, "voxel", f"{max(shape)} voxels along one side exceed the "
+                f"{1 << MORTON_AXIS_BITS} a memory may hold: a larger voxel or a smaller box"
+            )  # fmt: skip
         self.shape: tuple[int, int, int] = shape  # type: ignore[assignment]
         self.origin = lo
         self._grid = np.array([*lo, vox])
@@ -198,7 +211,13 @@ class SceneMemory:
         self.state = np.zeros(shape, dtype=np.uint8)
         self.seen_at = np.full(shape, -np.inf)
         self.freed_at = np.full(shape, -np.inf)
+        # per brick of BRICK**3 voxels: whether it may hold an occupied or shadow voxel
+        self._held = np.zeros(tuple(-(-n // BRICK) for n in shape), dtype=np.uint8)
         self._stamp = -math.inf
+        self._order = brick_order(shape)
+        for a in self._order:
+            a.setflags(write=False)
+        self._capacity = 1024  # rows of the next collection's arrays (grows as needed)
 
     @property
     def inflation(self) -> float:
@@ -260,8 +279,10 @@ class SceneMemory:
         rules = np.array([cfg.surface_band, cfg.shadow_depth, tt, cfg.free_hold_s, dmax])
         for a in (code, tiles, camera, cw, T, rules):
             a.setflags(write=False)
-        project_frame(self.state, self.freed_at, code, tiles, camera, cw, self._grid, rules)
-        mark_points(self.state, self.seen_at, code, camera, T, self._grid, tt)
+        project_frame(
+            self.state, self.freed_at, self._held, code, tiles, camera, cw, self._grid, rules
+        )
+        mark_points(self.state, self.seen_at, self._held, code, camera, T, self._grid, tt)
         self._stamp = max(self._stamp, tt)
 
     def obstacles(
@@ -272,15 +293,51 @@ class SceneMemory:
         ``memory_s`` faded to shadow, leaving out the voxels of the robot's ``body``
         (module docstring): each item is one convex piece of it now, its ``(m, 4)``
         world half-spaces ``n · x ≤ d`` (rows ``nx, ny, nz, d``, unit normals)."""
+        return self._collect(t, body)[0]
+
+    def obstacle_cloud(
+        self, t: float | None = None, *, body: Sequence[ArrayLike] = (), name: str = ""
+    ) -> PointCloud | None:
+        """:meth:`obstacles` as a cloud whose distance index is built already and kept
+        in :data:`~reachwise.distance.index.INDICES`: the centres come in the Morton
+        order of their voxels, so the tree is built over that order without a sort
+        (:func:`~reachwise.distance.index.index_of_ordered`), and a scene that takes
+        the cloud (``Scene.replace_cloud``) swaps it in without building anything.
+        None while there are no occupied or shadow voxels (a cloud has a point)."""
+        pts, codes = self._collect(t, body)
+        if len(pts) == 0:
+            return None
+        index = index_of_ordered(pts, codes, pts.mean(axis=0))
+        # the cloud and its index share the points: a read-only view for the cloud
+        cloud = PointCloud.of_checked(pts.view(), name=name)
+        INDICES.put(cloud, index)
+        return cloud
+
+    def _collect(
+        self, t: float | None, body: Sequence[ArrayLike]
+    ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+        """The occupied and shadow voxels' centres at time ``t`` without the ``body``
+        (:meth:`obstacles`), and their Morton codes, in increasing code."""
         tt = self._stamp if t is None else float(t)
-        out = np.empty((max(1, int(np.count_nonzero(self.state >= OCCUPIED))), 3))
-        # decay only turns occupied into shadow: the count above is enough room
-        n = decay_and_collect(self.state, self.seen_at, self._grid, tt, self.config.memory_s, out)
-        centres = out[:n]
         pieces = [_halfspaces(h, i) for i, h in enumerate(body)]
+        bricks, voxels = self._order
+        cap = self._capacity
+        while True:
+            out = np.empty((cap, 3))
+            codes = np.empty(cap, dtype=np.int64)
+            n = collect_ordered(
+                self.state, self.seen_at, self._held, self._grid, tt, self.config.memory_s,
+                bricks, voxels, out, codes,
+            )  # fmt: skip
+            if n <= cap:
+                break
+            cap = n  # the fading is done: the second pass only collects
+        self._capacity = max(1024, n + n // 4)
+        centres, codes = out[:n], codes[:n]
         if pieces and n:
-            centres = centres[~self._in_body(centres, pieces)]
-        return centres.copy()
+            keep = ~self._in_body(centres, pieces)
+            centres, codes = centres[keep], codes[keep]
+        return centres, codes
 
     def _in_body(
         self, centres: NDArray[np.float64], pieces: list[NDArray[np.float64]]
