@@ -124,3 +124,34 @@ def test_an_empty_memory_has_no_cloud() -> None:
     mem = SceneMemory(LOWER, UPPER, MemoryConfig(voxel=0.05))
     assert mem.obstacle_cloud() is None
     assert mem.obstacles().shape == (0, 3)
+
+
+def brute_obstacles(mem: SceneMemory) -> np.ndarray:
+    """The occupied and shadow voxels' centres, in the order of their Morton codes."""
+    idx = np.argwhere((mem.state == OCC) | (mem.state == SHADOW))
+    order = np.argsort([interleaved(*v) for v in idx])
+    return mem.origin + (idx[order].reshape(-1, 3) + 0.5) * mem.config.voxel
+
+
+def test_after_restore_and_clear_the_obstacles_are_the_maps() -> None:
+    """A snapshot restored after frames that freed and filled other bricks, and after
+    a clear: the obstacles are those of the restored map; after clear, none."""
+    rng = np.random.default_rng(11)
+    mem = SceneMemory(LOWER, UPPER, MemoryConfig(voxel=0.05))
+    depth, body, K, T = random_frame(rng)
+    mem.integrate(depth, T, K, t=0.0, body=body)
+    snap = mem.snapshot()
+    before = mem.obstacles(0.0).copy()
+    assert len(before)
+    for f in range(1, 4):
+        depth, body, K, T = random_frame(rng)
+        mem.integrate(depth, T, K, t=0.04 * f, body=body)
+        mem.obstacles()
+    mem.restore(snap)
+    np.testing.assert_array_equal(mem.obstacles(0.0), before)
+    mem.clear()
+    assert mem.obstacle_cloud() is None
+    mem.restore(snap)
+    after = mem.obstacles(0.0)
+    np.testing.assert_array_equal(after, before)
+    np.testing.assert_allclose(after, brute_obstacles(mem), rtol=0, atol=1e-12)

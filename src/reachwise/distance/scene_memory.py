@@ -369,6 +369,7 @@ class SceneMemory:
         self.state.fill(UNKNOWN)
         self.seen_at.fill(-np.inf)
         self.freed_at.fill(-np.inf)
+        self._held.fill(0)
         self._stamp = -math.inf
 
     def snapshot(self) -> MemorySnapshot:
@@ -386,6 +387,7 @@ class SceneMemory:
         np.copyto(self.state, snapshot.state)
         np.copyto(self.seen_at, snapshot.seen_at)
         np.copyto(self.freed_at, snapshot.freed_at)
+        self._held.fill(1)  # any brick may hold an obstacle: the next collection sees
         self._stamp = snapshot.stamp
 
     def voxel_of(self, point: ArrayLike) -> tuple[int, int, int] | None:
