@@ -30,11 +30,8 @@ from __future__ import annotations
 import math
 import numbers
 import weakref
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
-from functools import cached_property
+from collections.abc import Callable, Iterable, Mapping
 from types import MappingProxyType
-from typing import Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -46,204 +43,28 @@ from reachwise.distance._common import (
     check_margin,
     check_pose,
 )
-from reachwise.distance.answers import ROW_COLUMNS, PairAnswers, rows_of
+from reachwise.distance.answers import ROW_COLUMNS, PairAnswers
 from reachwise.distance.engine import STRATEGIES, PairQuery, StrategyName
 from reachwise.distance.index import INDICES, cloud_index
 from reachwise.distance.ingest import CloudIngest, Ready, ready_cloud
 from reachwise.distance.pairs import PAIR_KINDS, PairKind, PairResult, WatchedPair
 from reachwise.distance.scene_arrays import SceneArrays
 from reachwise.distance.scene_ops import scene_change
+from reachwise.distance.scene_plan import QueryPlan, SceneContents, make_plan
+from reachwise.distance.scene_types import (
+    Fixed,
+    OnLink,
+    PoseSource,
+    RobotLike,
+    Runtime,
+    SceneLike,
+    SceneObject,
+    SceneResult,
+)
 from reachwise.errors import InputError, UnknownName, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.kinematics.fk import fk_all_into
 from reachwise.kinematics.robot import Robot
-
-
-@runtime_checkable
-class RobotLike(Protocol):
-    """What the scene needs of a robot (``reachwise.kinematics.robot.Robot`` has it).
-
-    ``link_names``: ``"link_0"`` (the base link), ``"link_1"`` … ``"link_n"`` (the link
-    moved by joint i), then ``"tool"``. ``fk_all(q)`` returns the world poses of those
-    frames, shape ``(len(link_names), 4, 4)``, in that order.
-    """
-
-    @property
-    def name(self) -> str: ...
-
-    @property
-    def link_names(self) -> tuple[str, ...]: ...
-
-    def fk_all(self, q: ArrayLike) -> NDArray[np.float64]: ...
-
-
-@dataclass(frozen=True, eq=False)
-class Fixed:
-    """A pose fixed in world (4x4)."""
-
-    pose: NDArray[np.float64]
-
-
-@dataclass(frozen=True, eq=False)
-class OnLink:
-    """Attached to ``link`` of ``robot``: world pose = link pose @ ``offset``."""
-
-    robot: str
-    link: str
-    offset: NDArray[np.float64]
-
-    @cached_property
-    def identity(self) -> bool:
-        """The offset is the identity (the per-tick pose needs no extra product)."""
-        return bool(np.array_equal(self.offset, np.eye(4)))
-
-
-@dataclass(frozen=True)
-class Runtime:
-    """Set at run time with :meth:`Scene.set_pose` (identity until then)."""
-
-
-PoseSource = Fixed | OnLink | Runtime
-
-
-@dataclass(frozen=True, eq=False)
-class SceneObject:
-    """A named cloud and where its pose comes from."""
-
-    name: str
-    cloud: PointCloud
-    source: PoseSource
-
-
-@dataclass(frozen=True)
-class SceneResult:
-    """Every watched pair's answer from one :meth:`Scene.query_all` call.
-
-    ``sequence`` numbers the answers (1, 2, …; it only grows); ``measured_at`` (s) is
-    the time stamp of the oldest input the answer depends on (joint states and run-time
-    poses of the answered pairs' objects, and the query itself when the scene has a
-    clock), NaN when one of them is unknown; ``computed_at`` (s) when the answer was
-    ready (NaN without a clock). ``valid`` False with a ``reason`` marks missing data
-    (a remote scene whose server did not answer: every distance is then NaN); the
-    controller makes a protective stop on it.
-
-    ``versions`` maps each object to the version of its cloud the answer used, and
-    ``cloud_stamps`` to the time stamp (s) of that cloud's measurement: ``+inf`` for a
-    cloud that does not age (a CAD part, a map: added without a stamp), NaN when it is
-    unknown. A controller bounds the age of the clouds it relies on with them, as it
-    bounds the age of the joint states with ``measured_at``.
-
-    The in-process scene's ``pairs`` is a
-    ``reachwise.distance.answers.PairAnswers``: the numbers of every pair in one
-    array (:attr:`rows`), each :class:`PairResult` made when it is first read.
-    """
-
-    sequence: int
-    pairs: Sequence[PairResult]
-    measured_at: float = math.nan
-    computed_at: float = math.nan
-    valid: bool = True
-    reason: str = ""
-    versions: Mapping[str, int] = field(default_factory=dict)
-    cloud_stamps: Mapping[str, float] = field(default_factory=dict)
-
-    @property
-    def rows(self) -> NDArray[np.float64]:
-        """Every pair's numbers as a read-only (P, 13) array, in the order of ``pairs``
-        (layout: ``reachwise.distance.answers``)."""
-        pairs = self.pairs
-        if isinstance(pairs, PairAnswers):
-            return pairs.rows
-        return rows_of(pairs)
-
-    def at_risk(self) -> tuple[PairResult, ...]:
-        """Pairs within their margin, nearest first."""
-        return tuple(
-            sorted((p for p in self.pairs if not p.result.no_risk), key=lambda p: p.result.distance)
-        )
-
-    def get(self, a: str, b: str) -> PairResult:
-        """The answer of pair (a, b) (or (b, a), seen from a)."""
-        for p in self.pairs:
-            if (p.a, p.b) == (a, b):
-                return p
-            if (p.a, p.b) == (b, a):
-                va, vb = p.versions
-                return PairResult(a, b, p.margin, p.kind, p.result.swapped(), (vb, va))
-        raise UnknownName(
-            "scene", "watched pair", f"({a}, {b})", (f"({p.a}, {p.b})" for p in self.pairs)
-        )
-
-
-@runtime_checkable
-class SceneLike(Protocol):
-    """The scene interface a controller and a simulation use: :class:`Scene` in
-    process, :class:`reachwise.server.client.SceneClient` over the network. Code
-    written against it never knows which of the two it talks to."""
-
-    @property
-    def strategy(self) -> StrategyName: ...
-
-    @property
-    def robots(self) -> Mapping[str, RobotLike]: ...
-
-    @property
-    def objects(self) -> dict[str, SceneObject]: ...
-
-    @property
-    def pairs(self) -> tuple[WatchedPair, ...]: ...
-
-    def add_robot(
-        self, robot: RobotLike, q: ArrayLike | None = None, *, stamp: float | None = None
-    ) -> None: ...
-
-    def set_joints(self, robot: str, q: ArrayLike, *, stamp: float | None = None) -> None: ...
-
-    def add_object(
-        self,
-        name: str,
-        cloud: PointCloud | ArrayLike,
-        pose: ArrayLike | None = None,
-        *,
-        robot: str | None = None,
-        link: str | None = None,
-        dynamic: bool = False,
-    ) -> SceneObject: ...
-
-    def set_pose(self, name: str, pose: ArrayLike, *, stamp: float | None = None) -> None: ...
-
-    def replace_cloud(
-        self,
-        name: str,
-        cloud: PointCloud | ArrayLike,
-        *,
-        block: bool = False,
-        stamp: float | None = None,
-    ) -> int: ...
-
-    def watch(self, a: str, b: str, margin: float, *, kind: PairKind = "custom") -> WatchedPair: ...
-
-    def unwatch(self, a: str, b: str) -> None: ...
-
-    def watch_self(
-        self, robot: str, margin: float, exclude: Iterable[tuple[str, str]] = ()
-    ) -> tuple[WatchedPair, ...]: ...
-
-    def watch_environment(
-        self, robot: str, margin: float, objects: Iterable[str] | None = None
-    ) -> tuple[WatchedPair, ...]: ...
-
-    def watch_robots(
-        self, robot_a: str, robot_b: str, margin: float
-    ) -> tuple[WatchedPair, ...]: ...
-
-    def robot_objects(self, robot: str) -> tuple[SceneObject, ...]: ...
-
-    def poses(self) -> dict[str, NDArray[np.float64]]: ...
-
-    def query_all(self) -> SceneResult: ...
-
-    def close(self) -> None: ...
 
 
 class Scene:
@@ -297,7 +118,7 @@ class Scene:
         self._arrays = SceneArrays()
         self._slot: dict[str, int] = {}
         self._frame_row: dict[str, int] = {}
-        self._plan: _Plan | None = None  # rebuilt when the contents change
+        self._plan: QueryPlan | None = None  # rebuilt when the contents change
         self._fresh: set[tuple[str, str]] = set()  # pairs whose warm start is dropped
         self._swaps = 0
         self._deferred = 0
@@ -599,7 +420,18 @@ class Scene:
                     self._install(ready)
         plan = self._plan
         if plan is None:
-            plan = self._plan = self._make_plan()
+            plan = self._plan = make_plan(
+                SceneContents(
+                    self._arrays,
+                    self._pairs,
+                    self._objects,
+                    self._robots,
+                    self._slot,
+                    self._frame_row,
+                    self._fresh,
+                    self.strategy,
+                )
+            )
         building = ingest.building
         if building is not None and building in plan.objects:
             self._during_build += 1
@@ -674,60 +506,6 @@ class Scene:
         self._cloud_stamps = MappingProxyType({**self._cloud_stamps, name: stamp})
 
     # ------------------------------------------------------------------ helpers
-    def _make_plan(self) -> _Plan:
-        """What a query needs, from the current contents: the pair table (warm starts
-        kept for pairs unchanged since the last plan), the robots whose kinematics
-        place a watched object, the stamps to check."""
-        arrays = self._arrays
-        old = self._plan_warm()
-        layout = tuple(self._pairs.values())
-        slot = self._slot
-        warm = np.full((len(layout), 2), -1, np.int64)
-        for k, p in enumerate(layout):
-            key = (p.a, p.b)
-            if key in old and key not in self._fresh:
-                warm[k] = old[key]
-        self._fresh.clear()
-        arrays.set_pairs(
-            np.array([slot[p.a] for p in layout], np.int64),
-            np.array([slot[p.b] for p in layout], np.int64),
-            np.array([p.margin for p in layout], np.float64),
-            warm,
-        )
-        used = {n for p in layout for n in (p.a, p.b)}
-        robots = []
-        runtime = []
-        for n in sorted(used, key=slot.__getitem__):
-            src = self._objects[n].source
-            if isinstance(src, OnLink) and src.robot not in robots:
-                robots.append(src.robot)
-            elif isinstance(src, Runtime):
-                runtime.append(n)
-        kinematics = []
-        for r in robots:
-            robot = self._robots[r]
-            row = self._frame_row[r]
-            native = isinstance(robot, Robot)
-            frames = arrays.frames[row : row + len(robot.link_names)] if native else None
-            kinematics.append((r, robot, frames))
-        args = arrays.arguments() if self.strategy == "default" else None
-        return _Plan(
-            layout, frozenset(used), tuple(kinematics), tuple(robots), tuple(runtime), args
-        )
-
-    def _plan_warm(self) -> dict[tuple[str, str], NDArray[np.int64]]:
-        """The warm starts of the pairs in the last plan's table, by pair."""
-        arrays = self._arrays
-        if arrays.warm.shape[0] == 0:
-            return {}
-        names = {s: n for n, s in self._slot.items()}
-        return {
-            (names[a], names[b]): arrays.warm[k].copy()
-            for k, (a, b) in enumerate(
-                zip(arrays.pair_a.tolist(), arrays.pair_b.tolist(), strict=True)
-            )
-        }
-
     def _forward_kinematics(self, robot: str) -> None:
         """``robot``'s frames into the scene's frame rows: compiled for a
         :class:`~reachwise.kinematics.robot.Robot`, else its ``fk_all`` checked."""
@@ -752,7 +530,7 @@ class Scene:
             P = np.ascontiguousarray(frames[k])
             out[k] = P if K.pose_status(P) == 0 else check_pose(P, f"fk_all of {robot!r}")
 
-    def _query_pairwise(self, plan: _Plan, rows: NDArray[np.float64]) -> None:
+    def _query_pairwise(self, plan: QueryPlan, rows: NDArray[np.float64]) -> None:
         """Every pair with its own :class:`PairQuery` (strategies other than default)."""
         poses = self._arrays.place()
         slot = self._slot
@@ -806,28 +584,6 @@ class Scene:
         return o
 
 
-@dataclass(frozen=True, eq=False)
-class _Plan:
-    """What :meth:`Scene.query_all` needs, made once per change of the contents:
-    ``layout`` the watched pairs in order, ``objects`` their names, ``kinematics``
-    (robot name, robot, its frame rows or None for a robot that is not a
-    :class:`Robot`) for the robots placing a watched object, ``robots`` and
-    ``runtime`` whose stamps the answer depends on, ``arguments`` of the compiled
-    query after the rows (None: pair by pair)."""
-
-    layout: tuple[WatchedPair, ...]
-    objects: frozenset[str]
-    kinematics: tuple[tuple[str, RobotLike, NDArray[np.float64] | None], ...]
-    robots: tuple[str, ...]
-    runtime: tuple[str, ...]
-    arguments: tuple[object, ...] | None
-
-    def with_arguments(self, arguments: tuple[object, ...]) -> _Plan:
-        return _Plan(
-            self.layout, self.objects, self.kinematics, self.robots, self.runtime, arguments
-        )
-
-
 def _positive(value: object, field_name: str) -> float:
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise InputError("scene", field_name, f"expected a number in metres, got {value!r}")
@@ -841,6 +597,7 @@ __all__ = [
     "Fixed",
     "OnLink",
     "PairResult",
+    "PoseSource",
     "RobotLike",
     "Runtime",
     "Scene",
