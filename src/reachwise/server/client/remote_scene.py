@@ -61,11 +61,8 @@ A client belongs to one thread (one REQ socket); give each thread its own.
 
 from __future__ import annotations
 
-import math
 import time
-from collections.abc import Callable, Iterable
-from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -88,24 +85,15 @@ from reachwise.errors import CloudError, InputError, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_file import robot_from_dict, robot_to_dict
 from reachwise.kinematics.robot import Robot
-from reachwise.server.client.channel import Channel, TickAnswer
-from reachwise.server.client.errors import ServerError, ServerInputError, ServerUnavailable
+from reachwise.server.client.client_base import SETUP_DEADLINE, TICK_DEADLINE
+from reachwise.server.client.errors import ServerError, ServerUnavailable
+from reachwise.server.client.remote_query import RemoteQueries
 from reachwise.server.client.results import (
-    ServerSceneResult,
-    missing_result,
     scene_object,
     watched_pair,
 )
-from reachwise.server.security import ClientKeys, load_client_keys
 
 __all__ = ["SETUP_DEADLINE", "TICK_DEADLINE", "SceneClient"]
-
-#: Default deadline of the per-tick calls (s): one 10 ms control cycle of P-V.
-TICK_DEADLINE = 0.010
-#: Default deadline of setup calls (s): building a large cloud's index takes a while.
-SETUP_DEADLINE = 30.0
-
-_R = TypeVar("_R", bound=P.Reply)
 
 
 def _vector(q: ArrayLike, robot: str) -> NDArray[np.float64]:
@@ -132,70 +120,13 @@ def _cloud_array(cloud: ArrayLike, name: str) -> NDArray[np.floating[Any]]:
     return arr
 
 
-class SceneClient:
+class SceneClient(RemoteQueries):
     """A scene on a collision server at ``address`` (see the module docstring).
 
     ``keys``: a ``reachwise serve keygen`` folder (or :class:`ClientKeys`) for a CURVE
     server. ``clock`` stamps measurements and results (s). ``name`` is sent in hello.
     ``batch_inputs`` and ``mirror``: see the module docstring.
     """
-
-    def __init__(
-        self,
-        address: str,
-        *,
-        deadline: float = TICK_DEADLINE,
-        setup_deadline: float = SETUP_DEADLINE,
-        keys: str | Path | ClientKeys | None = None,
-        clock: Callable[[], float] = time.monotonic,
-        batch_inputs: bool = False,
-        mirror: bool = False,
-        name: str = "reachwise",
-    ) -> None:
-        for label, value in (("deadline", deadline), ("setup_deadline", setup_deadline)):
-            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-                raise InputError("SceneClient", label, f"must be a time > 0 s, got {value!r}")
-        self.address = address
-        self.deadline = float(deadline)
-        self.setup_deadline = float(setup_deadline)
-        self.keys = load_client_keys(keys) if isinstance(keys, str | Path) else keys
-        self.clock = clock
-        self.batch_inputs = batch_inputs
-        self.name = name
-        self._channel = Channel(address, self.keys)
-        self._pending_joints: dict[str, tuple[NDArray[np.float64], float]] = {}
-        self._pending_poses: dict[str, tuple[NDArray[np.float64], float]] = {}
-        self._lost: str | None = None
-        self._last_sequence = 0
-        self._last_measured = math.nan
-        self._layout: P.Layout | None = None
-        self._last_pairs: tuple[P.PairInfo, ...] = ()
-        self._robot_cache: dict[str, Robot] = {}
-        self._mirror: Scene | None = Scene() if mirror else None
-
-    # ------------------------------------------------------------------ channel
-    @property
-    def reconnects(self) -> int:
-        """How many times the socket was recreated after a lost reply."""
-        return self._channel.reconnects
-
-    @property
-    def ticks(self) -> int:
-        """How many queries were answered through the binary tick path."""
-        return self._channel.ticks
-
-    def call(self, request: P.Request, deadline: float | None = None) -> P.Reply:
-        """Send one request and wait for its reply until ``deadline`` seconds (default
-        ``setup_deadline``); see :meth:`Channel.call` for what it raises."""
-        limit = self.setup_deadline if deadline is None else float(deadline)
-        return self._channel.call(request, limit)
-
-    def _setup(self, request: P.Request, kind: type[_R], deadline: float | None = None) -> _R:
-        """A setup call whose reply must be of type ``kind``."""
-        rep = self.call(request, self.setup_deadline if deadline is None else deadline)
-        if not isinstance(rep, kind):  # decode_reply parsed it as REPLIES[op]
-            raise ServerError(f"unexpected reply {type(rep).__name__} to {request.OP}")
-        return rep
 
     def run_operation(
         self, name: str, arguments: dict[str, Any], deadline: float | None = None
@@ -216,18 +147,6 @@ class SceneClient:
         if op.mutates and self._mirror is not None:  # the same change on the local copy
             op.function(self._mirror, **arguments)
         return result
-
-    def close(self) -> None:
-        """Close the socket and the client's ZeroMQ context (and the mirror's worker)."""
-        self._channel.close()
-        if self._mirror is not None:
-            self._mirror.close()
-
-    def __enter__(self) -> SceneClient:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     # ------------------------------------------------------------------ service calls
     def hello(self, deadline: float | None = None) -> P.HelloReply:
@@ -494,149 +413,6 @@ class SceneClient:
         if self._mirror is not None:
             return self._mirror.poses()
         return object_poses(self)
-
-    # ------------------------------------------------------------------ queries
-    def query_all(
-        self,
-        *,
-        pairs: Iterable[tuple[str, str]] | None = None,
-        deadline: float | None = None,
-    ) -> ServerSceneResult:
-        """Answer every watched pair (or the watched ``pairs`` given) at the current
-        joint states and poses; missing data gives an invalid result, never raises."""
-        stamp = self.clock()
-        joints, poses = self._pending_joints, self._pending_poses
-        if joints or poses:
-            for _, t in joints.values():
-                if t < stamp:
-                    stamp = t
-            for _, t in poses.values():
-                if t < stamp:
-                    stamp = t
-        held = self._layout
-        limit = self.deadline if deadline is None else deadline
-        try:
-            if (
-                pairs is None
-                and held is not None
-                and self._channel.layout is held
-                and (self._mirror is None or held.pairs is self._last_pairs)
-            ):
-                got = self._tick(stamp, held, joints, poses, limit)
-                if isinstance(got, tuple):
-                    return self._ticked(got, held)
-                rep = got
-            else:
-                req: P.Query = P.unchecked(  # every field made here, as Query would check it
-                    P.Query,
-                    stamp=stamp,
-                    joints={k: q for k, (q, _) in joints.items()} if joints else None,
-                    poses={k: p for k, (p, _) in poses.items()} if poses else None,
-                    pairs=None if pairs is None else tuple((str(a), str(b)) for a, b in pairs),
-                    layout=None if held is None or pairs is not None else held.name,
-                )
-                rep = self.call(req, limit)
-        except ServerUnavailable as exc:
-            return self._missing(str(exc))
-        except ServerError as exc:
-            if exc.code != P.ErrorCode.NOT_READY:
-                raise
-            return self._missing(str(exc))
-        except ServerInputError:
-            # the inputs held back were refused: drop them, or every later tick fails too
-            self._pending_joints, self._pending_poses = {}, {}
-            raise
-        if not isinstance(rep, P.QueryReply):
-            return self._missing(f"unexpected reply {type(rep).__name__} to query")
-        arrived = self.clock()
-        layout = P.Layout.of(rep)
-        if layout is not None:
-            if layout.key:
-                self._layout = self._channel.layout = layout
-        elif held is not None and held.name == rep.layout:
-            layout = held
-        else:  # the server left out a pair list this client does not hold
-            self._layout = self._channel.layout = None
-            self._channel.reset()
-            return self._missing(f"reply without the pair list of layout {rep.layout!r}")
-        infos = layout.pairs
-        if len(infos) != rep.rows.shape[0]:
-            self._layout = self._channel.layout = None
-            return self._missing("reply rows do not match the pair list")
-        if self._mirror is not None and pairs is None and infos is not self._last_pairs:
-            mine = tuple(P.PairInfo(w.a, w.b, w.margin, w.kind) for w in self._mirror.pairs)
-            if infos != mine:
-                self._layout = self._channel.layout = None
-                return self._missing(
-                    f"the server watches {len(infos)} pairs that differ from the "
-                    f"{len(mine)} this client registered (was its state lost?)"
-                )
-        if joints:
-            self._pending_joints = {}
-        if poses:
-            self._pending_poses = {}
-        self._last_sequence = rep.sequence
-        self._last_measured = rep.measured_at
-        self._last_pairs = infos
-        lost, self._lost = self._lost, None
-        return ServerSceneResult.of_reply(
-            rep, layout, computed_at=arrived, valid=lost is None, reason=lost or ""
-        )
-
-    def _tick(
-        self,
-        stamp: float,
-        layout: P.Layout,
-        joints: dict[str, tuple[NDArray[np.float64], float]],
-        poses: dict[str, tuple[NDArray[np.float64], float]],
-        deadline: float,
-    ) -> TickAnswer | P.Reply:
-        """Every pair's answer as one binary tick under the held ``layout`` (the
-        per-tick path: no :class:`~reachwise.server.protocol.Query` or
-        :class:`~reachwise.server.protocol.QueryReply` is made): the tick reply's
-        parts, or the reply of the full protocol when the tick cannot carry the inputs
-        or the server has moved on to another layout (sent within the same
-        ``deadline``); raises as :meth:`call`."""
-        ch = self._channel
-        end = time.monotonic() + deadline
-        rid = ch.next_id()
-        jmap = {k: q for k, (q, _) in joints.items()} if joints else None
-        pmap = {k: p for k, (p, _) in poses.items()} if poses else None
-        frame = P.encode_tick_inputs(rid, layout, stamp, jmap, pmap)
-        return ch.query_every(
-            frame,
-            rid,
-            layout,
-            end,
-            deadline,
-            lambda: P.unchecked(
-                P.Query, stamp=stamp, joints=jmap, poses=pmap, pairs=None, layout=layout.name
-            ),
-        )
-
-    def _ticked(self, got: TickAnswer, layout: P.Layout) -> ServerSceneResult:
-        """The result of a tick reply's parts (the reply is under the held ``layout``:
-        its rows are in that layout's pair order)."""
-        arrived = self.clock()
-        _, seq, measured, compute, rows, clouds = got
-        if self._pending_joints:
-            self._pending_joints = {}
-        if self._pending_poses:
-            self._pending_poses = {}
-        self._last_sequence = seq
-        self._last_measured = measured
-        self._last_pairs = layout.pairs
-        lost, self._lost = self._lost, None
-        return ServerSceneResult.of_rows(
-            layout, seq, measured, compute, rows, clouds, arrived, lost is None, lost or ""
-        )
-
-    def _missing(self, reason: str) -> ServerSceneResult:
-        """The invalid result that stands for data that did not arrive."""
-        pairs: tuple[P.PairInfo | WatchedPair, ...] = self._last_pairs
-        if self._mirror is not None:
-            pairs = self._mirror.pairs
-        return missing_result(pairs, self._last_sequence, self._last_measured, reason)
 
 
 if TYPE_CHECKING:

@@ -262,7 +262,21 @@ def _entries(
                 return {names[i]: values}, None
             if total == POSE_VALUES:
                 return None, {names[i]: values.reshape(4, 4)}
-    # several entries, or an error to name: entry by entry
+    return _each_entry(ent, values, finite, nj, rid, layout)
+
+
+def _each_entry(
+    ent: tuple[int, ...],
+    values: NDArray[np.float64],
+    finite: bool,
+    nj: int,
+    rid: int,
+    layout: Layout,
+) -> tuple[dict[str, NDArray[np.float64]] | None, dict[str, NDArray[np.float64]] | None]:
+    """Several entries, or an error to name: the joint states and poses entry by entry
+    (``ent`` the (index, count) pairs, the first ``nj`` of them joint states; ``finite``
+    whether every value is)."""
+    ne = len(ent) // 2
     joints: dict[str, NDArray[np.float64]] | None = None
     poses: dict[str, NDArray[np.float64]] | None = None
     off = 0
