@@ -89,34 +89,39 @@ size_limits:                # bounds against counts that would only exhaust memo
 
 from __future__ import annotations
 
-import itertools
-import math
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Any, Literal
 
-import numpy as np
-from pydantic import (
-    AfterValidator,
-    ConfigDict,
-    Field,
-    ValidationError,
-    ValidationInfo,
-    field_validator,
-    model_validator,
-)
-from scipy.spatial.transform import Rotation
+from pydantic import Field, ValidationError, field_validator, model_validator
 
 from reachwise.errors import InputError
-from reachwise.geometry.cloud import MAX_SAMPLED_POINTS
 from reachwise.io._builtin import builtin_names, load_named
-from reachwise.io.cloud_headers import MAX_CLOUD_POINTS
-from reachwise.io.robot_file import FrameModel
 from reachwise.io.text_input import parse_text, read_text
 from reachwise.io.validation import StrictModel, input_error
-from reachwise.sim.motion import ConstantVelocity, Trajectory, WaypointTrajectory
-from reachwise.sim.plant import PlantKind
+from reachwise.sim.scenario_fields import MAX_IMAGE_SIDE, STRICT, LimitsSpec
+from reachwise.sim.scenario_memory import BoxSpec, MemorySpec
+from reachwise.sim.scenario_objects import (
+    CloudAtSpec,
+    MotionSpec,
+    ObjectSpec,
+    OcclusionSpec,
+    RescanSpec,
+    ScanMeshSpec,
+    ScanSpec,
+    WaypointSpec,
+)
+from reachwise.sim.scenario_pairs import SrdfPairsSpec, WatchSpec
+from reachwise.sim.scenario_robots import (
+    ControllerSpec,
+    GoalSpec,
+    PlantSpec,
+    RobotFileSpec,
+    RobotSpec,
+)
+from reachwise.sim.scenario_sensors import MountSpec, SensorSpec
 
 __all__ = [
+    "MAX_IMAGE_SIDE",
     "BoxSpec",
     "CloudAtSpec",
     "ControllerSpec",
@@ -146,455 +151,6 @@ __all__ = [
     "scenario_from_dict",
 ]
 
-_STRICT = ConfigDict(extra="forbid", allow_inf_nan=False)
-V3 = tuple[float, float, float]
-#: Largest width or height of a simulated depth camera (pixels).
-MAX_IMAGE_SIDE = 8192
-
-
-class LimitsSpec(StrictModel):
-    """The scenario's ``size_limits:``: upper bounds on counts that would only exhaust
-    memory, each raisable (or lowered) in the file. ``max_points``: points sampled on
-    one mesh, box or link (default :data:`~reachwise.geometry.cloud.MAX_SAMPLED_POINTS`);
-    ``max_image_side``: a camera's width or height in pixels (default
-    :data:`MAX_IMAGE_SIDE`); ``max_cloud_points``: points of one cloud file or scan
-    (default :data:`~reachwise.io.cloud_headers.MAX_CLOUD_POINTS`)."""
-
-    model_config = _STRICT
-    max_points: int = Field(default=MAX_SAMPLED_POINTS, gt=0)
-    max_image_side: int = Field(default=MAX_IMAGE_SIDE, gt=0)
-    max_cloud_points: int = Field(default=MAX_CLOUD_POINTS, gt=0)
-
-
-def _within(limit: str) -> AfterValidator:
-    """A validator refusing a value above the scenario's ``size_limits.<limit>`` (passed as
-    the validation context by :func:`scenario_from_dict`; the default without one)."""
-
-    def check(value: int | None, info: ValidationInfo) -> int | None:
-        limits = (info.context or {}).get("size_limits") or LimitsSpec()
-        bound = getattr(limits, limit)
-        if value is not None and value > bound:
-            raise ValueError(f"at most {bound} (size_limits.{limit}), got {value}")
-        return value
-
-    return AfterValidator(check)
-
-
-#: A count of sampled points, bounded by ``size_limits.max_points``.
-SampledPoints = Annotated[int, Field(gt=0), _within("max_points")]
-#: A camera image side in pixels, bounded by ``size_limits.max_image_side``.
-ImageSide = Annotated[int, Field(gt=0), _within("max_image_side")]
-
-
-# Frames in scenario files use the robot file's schema: xyz + rpy | rpy_deg.
-FrameSpec = FrameModel
-
-
-class GoalSpec(StrictModel):
-    """A tool goal: ``q`` (the tool pose there) or ``xyz`` with ``quat`` (x, y, z, w) or
-    ``rpy_deg``; ``mirror_y`` negates the goal's y coordinate; ``work`` (s) locks the
-    robot at the goal (drilling)."""
-
-    model_config = _STRICT
-    name: str = ""
-    q: list[float] | None = None
-    xyz: V3 | None = None
-    quat: tuple[float, float, float, float] | None = None
-    rpy_deg: V3 | None = None
-    dims: Literal[3, 6] = 6
-    mirror_y: bool = False
-    work: float = Field(default=0.0, ge=0.0)
-    position_tolerance: float | None = Field(default=None, gt=0.0)
-    orientation_tolerance: float | None = Field(default=None, gt=0.0)
-
-    @model_validator(mode="after")
-    def _one(self) -> GoalSpec:
-        if (self.q is None) == (self.xyz is None):
-            raise ValueError("give exactly one of q and xyz")
-        if self.q is not None and (self.quat is not None or self.rpy_deg is not None):
-            raise ValueError("a goal given by q takes its orientation from q")
-        if self.quat is not None and self.rpy_deg is not None:
-            raise ValueError("give quat or rpy_deg, not both")
-        if self.quat is not None and not np.linalg.norm(self.quat) > 0:
-            raise ValueError("quat must be non-zero")
-        return self
-
-    def pose(self, fk: Any) -> np.ndarray:
-        """The goal pose; ``fk(q)`` gives the robot's tool pose for ``q`` goals."""
-        if self.q is not None:
-            T = np.array(fk(np.asarray(self.q, dtype=float)), dtype=float)
-        else:
-            T = np.eye(4)
-            T[:3, 3] = self.xyz
-            if self.quat is not None:
-                T[:3, :3] = Rotation.from_quat(self.quat).as_matrix()
-            elif self.rpy_deg is not None:
-                T[:3, :3] = Rotation.from_euler("xyz", np.radians(self.rpy_deg)).as_matrix()
-        if self.mirror_y:
-            T[1, 3] = -T[1, 3]
-        return T
-
-
-class ControllerSpec(StrictModel):
-    """Overrides of :class:`reachwise.control.ControllerConfig` (and its safety)."""
-
-    model_config = _STRICT
-    kv: float | None = None
-    kw: float | None = None
-    v_max: float | None = None
-    w_max: float | None = None
-    lambda_max: float | None = None
-    epsilon: float | None = None
-    mu: float | None = None
-    v_rep_max: float | None = None
-    k_limit: float | None = None
-    limit_zone: float | None = None
-    guard: bool | None = None
-    stop_distance: float | None = None
-    approach_speed: float | None = None
-    position_tolerance: float | None = None
-    orientation_tolerance: float | None = None
-    stall_time: float | None = None
-    stall_progress: float | None = None
-    max_age_ticks: float | None = None
-    stop_ticks: int | None = Field(default=None, ge=1)
-    velocity_aware: bool | None = None
-    reaction_time: float | None = None
-
-
-class PlantSpec(StrictModel):
-    model_config = _STRICT
-    kind: PlantKind = "kinematic"
-    time_constant: float = Field(default=0.1, gt=0.0)
-    rate_limit: float = Field(default=math.inf, gt=0.0, allow_inf_nan=True)
-    hang_axis: V3 = (1.0, 0.0, 0.0)
-    hang_time_constant: float = Field(default=0.0, ge=0.0)
-
-
-class LinkCloudSpec(StrictModel):
-    model_config = _STRICT
-    mesh: str
-    points: SampledPoints = 1000
-    pose: FrameSpec = FrameSpec()
-
-
-class RobotFileSpec(StrictModel):
-    """A robot file with options: ``file`` (YAML or URDF; a path relative to the
-    scenario, ``file://`` or ``package://PKG/…``), ``tip`` (the link that ends the
-    chain of a branched URDF), ``package_dirs`` (searched first for ``package://``
-    URIs, relative to the scenario), ``lenient`` (leave out, and log, invalid shapes)."""
-
-    model_config = _STRICT
-    file: str = Field(min_length=1)
-    tip: str | None = None
-    package_dirs: list[str] = []
-    lenient: bool = False
-
-
-class RobotSpec(StrictModel):
-    model_config = _STRICT
-    name: str = Field(min_length=1)
-    robot: RobotFileSpec | str  # RobotFileSpec first: its errors are the ones shown
-    base: FrameSpec | None = None
-    #: Joint values, or the name of a ``group_state`` of the SRDF a ``self`` watch of
-    #: this robot names (replaced by its values when the scenario is resolved).
-    q0: list[float] | str
-    links: list[str] | None = None
-    points: SampledPoints | None = None
-    density: float | None = Field(default=None, gt=0.0)
-    resolution: float | None = Field(default=None, gt=0.0)
-    seed: int = Field(default=0, ge=0)
-    link_clouds: dict[str, LinkCloudSpec] = {}
-    tool_links: list[str] | None = None
-    controller: ControllerSpec = ControllerSpec()
-    plant: PlantSpec = PlantSpec()
-    goals: list[GoalSpec] = []
-
-    @property
-    def start(self) -> list[float]:
-        """``q0`` as joint values; a named start (``q0: ready``) is replaced by its values
-        when the scenario is resolved (:func:`reachwise.sim.resolve.resolve_scenario`),
-        before that it is an :class:`~reachwise.errors.InputError`."""
-        if isinstance(self.q0, str):
-            raise InputError(
-                "scenario", f"robots.{self.name}.q0", f"the pose {self.q0!r} is not resolved yet"
-            )
-        return self.q0
-
-    @model_validator(mode="after")
-    def _count(self) -> RobotSpec:
-        if sum(x is not None for x in (self.points, self.density, self.resolution)) > 1:
-            raise ValueError("give one of points, density and resolution")
-        return self
-
-
-class WaypointSpec(FrameModel):
-    """A pose of a moving object at time ``t`` (s): ``xyz`` and ``rpy``/``rpy_deg``."""
-
-    t: float = Field(ge=0.0)
-
-
-class MotionSpec(StrictModel):
-    """How an object moves (:mod:`reachwise.sim.motion`): ``waypoints`` (world poses at
-    times; linear position, slerp orientation; ``loop`` repeats them) or a constant
-    ``velocity`` (m/s) and ``angular_velocity_deg`` (deg/s, world axes) from the
-    object's ``pose``, between ``start`` and ``stop`` (s)."""
-
-    model_config = _STRICT
-    waypoints: list[WaypointSpec] | None = Field(default=None, min_length=1)
-    loop: bool = False
-    velocity: V3 | None = None
-    angular_velocity_deg: V3 | None = None
-    start: float = Field(default=0.0, ge=0.0)
-    stop: float | None = None
-
-    @model_validator(mode="after")
-    def _kind(self) -> MotionSpec:
-        constant = self.velocity is not None or self.angular_velocity_deg is not None
-        if (self.waypoints is not None) == constant:
-            raise ValueError("give waypoints or velocity/angular_velocity_deg, not both")
-        if self.waypoints is not None:
-            if "start" in self.model_fields_set or self.stop is not None:
-                raise ValueError("start and stop are for a constant velocity")
-            ts = [w.t for w in self.waypoints]
-            if any(b <= a for a, b in itertools.pairwise(ts)):
-                raise ValueError(f"waypoint times must increase strictly, got {ts}")
-        elif self.loop:
-            raise ValueError("loop is for waypoints")
-        if self.stop is not None and not self.stop > self.start:
-            raise ValueError(f"stop ({self.stop}) must be after start ({self.start})")
-        return self
-
-    def trajectory(self, pose: np.ndarray) -> Trajectory:
-        """The trajectory; ``pose`` is the object's pose (the start of a constant
-        velocity; waypoints give their own poses)."""
-        if self.waypoints is not None:
-            mats = [w.matrix() for w in self.waypoints]
-            return WaypointTrajectory(
-                np.array([w.t for w in self.waypoints]),
-                np.array([m[:3, 3] for m in mats]),
-                Rotation.from_matrix(np.array([m[:3, :3] for m in mats])).as_quat(),
-                loop=self.loop,
-            )
-        w = np.radians(self.angular_velocity_deg or (0.0, 0.0, 0.0))
-        stop = math.inf if self.stop is None else self.stop
-        return ConstantVelocity(
-            pose, np.array(self.velocity or (0.0, 0.0, 0.0)), w, self.start, stop
-        )
-
-
-class CloudAtSpec(StrictModel):
-    """A cloud that replaces an object's cloud from time ``t`` (s) on (a deforming
-    obstacle): ``file``, ``mesh`` (``points`` samples) or ``box`` (size, m)."""
-
-    model_config = _STRICT
-    t: float = Field(gt=0.0)
-    file: str | None = None
-    mesh: str | None = None
-    box: V3 | None = None
-    points: SampledPoints = 1000
-
-    @model_validator(mode="after")
-    def _one(self) -> CloudAtSpec:
-        if sum(getattr(self, k) is not None for k in ("file", "mesh", "box")) != 1:
-            raise ValueError("give exactly one source: file, mesh or box")
-        if self.box is not None and not min(self.box) > 0:
-            raise ValueError("box sizes must be > 0")
-        return self
-
-
-class RescanSpec(StrictModel):
-    """Re-run the object's scanner every ``every`` seconds (new seed each time)."""
-
-    model_config = _STRICT
-    every: float = Field(gt=0.0)
-
-
-class OcclusionSpec(StrictModel):
-    """Occlusion fill of a scanned object (:func:`reachwise.geometry.occlusion.shadow_points`):
-    the unseen space up to ``depth`` (m) behind every return counts as occupied;
-    ``spacing`` (m, default the scan's voxel) between virtual points; ``ground`` (world
-    z, default the scene's floor) below which none is kept."""
-
-    model_config = _STRICT
-    fill: bool = True
-    depth: float = Field(default=1.0, gt=0.0)
-    spacing: float | None = Field(default=None, gt=0.0)
-    ground: float | None = None
-
-
-class ScanMeshSpec(StrictModel):
-    """A mesh in a scanned scene: ``mesh`` (a file, relative to the scenario) at
-    ``pose`` (world), its vertices times ``scale``."""
-
-    model_config = _STRICT
-    mesh: str
-    pose: FrameSpec = FrameSpec()
-    scale: float | V3 = 1.0
-
-
-class ScanSpec(StrictModel):
-    """A scene of our own for the simulated scanner (:class:`reachwise.geometry.scanner.
-    LaserScanner`, the P-V resolutions by default): ``meshes`` in world, an optional
-    ``floor`` (a plane at that z), the scanner at ``pose`` (zero tilt; optical centre at
-    the origin of the frame, x forward, tilt about y, positive looks down), beams over
-    ``azimuth_deg``, tilt over ``tilt_deg``, ``resolution_deg`` between beams and
-    ``line_step_deg`` between lines (the tilt rate over the line rate); the cloud is
-    cropped to ``crop`` ([min xyz, max xyz]) and downsampled to ``voxel`` (m)."""
-
-    model_config = _STRICT
-    meshes: list[ScanMeshSpec] = Field(min_length=1)
-    floor: float | None = None
-    pose: FrameSpec
-    azimuth_deg: tuple[float, float] = (-45.0, 45.0)
-    tilt_deg: tuple[float, float] = (0.0, 60.0)
-    resolution_deg: float = Field(default=0.25, gt=0.0)
-    line_step_deg: float = Field(default=0.2, gt=0.0)
-    crop: tuple[V3, V3]
-    voxel: float = Field(default=0.03, gt=0.0)
-
-    @model_validator(mode="after")
-    def _ranges(self) -> ScanSpec:
-        for name in ("azimuth_deg", "tilt_deg"):
-            lo, hi = getattr(self, name)
-            if lo > hi:
-                raise ValueError(f"{name}: min {lo} > max {hi}")
-        if any(a >= b for a, b in zip(self.crop[0], self.crop[1], strict=True)):
-            raise ValueError("crop: each min must be below its max")
-        return self
-
-    @model_validator(mode="after")
-    def _size(self, info: ValidationInfo) -> ScanSpec:
-        bound = ((info.context or {}).get("size_limits") or LimitsSpec()).max_cloud_points
-        beams = (self.azimuth_deg[1] - self.azimuth_deg[0]) / self.resolution_deg + 1
-        lines = (self.tilt_deg[1] - self.tilt_deg[0]) / self.line_step_deg + 1
-        if beams * lines > bound:
-            raise ValueError(
-                f"{beams:.0f} beams x {lines:.0f} lines is more than {bound} points "
-                "(size_limits.max_cloud_points)"
-            )
-        return self
-
-
-class ObjectSpec(StrictModel):
-    """A cloud not on a robot: ``scanner`` (a built-in scan scene; ``noise`` m,
-    ``occlusion`` fill, ``rescan``), ``mesh`` or ``box`` (``points`` surface samples,
-    the box centred on the object frame) or ``file``; placed at ``pose``, moving by
-    ``motion``, its cloud replaced by ``clouds`` at given times. ``scene: false``
-    keeps it out of the distance scene (a mesh or box only): no cloud of it reaches a
-    controller, the sensors see its surface and the run judges the robots' clearance
-    on that surface."""
-
-    model_config = _STRICT
-    name: str = Field(min_length=1)
-    scanner: ScanSpec | str | None = None  # ScanSpec first: its errors are the ones shown
-    mesh: str | None = None
-    file: str | None = None
-    box: V3 | None = None
-    points: SampledPoints = 1000
-    seed: int = Field(default=0, ge=0)
-    pose: FrameSpec = FrameSpec()
-    noise: float | None = Field(default=None, ge=0.0)
-    occlusion: OcclusionSpec | None = None
-    motion: MotionSpec | None = None
-    rescan: RescanSpec | None = None
-    clouds: list[CloudAtSpec] = []
-    scene: bool = True
-
-    @model_validator(mode="after")
-    def _one(self) -> ObjectSpec:
-        given = [k for k in ("scanner", "mesh", "file", "box") if getattr(self, k) is not None]
-        if len(given) != 1:
-            raise ValueError("give exactly one source: scanner, mesh, box or file")
-        if not self.scene and self.mesh is None and self.box is None:
-            raise ValueError(
-                "an object outside the scene (scene: false) needs a surface: mesh or box"
-            )
-        if self.box is not None and not min(self.box) > 0:
-            raise ValueError("box sizes must be > 0")
-        if self.scanner is None:
-            for k in ("noise", "occlusion", "rescan"):
-                if getattr(self, k) is not None:
-                    raise ValueError(f"{k} is for scanned objects (scanner: ...)")
-        if self.rescan is not None and self.clouds:
-            raise ValueError("give rescan or clouds, not both")
-        if self.scanner is not None and self.motion is not None:
-            raise ValueError("a scan is in world coordinates: it cannot move (use rescan)")
-        ts = [c.t for c in self.clouds]
-        if any(b <= a for a, b in itertools.pairwise(ts)):
-            raise ValueError(f"cloud times must increase strictly, got {ts}")
-        if (
-            self.motion is not None
-            and self.motion.waypoints is not None
-            and "pose" in self.model_fields_set
-        ):
-            raise ValueError("waypoints give the object's poses: leave out pose")
-        return self
-
-
-class SrdfPairsSpec(StrictModel):
-    """``pairs: {srdf: FILE}``: every pair of the robot's link clouds that the MoveIt
-    SRDF ``FILE`` (relative to the scenario) does not disable
-    (:mod:`reachwise.sim.srdf_inputs`)."""
-
-    model_config = _STRICT
-    srdf: str = Field(min_length=1)
-
-
-class WatchSpec(StrictModel):
-    """``self: R`` (pairs among R's links; ``pairs`` lists link pairs, ``pairs: auto``
-    picks them (:mod:`reachwise.sim.self_pairs`: adjacent and never-close pairs
-    excluded over ``samples`` random configurations, ``seed``), ``pairs: {srdf: FILE}``
-    watches all but the pairs a MoveIt SRDF disables, else every
-    non-adjacent pair of ``links``; ``self: {robot: R, pairs: auto}`` is the same),
-    ``robot: R, environment: [objects]`` or ``robots: [A, B]``; ``links`` restricts
-    the robots' links, ``margin`` is ρ_O."""
-
-    model_config = _STRICT
-    self_: str | None = Field(default=None, alias="self")
-    robot: str | None = None
-    environment: list[str] | None = None
-    robots: tuple[str, str] | None = None
-    links: list[str] | None = None
-    pairs: list[tuple[str, str]] | Literal["auto"] | SrdfPairsSpec | None = None
-    samples: int = Field(default=10_000, ge=1)
-    seed: int = Field(default=0, ge=0)
-    margin: float = Field(gt=0.0)
-
-    @model_validator(mode="before")
-    @classmethod
-    def _nested_self(cls, data: Any) -> Any:
-        """``self: {robot: R, pairs: …, …}`` is ``self: R, pairs: …, …``."""
-        if isinstance(data, dict) and isinstance(data.get("self"), dict):
-            inner = dict(data["self"])
-            out = {k: v for k, v in data.items() if k != "self"}
-            if "robot" not in inner:
-                raise ValueError("self: {robot: NAME, …} needs robot")
-            out["self"] = inner.pop("robot")
-            for k, v in inner.items():
-                if k in out:
-                    raise ValueError(f"{k} given twice (inside self and beside it)")
-                out[k] = v
-            return out
-        return data
-
-    @model_validator(mode="after")
-    def _kind(self) -> WatchSpec:
-        kinds = [self.self_ is not None, self.environment is not None, self.robots is not None]
-        if sum(kinds) != 1:
-            raise ValueError("give exactly one of self, environment (with robot), robots")
-        if self.environment is not None and self.robot is None:
-            raise ValueError("environment pairs need robot")
-        if self.pairs is not None and self.self_ is None:
-            raise ValueError("pairs are for self pairs")
-        return self
-
-    @property
-    def kind(self) -> str:
-        if self.self_ is not None:
-            return "self"
-        return "robot-environment" if self.environment is not None else "robot-robot"
-
 
 class EscapeSpec(StrictModel):
     """Local-minimum escape (:mod:`reachwise.sim.escape`): when a robot's
@@ -605,7 +161,7 @@ class EscapeSpec(StrictModel):
     moves between two checked states (default half the smallest margin); ``seed``:
     OMPL's random seed. ``escape: ompl`` takes every default."""
 
-    model_config = _STRICT
+    model_config = STRICT
     planner: Literal["ompl"] = "ompl"
     time_limit: float = Field(default=5.0, gt=0.0)
     speed: float = Field(default=0.5, gt=0.0, le=1.0)
@@ -614,132 +170,15 @@ class EscapeSpec(StrictModel):
     seed: int = Field(default=1, ge=1, lt=2**32)
 
 
-class MountSpec(StrictModel):
-    """Where a sensor hangs on a robot: ``link`` of ``robot`` (the scenario's robot
-    name), at ``offset`` (its pose in the link frame)."""
-
-    model_config = _STRICT
-    robot: str = Field(min_length=1)
-    link: str = Field(min_length=1)
-    offset: FrameSpec = FrameSpec()
-
-
-class SensorSpec(StrictModel):
-    """A depth camera (:class:`reachwise.geometry.depth_camera.DepthCamera`) that streams
-    its cloud into the scene object ``name`` during a run (:mod:`reachwise.sim.sensors`):
-    fixed at ``pose`` (camera → world, optical frame: z forward, x right, y down; with
-    ``look_at`` only ``pose.xyz`` counts and the optical axis points at ``look_at``,
-    image x horizontal) or on a robot ``link``; ``rate`` frames/s, ``latency`` s from
-    capture to the scene; ``width`` × ``height`` pixels, horizontal field of view
-    ``fov`` (rad) or ``fov_deg``; ``near``/``far`` range limits (m); ``noise`` (σ at
-    1 m, σ = noise·z²); ``dropout`` fraction; ``voxel`` downsampling (m); ``seed``;
-    ``self_filter`` drops the pixels that see a robot."""
-
-    model_config = _STRICT
-    kind: Literal["depth"]
-    name: str = Field(min_length=1)
-    pose: FrameSpec | None = None
-    look_at: V3 | None = None
-    link: MountSpec | None = None
-    rate: float = Field(default=30.0, gt=0.0)
-    latency: float = Field(default=0.0, ge=0.0)
-    width: ImageSide = 640
-    height: ImageSide = 480
-    fov: float | None = Field(default=None, gt=0.0, lt=math.pi)
-    fov_deg: float | None = Field(default=None, gt=0.0, lt=180.0)
-    near: float = Field(default=0.2, ge=0.0)
-    far: float = Field(default=6.0, gt=0.0)
-    noise: float = Field(default=0.0, ge=0.0)
-    dropout: float = Field(default=0.0, ge=0.0, lt=1.0)
-    voxel: float | None = Field(default=None, gt=0.0)
-    seed: int = Field(default=0, ge=0)
-    self_filter: bool = True
-
-    @model_validator(mode="after")
-    def _check(self) -> SensorSpec:
-        if (self.pose is None) == (self.link is None):
-            raise ValueError("give the camera a pose or a link to hang on, not both")
-        if self.look_at is not None:
-            if self.pose is None:
-                raise ValueError("look_at is for a camera with a pose")
-            if self.pose.rpy is not None or self.pose.rpy_deg is not None:
-                raise ValueError("give pose rpy or look_at, not both")
-            axis = np.subtract(self.look_at, self.pose.xyz)
-            if not np.linalg.norm(axis) > 1e-9:
-                raise ValueError("look_at must differ from the camera's position")
-            if np.linalg.norm(np.cross(axis, (0.0, 0.0, 1.0))) < 1e-9 * np.linalg.norm(axis):
-                raise ValueError("look_at straight up or down: give pose rpy instead")
-        if self.fov is not None and self.fov_deg is not None:
-            raise ValueError("give fov or fov_deg, not both")
-        if not self.near < self.far:
-            raise ValueError(f"far ({self.far}) must exceed near ({self.near})")
-        return self
-
-    @property
-    def fov_rad(self) -> float:
-        """The horizontal field of view (rad; default 60°)."""
-        if self.fov is not None:
-            return self.fov
-        return math.radians(self.fov_deg if self.fov_deg is not None else 60.0)
-
-    def matrix(self) -> np.ndarray:
-        """The fixed camera → world pose (``pose`` with ``look_at``), or the link
-        offset of a camera on a link."""
-        if self.link is not None:
-            return self.link.offset.matrix()
-        pose = self.pose or FrameSpec()
-        T = pose.matrix()
-        if self.look_at is not None:
-            z = np.subtract(self.look_at, pose.xyz)
-            z = z / np.linalg.norm(z)
-            x = np.cross(z, (0.0, 0.0, 1.0))  # image x horizontal, image y (down) below
-            x = x / np.linalg.norm(x)
-            T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
-        return T
-
-
-class BoxSpec(StrictModel):
-    """An axis-aligned box, ``lower`` … ``upper`` corners (m, world)."""
-
-    model_config = _STRICT
-    lower: V3
-    upper: V3
-
-    @model_validator(mode="after")
-    def _check(self) -> BoxSpec:
-        if not all(h > lo for lo, h in zip(self.lower, self.upper, strict=True)):
-            raise ValueError(f"upper {list(self.upper)} must exceed lower {list(self.lower)}")
-        return self
-
-
-class MemorySpec(StrictModel):
-    """A scene memory (:mod:`reachwise.sim.memory_feed`): the depth cameras named in
-    ``sensors`` fuse their frames into one voxel map of ``box`` (``voxel`` edge, m)
-    instead of each replacing a cloud; its occupied and shadow voxels are the scene
-    object ``name``, watched like any object. ``shadow_depth`` (m) behind every observed
-    surface counts as occupied until a camera sees it free; occupied voxels not seen
-    again for ``memory_s`` (s) fade to shadow, never to free; a voxel seen free is not
-    shadowed again for ``free_hold_s`` (s)."""
-
-    model_config = _STRICT
-    name: str = Field(min_length=1)
-    box: BoxSpec
-    sensors: list[str] = Field(min_length=1)
-    voxel: float = Field(default=0.03, gt=0.0)
-    shadow_depth: float = Field(default=0.5, ge=0.0)
-    memory_s: float = Field(default=3.0, ge=0.0)
-    free_hold_s: float = Field(default=0.1, ge=0.0)
-
-
 class JobsSpec(StrictModel):
-    model_config = _STRICT
+    model_config = STRICT
     robots: list[str] = Field(min_length=1)
     work: float = Field(default=0.0, ge=0.0)
     goals: list[GoalSpec] = Field(min_length=1)
 
 
 class ScenarioSpec(StrictModel):
-    model_config = _STRICT
+    model_config = STRICT
     name: str = Field(min_length=1)
     description: str = ""
     dt: float = Field(default=0.01, gt=0.0)
