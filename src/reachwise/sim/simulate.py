@@ -38,6 +38,7 @@ from reachwise.control.controller import ControlStatus
 from reachwise.distance.scene import SceneLike, SceneResult
 from reachwise.sim.contact import true_clearance
 from reachwise.sim.log import Event, SimulationLog
+from reachwise.sim.movers import frozen_scene
 from reachwise.sim.plant import PlantName
 from reachwise.sim.resolve import ResolvedScenario, resolve_scenario
 from reachwise.sim.run_options import RunKeywords, RunOptions, RunRecorder, run_options
@@ -51,7 +52,6 @@ from reachwise.sim.world import (
     World,
     build_world,
     close_scene,
-    frozen_scene,
     move_objects,
 )
 

@@ -16,24 +16,21 @@ from numpy.typing import NDArray
 from reachwise.control.avoidance import SceneConverter
 from reachwise.control.controller import Controller, ControllerConfig, Goal
 from reachwise.control.safety import SafetyConfig
-from reachwise.distance.scene import OnLink, Scene, SceneLike, WatchedPair
+from reachwise.distance.scene import Scene, SceneLike, WatchedPair
 from reachwise.errors import InputError, check_choice
-from reachwise.geometry.cloud import PointCloud
 from reachwise.kinematics.robot import Robot
 from reachwise.sim.contact import Solid
 from reachwise.sim.memory_feed import MemoryFeed, body_pieces
-from reachwise.sim.motion import Trajectory
+from reachwise.sim.movers import MovingObject, moving_object, object_cloud
 from reachwise.sim.plant import PLANT_NAMES, Plant, PlantConfig, PlantName
 from reachwise.sim.resolve import (
     ResolvedScenario,
     box_solid,
-    cloud_key,
     resolve_scenario,
     unknown,
 )
 from reachwise.sim.scenarios import (
     GoalSpec,
-    ObjectSpec,
     RobotSpec,
     Scenario,
     WatchSpec,
@@ -90,7 +87,7 @@ class World:
     margins: NDArray[np.float64]
     solids: dict[str, tuple[Solid, str, str]]  # object -> (solid, robot, link)
     jobs: list[tuple[Goal, GoalSpec]]
-    movers: list[_Mover] = field(default_factory=list)
+    movers: list[MovingObject] = field(default_factory=list)
     sensors: list[DepthSensor] = field(default_factory=list)
     memories: list[MemoryFeed] = field(default_factory=list)  # fed by the sensors
     sight: Sight | None = None  # what the sensors see (None: no sensors, no hidden objects)
@@ -188,19 +185,19 @@ def _add_robots(
 
 def _add_objects(
     scene: SceneLike, res: ResolvedScenario, solids: dict[str, tuple[Solid, str, str]]
-) -> list[_Mover]:
+) -> list[MovingObject]:
     """The clouds not on a robot (a box also gets its solid); returns the ones that
     move or change their cloud during the run."""
-    movers: list[_Mover] = []
+    movers: list[MovingObject] = []
     for os_ in res.scenario.spec.objects:
-        mover = _mover(os_, res)
+        mover = moving_object(os_, res)
         if not os_.scene:  # only the sensors see it
             if mover is not None:
                 movers.append(mover)
             continue
         moving = mover is not None and mover.trajectory is not None
         pose = mover.trajectory.pose(0.0) if moving else os_.pose.matrix()  # type: ignore[union-attr]
-        scene.add_object(os_.name, _object_cloud(res, os_, os_.seed), pose, dynamic=moving)
+        scene.add_object(os_.name, object_cloud(res, os_, os_.seed), pose, dynamic=moving)
         solid = box_solid(os_.box)
         if solid is not None:
             solids[os_.name] = (solid, "", "")
@@ -210,7 +207,7 @@ def _add_objects(
 
 
 def _add_sensors(
-    scene: SceneLike, res: ResolvedScenario, movers: list[_Mover]
+    scene: SceneLike, res: ResolvedScenario, movers: list[MovingObject]
 ) -> tuple[Sight | None, list[DepthSensor], list[MemoryFeed]]:
     """What the sensors see (:class:`~reachwise.sim.sensors.Sight`: the surfaces of the
     objects and of the robots' links), and the sensors, each with its object in the
@@ -442,60 +439,7 @@ def _goal(g: GoalSpec, robot: Robot) -> Goal:
     )
 
 
-def _object_cloud(
-    res: ResolvedScenario, spec: ObjectSpec, seed: int, k: int | None = None
-) -> PointCloud:
-    """The cloud of object ``spec`` (or of its ``k``-th scheduled cloud): resolved, or
-    for a scanned object its scan with ``seed`` (a re-scan takes the next seed)."""
-    if spec.scanner is None or k is not None:
-        return res.object_clouds[cloud_key(spec.name, k)]
-    from reachwise.geometry.occlusion import OcclusionFill
-    from reachwise.geometry.scan_scene import scan_scene
-
-    occ = spec.occlusion
-    fill = (
-        OcclusionFill(occ.depth, occ.spacing, occ.ground) if occ is not None and occ.fill else None
-    )
-    try:
-        _, cloud = scan_scene(
-            res.scan_targets[spec.name], rng=seed, noise=spec.noise, occlusion=fill
-        )
-    except InputError as exc:
-        raise InputError(res.scenario.source, f"objects.{spec.name}.scanner", str(exc)) from None
-    return PointCloud(cloud.points, name=spec.name)
-
-
 # --------------------------------------------------------------------------- moving objects
-
-
-@dataclass(eq=False)
-class _Mover:
-    """An object that moves (``trajectory``) or changes its cloud (``clouds`` at
-    times, or a re-scan every ``rescan`` s) during the run."""
-
-    spec: ObjectSpec
-    trajectory: Trajectory | None
-    clouds: list[tuple[float, PointCloud, Solid | None]]
-    rescan: float | None
-    next_cloud: int = 0
-    scans: int = 0
-
-    @property
-    def in_scene(self) -> bool:
-        """False for an object only the sensors see (``scene: false``)."""
-        return self.spec.scene
-
-
-def _mover(spec: ObjectSpec, res: ResolvedScenario) -> _Mover | None:
-    if spec.motion is None and spec.rescan is None and not spec.clouds:
-        return None
-    traj = spec.motion.trajectory(spec.pose.matrix()) if spec.motion is not None else None
-    clouds = [
-        (c.t, _object_cloud(res, spec, spec.seed + k + 1, k), box_solid(c.box))
-        for k, c in enumerate(spec.clouds)
-    ]
-    every = spec.rescan.every if spec.rescan is not None else None
-    return _Mover(spec, traj, clouds, every)
 
 
 def move_objects(world: World, t: float) -> Twists:
@@ -524,25 +468,7 @@ def move_objects(world: World, t: float) -> Twists:
         if m.rescan is not None and t >= (m.scans + 1) * m.rescan - 1e-9:
             m.scans += 1
             res = world.resolved if world.resolved is not None else resolve_scenario(world.scenario)
-            due = _object_cloud(res, m.spec, m.spec.seed + m.scans)
+            due = object_cloud(res, m.spec, m.spec.seed + m.scans)
         if due is not None:
             scene.replace_cloud(name, due, block=True)
     return twists
-
-
-def frozen_scene(scene: SceneLike) -> Scene:
-    """A copy of ``scene`` in which every object not on a robot stays where it is now,
-    with its current cloud: the world a static-world controller believes in."""
-    frozen = Scene(strategy=scene.strategy)
-    for r in scene.robots.values():
-        frozen.add_robot(r)
-    now = scene.poses()
-    for name, obj in scene.objects.items():
-        src = obj.source
-        if isinstance(src, OnLink):
-            frozen.add_object(name, obj.cloud, src.offset, robot=src.robot, link=src.link)
-        else:
-            frozen.add_object(name, obj.cloud, now[name])
-    for pair in scene.pairs:
-        frozen.watch(pair.a, pair.b, pair.margin, kind=pair.kind)
-    return frozen
