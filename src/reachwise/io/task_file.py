@@ -38,8 +38,6 @@ CSV the data row ``points[i]`` is also given as its line) and the reason.
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import math
 from collections import Counter
@@ -55,6 +53,13 @@ from scipy.spatial.transform import Rotation
 from reachwise.errors import TaskError
 from reachwise.io._builtin import builtin_names, load_named
 from reachwise.io.atomic import atomic_write
+from reachwise.io.task_csv import (
+    CSV_COLUMNS,
+    csv_to_dict,
+    file_floats,
+    quaternion_xyzw,
+    render_csv,
+)
 from reachwise.io.text_input import parse_text, read_text
 from reachwise.io.validation import StrictModel, input_error
 from reachwise.tasks.task import (
@@ -216,18 +221,6 @@ def task_from_dict(data: Any, source: str = "task", default_name: str = "task") 
     return Task(m.name if m.name is not None else default_name, points, envelope)
 
 
-def _quat(R: np.ndarray) -> np.ndarray:
-    q = Rotation.from_matrix(R).as_quat()
-    return np.asarray(-q if q[3] < 0 else q)
-
-
-def _floats(v: np.ndarray, decimals: int | None) -> list[float]:
-    a = np.asarray(v, dtype=float)
-    if decimals is not None:
-        a = np.round(a, decimals) + 0.0  # + 0.0 turns -0.0 into 0.0
-    return [float(x) for x in a]
-
-
 def _tolerances(task: Task) -> tuple[float, float]:
     """The most common (position, orientation) tolerance pair: the file default."""
     pairs = Counter(zip(task.tol_position.tolist(), task.tol_orientation.tolist(), strict=True))
@@ -235,11 +228,11 @@ def _tolerances(task: Task) -> tuple[float, float]:
 
 
 def _point_dict(p: TaskPoint, default: tuple[float, float], decimals: int | None) -> dict[str, Any]:
-    row: dict[str, Any] = {"xyz": _floats(p.position, decimals)}
+    row: dict[str, Any] = {"xyz": file_floats(p.position, decimals)}
     if p.rotation is not None:
-        row["quat"] = _floats(_quat(p.rotation), decimals)
+        row["quat"] = file_floats(quaternion_xyzw(p.rotation), decimals)
     elif p.axis is not None:
-        row["axis"] = _floats(p.axis, decimals)
+        row["axis"] = file_floats(p.axis, decimals)
     row["dims"] = p.dims
     tol: dict[str, float] = {}
     if p.tol_position != default[0]:
@@ -300,126 +293,8 @@ def _render_yaml(data: dict[str, Any], comment: str | None) -> str:
     return text
 
 
-_CSV_GROUPS: dict[str, tuple[str, ...]] = {
-    "xyz": ("x", "y", "z"),
-    "quat": ("qx", "qy", "qz", "qw"),
-    "axis": ("ax", "ay", "az"),
-    "rpy": ("roll", "pitch", "yaw"),
-    "rpy_deg": ("roll_deg", "pitch_deg", "yaw_deg"),
-}
-_CSV_POINT = ("dims", "tol_position", "tol_orientation", "name", "group")
-#: Every column a task CSV may have: the pose groups, then the per-point fields.
-CSV_COLUMNS: tuple[str, ...] = (*(c for g in _CSV_GROUPS.values() for c in g), *_CSV_POINT)
-#: What ``save_task`` writes: position, quaternion, axis and the per-point fields.
-_CSV_WRITE = (*_CSV_GROUPS["xyz"], *_CSV_GROUPS["quat"], *_CSV_GROUPS["axis"], *_CSV_POINT)
-
-
-def _render_csv(task: Task, decimals: int | None) -> str:
-    buf = io.StringIO()
-    buf.write(f"# name: {task.name}\n")
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(_CSV_WRITE)
-    for p in task.points:
-        q: list[Any] = [""] * 4
-        a: list[Any] = [""] * 3
-        if p.rotation is not None:
-            q = _floats(_quat(p.rotation), decimals)
-        elif p.axis is not None:
-            a = _floats(p.axis, decimals)
-        w.writerow(
-            [
-                *_floats(p.position, decimals),
-                *q,
-                *a,
-                p.dims,
-                repr(p.tol_position),
-                repr(p.tol_orientation),
-                p.name,
-                p.group,
-            ]
-        )
-    return buf.getvalue()
-
-
-def _csv_to_dict(text: str, source: str, default_name: str) -> tuple[dict[str, Any], list[int]]:
-    lines = text.splitlines()
-    name = default_name
-    start = 0
-    while start < len(lines) and (
-        not lines[start].strip() or lines[start].lstrip().startswith("#")
-    ):
-        body = lines[start].lstrip().removeprefix("#").strip()
-        if body.lower().startswith("name:"):
-            name = body[5:].strip()
-        start += 1
-    reader = csv.reader(lines[start:])
-    try:
-        rows = list(reader)
-    except csv.Error as exc:  # a cell beyond csv.field_size_limit, a NUL byte
-        raise TaskError(
-            source, f"line {start + reader.line_num}", f"not valid CSV: {exc}"
-        ) from None
-    if not rows:
-        raise TaskError(source, "header", "no CSV header (need at least columns x, y, z)")
-    header = [h.strip() for h in rows[0]]
-    unknown = [h for h in header if h not in CSV_COLUMNS]
-    if unknown:
-        known = ", ".join(CSV_COLUMNS)
-        raise TaskError(source, "header", f"unknown column {unknown[0]!r}; known columns: {known}")
-    dup = [h for h, c in Counter(header).items() if c > 1]
-    if dup:
-        raise TaskError(source, "header", f"duplicate column {dup[0]!r}")
-    for key, cols in _CSV_GROUPS.items():
-        have = [c for c in cols if c in header]
-        if (key == "xyz" or have) and len(have) != len(cols):
-            missing = [c for c in cols if c not in header]
-            group, miss = ", ".join(cols), ", ".join(missing)
-            raise TaskError(source, "header", f"columns {group} go together; missing {miss}")
-    col = {h: j for j, h in enumerate(header)}
-    points: list[dict[str, Any]] = []
-    line_of: list[int] = []
-    line = start + 1
-    for cells in rows[1:]:
-        line += 1
-        if not any(c.strip() for c in cells):
-            continue
-        if len(cells) != len(header):
-            raise TaskError(
-                source, f"line {line}", f"expected {len(header)} cells, got {len(cells)}"
-            )
-        i = len(points)
-        get = {h: cells[j].strip() for h, j in col.items()}
-        pt: dict[str, Any] = {}
-        for key, cols in _CSV_GROUPS.items():
-            if cols[0] not in col:
-                continue
-            vals = [get[c] for c in cols]
-            if key == "xyz" or any(vals):
-                if not all(vals):
-                    group = ", ".join(cols)
-                    raise TaskError(
-                        source,
-                        f"points[{i}].{key}",
-                        f"give all of {group} or none (CSV line {line})",
-                    )
-                pt[key] = vals
-        if get.get("dims"):
-            dims = get["dims"]
-            pt["dims"] = int(dims) if dims.isascii() and dims.isdigit() else dims
-        tol_cols = (("position", "tol_position"), ("orientation", "tol_orientation"))
-        tol = {k: get[c] for k, c in tol_cols if get.get(c)}
-        if tol:
-            pt["tolerance"] = tol
-        for key in ("name", "group"):
-            if get.get(key):
-                pt[key] = get[key]
-        points.append(pt)
-        line_of.append(line)
-    return {"name": name, "points": points}, line_of
-
-
 def _csv_task(text: str, source: str, default_name: str) -> Task:
-    data, line_of = _csv_to_dict(text, source, default_name)
+    data, line_of = csv_to_dict(text, source, default_name)
     if not data["points"]:
         raise TaskError(source, "points", "empty task: no data rows")
     # CSV cells are strings: let pydantic's lax mode parse numbers, then point at lines
@@ -450,7 +325,7 @@ def render_task(
 ) -> str:
     """The text of ``task`` as a YAML, JSON or CSV task file (see ``save_task``)."""
     if fmt == "csv":
-        return _render_csv(task, decimals)
+        return render_csv(task, decimals)
     data = task_to_dict(task, decimals)
     if fmt == "json":
         return json.dumps(data, indent=1) + "\n"
