@@ -164,12 +164,15 @@ class MemoryFeed:
     def cloud(self, frames: dict[str, F64] | None = None) -> PointCloud:
         """The occupied and shadow voxels' centres (without the robots' bodies at their
         frame poses ``frames``), or, while there are none, one point far above the box
-        (a cloud has at least one point; it says "nothing here")."""
+        (a cloud has at least one point; it says "nothing here"). The voxels' cloud
+        comes with its index (:meth:`SceneMemory.obstacle_cloud
+        <reachwise.distance.scene_memory.SceneMemory.obstacle_cloud>`): the scene
+        swaps it in without a build."""
         body = []
         if frames is not None:
             body = [p.placed(frames[p.robot][p.frame]) for p in self.body if p.robot in frames]
-        pts = self.memory.obstacles(body=body)
-        if len(pts) == 0:
-            lo, hi = self.memory.origin, np.asarray(self.spec.box.upper, dtype=np.float64)
-            pts = (0.5 * (lo + hi) + [0.0, 0.0, 1.0e3])[None]
-        return PointCloud(pts, name=self.name)
+        cloud = self.memory.obstacle_cloud(body=body, name=self.name)
+        if cloud is not None:
+            return cloud
+        lo, hi = self.memory.origin, np.asarray(self.spec.box.upper, dtype=np.float64)
+        return PointCloud((0.5 * (lo + hi) + [0.0, 0.0, 1.0e3])[None], name=self.name)
