@@ -50,7 +50,12 @@ from numpy.typing import ArrayLike, NDArray
 from reachwise.control.controller import Goal
 from reachwise.errors import InputError, MissingDependency
 from reachwise.kinematics.ik import finite_limits
-from reachwise.kinematics.robot import DesignSpace, Joint, Robot
+from reachwise.kinematics.robot import Robot
+from reachwise.planning.goal_states import (
+    free_joints,
+    goal_configurations,
+    held_robot,
+)
 from reachwise.planning.validity import ClearanceChecker
 
 __all__ = [
@@ -171,94 +176,6 @@ class PlanResult:
         return float(np.linalg.norm(np.diff(self.path, axis=0), axis=1).sum())
 
 
-def held_robot(robot: Robot, q: ArrayLike, hold: ArrayLike) -> Robot:
-    """``robot`` with the entries of ``q`` selected by the boolean mask ``hold`` turned
-    into fixed joints at their values in ``q`` (its ``q`` has the other entries only;
-    its frames and forward kinematics are the original's at those values)."""
-    qq = np.asarray(q, dtype=float).reshape(-1)
-    mask = np.asarray(hold, dtype=bool).reshape(-1)
-    if qq.shape != (robot.n,) or mask.shape != (robot.n,):
-        raise InputError("planner", "hold", f"expected {robot.n} values")
-    joints = list(robot.joints)
-    for k, j in enumerate(robot.movable_joints):
-        if not mask[k]:
-            continue
-        jt = joints[j]
-        if jt.type == "revolute":
-            joints[j] = Joint("fixed", jt.a, jt.alpha, jt.d, jt.theta + qq[k], name=jt.name)
-        else:
-            joints[j] = Joint("fixed", jt.a, jt.alpha, jt.d + qq[k], jt.theta, name=jt.name)
-    return replace(robot, joints=tuple(joints), design=DesignSpace())
-
-
-def goal_configurations(
-    checker: ClearanceChecker,
-    goal: Goal,
-    q_start: ArrayLike,
-    *,
-    hold: Sequence[int] = (),
-    attempts: int = 16,
-    max_goals: int = 8,
-    rng: np.random.Generator | int | None = None,
-    tolerance: float | None = None,
-) -> NDArray[np.float64]:
-    """Collision-free joint configurations whose tool reaches ``goal`` (3-D: position,
-    6-D: pose), nearest to ``q_start`` first, at most ``max_goals``, from ``attempts``
-    IK solves (the first from ``q_start``, the others from random configurations; for
-    a 3-D goal every other solve also asks for the tool's orientation at ``q_start``).
-    Passive joints and the joints in ``hold`` keep their ``q_start`` values (IK of
-    ``held_robot``). ``tolerance`` (m, and rad for 6-D) on the solution's error,
-    default the goal's own tolerances or 1 mm / 1 mrad."""
-    robot = checker.robot
-    q0 = np.asarray(q_start, dtype=float).reshape(-1)
-    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
-    free = _free(robot, hold)
-    sub = held_robot(robot, q0, ~free)
-    lo, hi = finite_limits(sub)
-    ptol = tolerance or goal.position_tolerance or 1e-3
-    otol = tolerance or goal.orientation_tolerance or 1e-3
-    found: list[NDArray[np.float64]] = []
-    keep = np.array(goal.pose, dtype=float)
-    keep[:3, :3] = robot.fk(q0)[:3, :3]
-    for k in range(attempts):
-        seed = q0[free] if k == 0 else gen.uniform(lo, hi)
-        # a 3-D goal leaves the orientation free: half the attempts ask for the
-        # current one (a path that need not turn the tool), the others for none
-        six = goal.dims == 6 or k % 2 == 0
-        T = goal.pose if goal.dims == 6 or not six else keep
-        res = sub.ik(T, q0=seed, mask=None if six else 3, rng=gen, restarts=4)
-        if not res.success:
-            continue
-        q = q0.copy()
-        q[free] = res.q
-        P = robot.fk(q)
-        if np.linalg.norm(P[:3, 3] - goal.position) > ptol:
-            continue
-        if goal.dims == 6:
-            R = P[:3, :3].T @ goal.pose[:3, :3]
-            ang = math.acos(max(-1.0, min(1.0, (np.trace(R) - 1.0) / 2.0)))
-            if ang > otol:
-                continue
-        if any(np.max(np.abs(q - f)) < 1e-3 for f in found):
-            continue
-        if checker.is_valid(q):
-            found.append(q)
-    found.sort(key=lambda f: float(np.linalg.norm(f - q0)))
-    return np.array(found[:max_goals]).reshape(-1, robot.n)
-
-
-def _free(robot: Robot, hold: Sequence[int]) -> NDArray[np.bool_]:
-    """Mask of the planned entries of ``q``: actuated and not held."""
-    free = np.array(robot.actuated, dtype=bool)
-    for k in hold:
-        if not 0 <= int(k) < robot.n:
-            raise InputError("planner", "hold", f"no joint variable {k}")
-        free[int(k)] = False
-    if not free.any():
-        raise InputError("planner", "hold", "no joint left to plan with")
-    return free
-
-
 def _seed(ou: Any, seed: int) -> None:
     """Seed OMPL's generator of seeds; new planners and samplers draw from it. OMPL
     logs an error when a seed was set before (it still reseeds): keep it quiet."""
@@ -286,14 +203,14 @@ def plan_path(
     solution: the result says why (invalid start, no goal configuration, OMPL's status
     such as a timeout)."""
     cfg = config or PlannerConfig()
-    ob, og, ou = require_ompl()
+    ompl = require_ompl()
     robot = checker.robot
     q0 = np.asarray(q_start, dtype=float).reshape(-1)
     if q0.shape != (robot.n,) or not np.isfinite(q0).all():
         raise InputError("planner", "q_start", f"expected {robot.n} finite values")
     start_only = q0[None, :].copy()
 
-    free = _free(robot, hold)
+    free = free_joints(robot, hold)
     held = tuple(sorted(int(k) for k in hold))
 
     def fail(reason: str, **kw: Any) -> PlanResult:
@@ -301,24 +218,18 @@ def plan_path(
 
     if not checker.within_limits(q0):
         return fail("the start configuration is outside the joint limits")
-    # pairs already inside their margin: plan with start_relax x their distance
     d0 = checker.distances(q0, exact=True)
     if np.any(d0 <= 1e-6):
         bad = [p for p, d in zip(checker.pairs, d0, strict=True) if d <= 1e-6]
         return fail(f"the start configuration is in contact: {', '.join(bad)}")
-    step = cfg.step if cfg.step is not None else 0.2 * float(checker.margins.min())
-    inside = d0 < checker.margins + 0.5 * step
-    if inside.any():  # a close start: a finer step keeps its clearance positive
-        step = min(step, cfg.start_relax * float(d0[inside].min()))
-    margins = np.where(inside, cfg.start_relax * d0, checker.margins + 0.5 * step)
+    step, margins = _step_and_margins(checker, d0, cfg)
     clearance = margins - 0.5 * step
     check = checker.with_margins(margins)
-    _seed(ou, cfg.seed)
-    rng = np.random.default_rng(cfg.seed)
+    _seed(ompl[2], cfg.seed)
     if isinstance(goal, Goal):
         goals = goal_configurations(
             check, goal, q0, hold=hold, attempts=cfg.ik_attempts, max_goals=cfg.max_goals,
-            rng=rng,
+            rng=np.random.default_rng(cfg.seed),
         )  # fmt: skip
         if goals.shape[0] == 0:
             return fail(
@@ -328,20 +239,92 @@ def plan_path(
                 step=step,
             )
     else:
-        goals = np.asarray(goal, dtype=float).reshape(-1, robot.n)
-        if goals.size == 0 or not np.isfinite(goals).all():
-            raise InputError("planner", "goal", f"expected (g, {robot.n}) finite joint values")
-        if np.any(goals[:, ~free] != q0[~free]):
-            return fail("a goal configuration moves a passive or held joint")
-        goals = np.array([g for g in goals if check.is_valid(g)]).reshape(-1, robot.n)
-        if goals.shape[0] == 0:
-            return fail("every goal configuration is in collision or outside the limits")
-
+        goals, reason = _given_goals(check, goal, q0, free)
+        if reason:
+            return fail(reason)
     joints = np.flatnonzero(free)
-    k = joints.size
-    lo, hi = finite_limits(robot)
     resolution = check.joint_resolution(step, joints)
+    run = _rrt_connect(ompl, check, q0, goals, joints, resolution, cfg)
+    common: dict[str, Any] = dict(
+        status=run.status,
+        planning_time=run.planning_time,
+        simplify_time=run.simplify_time,
+        raw_states=run.raw_states,
+        goals=goals,
+        clearance=clearance,
+        step=step,
+        resolution=resolution,
+        checks=check.checks,
+    )
+    if not run.exact:
+        return fail(
+            f"RRT-Connect found no path within {cfg.time_limit:g} s ({run.status})", **common
+        )
+    path = np.repeat(q0[None, :], len(run.states), axis=0)
+    path[:, joints] = np.array(run.states)
+    return PlanResult(True, "", path, pairs=checker.pairs, held=held, **common)
 
+
+def _step_and_margins(
+    checker: ClearanceChecker, d0: NDArray[np.float64], cfg: PlannerConfig
+) -> tuple[float, NDArray[np.float64]]:
+    """The motion step (m) between checked states and the margin (m) each pair is
+    checked at: its own plus half a step, or for a pair already inside its margin at
+    the start (distances ``d0``) ``start_relax`` times its distance there, with a step
+    fine enough to keep that clearance positive."""
+    step = cfg.step if cfg.step is not None else 0.2 * float(checker.margins.min())
+    inside = d0 < checker.margins + 0.5 * step
+    if inside.any():  # a close start: a finer step keeps its clearance positive
+        step = min(step, cfg.start_relax * float(d0[inside].min()))
+    return step, np.where(inside, cfg.start_relax * d0, checker.margins + 0.5 * step)
+
+
+def _given_goals(
+    check: ClearanceChecker, goal: ArrayLike, q0: NDArray[np.float64], free: NDArray[np.bool_]
+) -> tuple[NDArray[np.float64], str]:
+    """The given goal configurations that are valid, and why none is (or ``""``)."""
+    n = check.robot.n
+    goals = np.asarray(goal, dtype=float).reshape(-1, n)
+    if goals.size == 0 or not np.isfinite(goals).all():
+        raise InputError("planner", "goal", f"expected (g, {n}) finite joint values")
+    if np.any(goals[:, ~free] != q0[~free]):
+        return goals, "a goal configuration moves a passive or held joint"
+    goals = np.array([g for g in goals if check.is_valid(g)]).reshape(-1, n)
+    if goals.shape[0] == 0:
+        return goals, "every goal configuration is in collision or outside the limits"
+    return goals, ""
+
+
+@dataclass(frozen=True)
+class _Search:
+    """What one RRT-Connect query returned: OMPL's status, its planning and
+    shortcutting times (s), the states of its raw path and the free joints' values
+    along the shortcut path (empty without an exact solution)."""
+
+    status: str
+    exact: bool
+    planning_time: float
+    simplify_time: float
+    raw_states: int
+    states: list[list[float]]
+
+
+def _rrt_connect(
+    ompl: tuple[Any, Any, Any],
+    check: ClearanceChecker,
+    q0: NDArray[np.float64],
+    goals: NDArray[np.float64],
+    joints: NDArray[np.intp],
+    resolution: float,
+    cfg: PlannerConfig,
+) -> _Search:
+    """RRT-Connect (OMPL ``SimpleSetup``) from ``q0`` to any of ``goals`` over the
+    entries ``joints`` of ``q`` within the joint limits, every state checked by
+    ``check`` and every motion at ``resolution`` (rad or m); the other entries keep
+    their values in ``q0``. The path is shortcut when ``cfg.simplify``."""
+    ob, og, ou = ompl
+    k = joints.size
+    lo, hi = finite_limits(check.robot)
     level = ou.getLogLevel()
     ou.setLogLevel(ou.LOG_NONE)  # OMPL logs to stdout; the result carries its status
     try:
@@ -395,25 +378,7 @@ def plan_path(
         )
     finally:
         ou.setLogLevel(level)
-    common: dict[str, Any] = dict(
-        status=status.asString(),
-        planning_time=plan_time,
-        simplify_time=simp_time,
-        raw_states=raw,
-        goals=goals,
-        clearance=clearance,
-        step=step,
-        resolution=resolution,
-        checks=check.checks,
-    )
-    if not exact:
-        return fail(
-            f"RRT-Connect found no path within {cfg.time_limit:g} s ({status.asString()})",
-            **common,
-        )
-    path = np.repeat(q0[None, :], len(states), axis=0)
-    path[:, joints] = np.array(states)
-    return PlanResult(True, "", path, pairs=checker.pairs, held=held, **common)
+    return _Search(status.asString(), exact, plan_time, simp_time, raw, states)
 
 
 def conditioning(
