@@ -158,6 +158,22 @@ class ViewIntrinsics(NamedTuple):
     far: float
 
 
+class PreparedFrame(NamedTuple):
+    """A depth frame read once for the memory's update (:meth:`SceneMemory.prepare`):
+    the ``code`` image and the ``tiles`` table of
+    :func:`~reachwise.distance._memory_kernel.prepare_frame`, the ``camera`` row
+    ``[fx, fy, cx, cy, near, far]``, the camera's pose both ways (4 × 4), the update's
+    ``rules`` ``[band, shadow, t, hold, farthest return]`` and its time ``t`` (s)."""
+
+    code: NDArray[np.float32]
+    tiles: NDArray[np.float64]
+    camera: NDArray[np.float64]
+    world_to_camera: NDArray[np.float64]
+    camera_to_world: NDArray[np.float64]
+    rules: NDArray[np.float64]
+    t: float
+
+
 class MemoryCounts(NamedTuple):
     """How many voxels hold each state."""
 
@@ -245,6 +261,22 @@ class SceneMemory:
         that saw the robot: their depth, when given, is the robot's, and frees only the
         space in front of it; they never mark anything occupied or shadow (the robot
         never enters its own map, and what it hides keeps what was seen before)."""
+        frame = self.prepare(depth, pose, intrinsics, t, body)
+        self.project(frame)
+        self.mark(frame)
+
+    def prepare(
+        self,
+        depth: ArrayLike,
+        pose: ArrayLike,
+        intrinsics: ViewIntrinsics,
+        t: float,
+        body: ArrayLike | None = None,
+    ) -> PreparedFrame:
+        """The first of :meth:`integrate`'s three passes (same arguments): the frame
+        checked and read once into the form the other two take (:class:`PreparedFrame`).
+        :meth:`integrate` is ``prepare``, :meth:`project`, :meth:`mark`; apart, they are
+        timed one by one (``reachwise bench memory``)."""
         z = np.ascontiguousarray(depth, dtype=np.float64)
         if z.ndim != 2 or z.size == 0:
             raise InputError(_SRC, "depth", f"expected a (height, width) image, got {z.shape}")
@@ -267,7 +299,7 @@ class SceneMemory:
         tt = float(t)
         if not math.isfinite(tt):
             raise InputError(_SRC, "t", f"must be a finite time, got {t!r}")
-        cw = np.linalg.inv(T)
+        cw: NDArray[np.float64] = np.linalg.inv(T).astype(np.float64, copy=False)
         cfg = self.config
         H, W = z.shape
         code = np.empty((H, W), dtype=np.float32)
@@ -279,11 +311,36 @@ class SceneMemory:
         rules = np.array([cfg.surface_band, cfg.shadow_depth, tt, cfg.free_hold_s, dmax])
         for a in (code, tiles, camera, cw, T, rules):
             a.setflags(write=False)
+        return PreparedFrame(code, tiles, camera, cw, T, rules, tt)
+
+    def project(self, frame: PreparedFrame) -> None:
+        """The second pass of :meth:`integrate`: the frame's free and shadow marks."""
         project_frame(
-            self.state, self.freed_at, self._held, code, tiles, camera, cw, self._grid, rules
+            self.state,
+            self.freed_at,
+            self._held,
+            frame.code,
+            frame.tiles,
+            frame.camera,
+            frame.world_to_camera,
+            self._grid,
+            frame.rules,
         )
-        mark_points(self.state, self.seen_at, self._held, code, camera, T, self._grid, tt)
-        self._stamp = max(self._stamp, tt)
+
+    def mark(self, frame: PreparedFrame) -> None:
+        """The third pass of :meth:`integrate`: the voxels of the frame's points marked
+        occupied; the memory's :attr:`stamp` is the frame's from then on."""
+        mark_points(
+            self.state,
+            self.seen_at,
+            self._held,
+            frame.code,
+            frame.camera,
+            frame.camera_to_world,
+            self._grid,
+            frame.t,
+        )
+        self._stamp = max(self._stamp, frame.t)
 
     def obstacles(
         self, t: float | None = None, *, body: Sequence[ArrayLike] = ()
