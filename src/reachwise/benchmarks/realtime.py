@@ -71,7 +71,6 @@ from __future__ import annotations
 
 import gc
 import importlib
-import math
 import threading
 import time
 from collections.abc import Callable
@@ -83,6 +82,27 @@ from numpy.typing import NDArray
 
 from reachwise.benchmarks._baseline_build import ingest_baseline
 from reachwise.benchmarks._harness import BenchReport, Target
+from reachwise.benchmarks.realtime_probes import (
+    DT,
+    STALL_GAP,
+    slow_tick_classes,
+    stall_gaps,
+    thread_counters,
+)
+from reachwise.benchmarks.realtime_room import (
+    CAMERA_AT,
+    CAMERA_LOOKS_AT,
+    CAMERA_SIZE,
+    FRAMES,
+    ROOM,
+    ROOM_POINTS,
+    SHELF_PLATES,
+    TABLE,
+    camera_depth,
+    camera_frame,
+    camera_pose,
+    room_points,
+)
 from reachwise.control.avoidance import SceneConverter
 from reachwise.control.controller import Controller, ControllerConfig, Goal
 from reachwise.control.safety import SafetyConfig
@@ -91,125 +111,36 @@ from reachwise.distance.scene import OnLink, Scene
 from reachwise.errors import MissingDependency
 from reachwise.runtime.realtime import keep_freed_memory, realtime_settings
 
-ROOM_POINTS = 1_000_000
-CAMERA_SIZE = (640, 480)
+__all__ = [
+    "CAMERA_AT",
+    "CAMERA_HZ",
+    "CAMERA_LOOKS_AT",
+    "CAMERA_SIZE",
+    "DT",
+    "FRAMES",
+    "LOOP_PRIORITY",
+    "MARGIN",
+    "ROOM",
+    "ROOM_POINTS",
+    "SHELF_PLATES",
+    "STALL_GAP",
+    "TABLE",
+    "CameraFeed",
+    "camera_depth",
+    "camera_frame",
+    "camera_pose",
+    "loop_scene",
+    "room_points",
+    "run",
+    "slow_tick_classes",
+    "stall_gaps",
+    "thread_counters",
+]
+
 CAMERA_HZ = 30.0
-DT = 1e-3  # s: the control period
 #: The loop thread's SCHED_FIFO priority where permitted (ros2_control's default, 50).
 LOOP_PRIORITY = 50
-#: A gap between two clock reads of the stall probe longer than this (s) is recorded.
-STALL_GAP = 2e-4
 MARGIN = 0.05  # m, the panda-shelf scenario's environment margin
-FRAMES = 12  # distinct camera frames, handed over in turn
-ROOM = (np.array([-2.0, -2.5, 0.0]), np.array([3.0, 2.5, 2.8]))  # lo, hi corners (m)
-TABLE = (np.array([-0.9, 0.5, 0.0]), np.array([-0.3, 1.3, 0.75]))  # a box on the floor
-#: panda-shelf's shelf (meshes/shelf.obj at x = 0.45 m) as its seven 0.02 m plates: four
-#: boards (bottoms at z = 0, 0.30, 0.62, 0.88 m), the back panel and two sides. Its
-#: compartments stay open, so the scenario's goal inside the middle one stays reachable.
-_SHELF_AT = np.array([0.45, 0.0, 0.0])
-SHELF_PLATES = tuple(
-    (np.array(lo) + _SHELF_AT, np.array(hi) + _SHELF_AT)
-    for lo, hi in [
-        *(([0.0, -0.4, z], [0.3, 0.4, z + 0.02]) for z in (0.0, 0.30, 0.62, 0.88)),
-        ([0.28, -0.4, 0.0], [0.3, 0.4, 0.9]),
-        ([0.0, -0.4, 0.0], [0.3, -0.38, 0.9]),
-        ([0.0, 0.38, 0.0], [0.3, 0.4, 0.9]),
-    ]
-)
-CAMERA_AT = np.array([2.2, -1.8, 1.9])
-CAMERA_LOOKS_AT = np.array([0.3, 0.0, 0.5])
-
-
-# --------------------------------------------------------------------------- clouds
-
-
-def _box_surface(lo: NDArray[np.float64], hi: NDArray[np.float64], n: int, rng: Any) -> Any:
-    """``n`` points on the faces of box [lo, hi], area-weighted."""
-    ext = hi - lo
-    areas = np.array([ext[1] * ext[2], ext[0] * ext[2], ext[0] * ext[1]] * 2)
-    face = rng.choice(6, size=n, p=areas / areas.sum())
-    p = lo + rng.uniform(0.0, 1.0, size=(n, 3)) * ext
-    for f in range(6):
-        m = face == f
-        axis = f % 3
-        p[m, axis] = lo[axis] if f < 3 else hi[axis]
-    return p
-
-
-def room_points(n: int = ROOM_POINTS, seed: int = 3) -> NDArray[np.float64]:
-    """A scanned room around the robot: floor (1 cm below the base), walls, ceiling and
-    a table, ``n`` points with 2 mm noise."""
-    rng = np.random.default_rng(seed)
-    lo, hi = ROOM[0] - np.array([0.0, 0.0, 0.01]), ROOM[1]
-    k = n // 10
-    pts = np.vstack([_box_surface(lo, hi, n - k, rng), _box_surface(*TABLE, k, rng)])
-    return np.asarray(pts + rng.normal(scale=0.002, size=pts.shape))
-
-
-def _ray_box(o: Any, d: Any, lo: Any, hi: Any) -> Any:
-    """Entry distance of rays ``o + t d`` into box [lo, hi] (inf where they miss)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t1 = (lo - o) / d
-        t2 = (hi - o) / d
-    tn = np.nanmax(np.minimum(t1, t2), axis=1)
-    tf = np.nanmin(np.maximum(t1, t2), axis=1)
-    hit = (tf >= tn) & (tf > 0)
-    return np.where(hit, np.where(tn > 0, tn, np.inf), np.inf)
-
-
-def _ray_room(o: Any, d: Any) -> Any:
-    """Exit distance of rays from inside the room (the far wall, floor or ceiling)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.where(d > 0, (ROOM[1] - o) / d, (ROOM[0] - o) / d)
-    t[~np.isfinite(t)] = np.inf
-    return t.min(axis=1)
-
-
-def camera_pose() -> tuple[NDArray[np.float64], float]:
-    """The camera's optical frame (x right, y down, z forward) → world, and its focal
-    length (pixels): 640×480 pixels, 60° wide, pixel ``(u, v)`` looking along
-    ``(u − 319.5, v − 239.5, f)``."""
-    fwd = CAMERA_LOOKS_AT - CAMERA_AT
-    fwd /= np.linalg.norm(fwd)
-    right = np.cross(fwd, [0.0, 0.0, 1.0])
-    right /= np.linalg.norm(right)
-    up = np.cross(right, fwd)
-    T = np.eye(4)
-    T[:3, :3] = np.column_stack([right, -up, fwd])
-    T[:3, 3] = CAMERA_AT
-    return T, 0.5 * CAMERA_SIZE[0] / math.tan(math.radians(30.0))
-
-
-def camera_depth(k: int, seed: int = 5) -> NDArray[np.float64]:
-    """Frame ``k`` of :func:`camera_frame` as the camera's depth image (480 × 640, m
-    along the optical axis of :func:`camera_pose`)."""
-    T, _ = camera_pose()
-    pts = camera_frame(k, seed).astype(np.float64)
-    depth = (pts - CAMERA_AT) @ T[:3, 2]
-    return depth.reshape(CAMERA_SIZE[1], CAMERA_SIZE[0])
-
-
-def camera_frame(k: int, seed: int = 5) -> NDArray[np.float32]:
-    """Depth frame ``k``: 640×480 pinhole rays (60° wide) from :data:`CAMERA_AT`, the
-    first hit of each in the room, the table, the shelf's plates or a person (a 0.2 m
-    radius, 1.75 m cylinder approximated by its bounding box) walking past, 4 mm noise;
-    every ray hits (the room is closed): 307 200 points, float32 as a camera gives them."""
-    w, h = CAMERA_SIZE
-    T, f = camera_pose()
-    right, up, fwd = T[:3, 0], -T[:3, 1], T[:3, 2]
-    u, v = np.meshgrid(np.arange(w) - w / 2 + 0.5, np.arange(h) - h / 2 + 0.5)
-    d = fwd * f + right * u.reshape(-1, 1) - up * v.reshape(-1, 1)
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    o = np.broadcast_to(CAMERA_AT, d.shape)
-    phase = 2.0 * math.pi * k / FRAMES
-    person = np.array([1.2 + 0.3 * math.cos(phase), -0.9 + 0.6 * math.sin(phase), 0.0])
-    body = (person - np.array([0.2, 0.2, 0.0]), person + np.array([0.2, 0.2, 1.75]))
-    t = _ray_room(o, d)
-    for lo, hi in (TABLE, *SHELF_PLATES, body):
-        t = np.minimum(t, _ray_box(o, d, lo, hi))
-    rng = np.random.default_rng([seed, k])
-    pts = o + d * (t + rng.normal(scale=0.004, size=t.shape))[:, None]
-    return pts.astype(np.float32)
 
 
 # --------------------------------------------------------------------------- builds
@@ -335,24 +266,6 @@ def loop_scene(
         scene, robot, tool_links=arm.converter.tool_links, margins=arm.margins
     )
     return arm, converter, which
-
-
-def thread_counters() -> tuple[Any, bool]:
-    """A function giving the calling thread's (voluntary, involuntary) context switches
-    and page faults so far, and whether it counts them (Linux's ``RUSAGE_THREAD``;
-    elsewhere (0, 0, 0))."""
-    try:
-        import resource
-
-        who = resource.RUSAGE_THREAD  # type: ignore[attr-defined,unused-ignore]
-    except (ImportError, AttributeError):
-        return (lambda: (0, 0, 0)), False
-
-    def switches() -> tuple[int, int, int]:
-        r = resource.getrusage(who)
-        return r.ru_nvcsw, r.ru_nivcsw, r.ru_minflt + r.ru_majflt
-
-    return switches, True
 
 
 #: What the camera thread hands over: ``feed(scene, k, stamp)`` puts frame ``k`` (taken
@@ -493,77 +406,7 @@ def _loop(
     )
 
 
-def slow_tick_classes(
-    tick_us: NDArray[np.float64],
-    during: NDArray[np.bool_],
-    switched: NDArray[np.int64],
-    *,
-    fifo: bool,
-    counted: bool = True,
-) -> dict[str, float]:
-    """The loop's ticks over the period :data:`DT`, classed by what its thread did in
-    them: ``tick_us`` (µs), ``during`` (a build was running), ``switched`` (per tick:
-    voluntary and involuntary context switches and page faults, :func:`thread_counters`;
-    ``counted`` False where the platform has none).
-
-    ``ticks_waited_for_build``: the slow ticks during a build in which the thread was
-    kept from running by something a build can cause — it blocked (a lock, the GIL, a
-    page fault behind a write-locked memory map) or, at normal priority (``fifo``
-    False), another thread took its core. Under ``SCHED_FIFO`` no normal thread (the
-    build's worker is one) can take its core: only the kernel's own stop-class and
-    real-time threads can (traced with ``perf sched`` in this loop: ``migration/1``
-    alone, microseconds at a time), so such a preemption is counted apart
-    (``slow_preempted_during_build``). Without counts every slow tick during a build
-    counts as waited."""
-    slow = tick_us > DT * 1e6
-    vol, invol, faults = switched[:, 0] > 0, switched[:, 1] > 0, switched[:, 2] > 0
-    if not counted:
-        vol = invol = np.ones(len(tick_us), np.bool_)
-    kept_off = vol | invol if not fifo else vol
-    out: dict[str, Any] = {
-        "slow_ticks": np.count_nonzero(slow),
-        "slow_ticks_during_build": np.count_nonzero(slow & during),
-        "ticks_waited_for_build": np.count_nonzero(slow & during & kept_off),
-        "slow_preempted_during_build": np.count_nonzero(slow & during & invol & ~vol),
-    }
-    if counted:
-        out |= {
-            "slow.waited": np.count_nonzero(slow & vol),
-            "slow.preempted": np.count_nonzero(slow & ~vol & invol),
-            "slow.charged": np.count_nonzero(slow & ~vol & ~invol),
-            "slow.faulted": np.count_nonzero(slow & faults),
-            "page_faults": switched[:, 2].sum(),
-            "ticks_faulted": np.count_nonzero(faults),
-        }
-    return {k: float(v) for k, v in out.items()}
-
-
 # --------------------------------------------------------------------------- the machine
-
-
-def stall_gaps(seconds: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Run a bare busy loop of clock reads for ``seconds`` on this thread; every gap
-    between two reads longer than :data:`STALL_GAP`: its wall time and the thread's
-    CPU time over it (µs). A gap whose CPU time is (nearly) its wall time is a stall
-    of the machine: the thread was charged for the time but ran none of its code (the
-    hypervisor did not run the virtual CPU, or an interrupt took it); a gap with
-    little CPU time is the scheduler running another thread."""
-    wall_ns, cpu_ns = time.perf_counter_ns, time.thread_time_ns
-    limit = int(STALL_GAP * 1e9)
-    gaps: list[tuple[int, int]] = []
-    t_prev, c_prev = wall_ns(), cpu_ns()
-    c_before = c_prev
-    end = t_prev + int(seconds * 1e9)
-    while t_prev < end:
-        t, c = wall_ns(), cpu_ns()
-        if t - t_prev > limit:
-            # the CPU clock over this gap and the one before it: a pause between the
-            # previous wall and CPU reads falls in this wall gap but in the previous
-            # CPU window (the two clocks cannot be read at one instant)
-            gaps.append((t - t_prev, c - c_before))
-        t_prev, c_before, c_prev = t, c_prev, c
-    arr = np.array(gaps, dtype=np.float64).reshape(-1, 2) * 1e-3
-    return arr[:, 0], arr[:, 1]
 
 
 def _machine(rep: BenchReport, quick: bool) -> None:
