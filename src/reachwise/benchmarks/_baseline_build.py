@@ -1,4 +1,4 @@
-"""The ingestion path this issue started from (commit 9be9138), kept for
+"""The ingestion path of commit 9be9138 (before the ingestion worker), kept for
 ``reachwise bench realtime`` only: the baseline its build figures are compared with.
 
 A frame became a :class:`~reachwise.geometry.cloud.PointCloud` (a copy and a NaN check

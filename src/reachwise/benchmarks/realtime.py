@@ -4,8 +4,8 @@ One run measures:
 
 1. **Index builds** of a 300 000-point camera frame and a 1 000 000-point room scan,
    what the ingestion worker does per hand-over (check and copy the points, build the
-   tree: :func:`reachwise.distance.ingest.ready_cloud`), against the path this issue
-   started from (a :class:`~reachwise.geometry.cloud.PointCloud` copy and NaN check,
+   tree: :func:`reachwise.distance.ingest.ready_cloud`), against the path of commit
+   9be9138 (a :class:`~reachwise.geometry.cloud.PointCloud` copy and NaN check,
    a second copy, the tree of commit 9be9138, an inverse map and a mean:
    :mod:`reachwise.benchmarks._baseline_build`), interleaved rep by rep. Wall time
    (``build.<n>.new`` / ``.old``) and the thread's CPU time (``..._cpu``): the

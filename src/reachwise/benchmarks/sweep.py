@@ -1,6 +1,6 @@
 """``reachwise bench sweep``: the topology sweep (P-II Fig. 1, Table 2) and its scaling.
 
-Three figures (issue "Topology synthesis and the distributed design sweep"):
+Three figures:
 
 * ``p2`` — the six P-II topologies (``p2-man1`` … ``p2-man6``) × 3 runs on the complete
   ``tunnel-87`` task (one round, as in P-II §5: every topology on all 87 points), on all
