@@ -315,90 +315,11 @@ def load_log(folder: str | Path, scenario: Scenario | str | Path | None = None) 
     they are unbounded (``±inf``) and ``extras["limits"]`` says so. Missing or
     unreadable files raise :class:`~reachwise.errors.InputError` naming the file.
     """
-    src = Path(folder)
-    npz_path, sum_path = src / "log.npz", src / "summary.json"
-    for p in (npz_path, sum_path):
-        if not p.is_file():
-            raise InputError(str(p), "", "missing: not a simulation log folder")
-    try:
-        meta = json.loads(sum_path.read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError(str(sum_path), "", f"unreadable: {exc}") from None
-    for key in ("scenario", "avoidance", "dt"):
-        if not isinstance(meta, dict) or key not in meta:
-            raise InputError(str(sum_path), key, "missing")
-    try:
-        with np.load(npz_path, allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}
-    except (OSError, ValueError) as exc:
-        raise InputError(str(npz_path), "", f"unreadable: {exc}") from None
-    for key in ("t", "distance", "signed", "margins", "pairs"):
-        if key not in arrays:
-            raise InputError(str(npz_path), key, "missing")
+    meta, arrays = _read_log_files(Path(folder))
     robots = tuple(k[: -len(".q")] for k in arrays if k.endswith(".q"))
-    per: dict[str, dict[str, NDArray[Any]]] = {}
-    for field_ in ("q", "qdot", "command", "tool", "state", "goal_index"):
-        per[field_] = {}
-        for r in robots:
-            key = f"{r}.{field_}"
-            if key not in arrays:
-                raise InputError(str(npz_path), key, "missing")
-            per[field_][r] = arrays[key]
-    objects = {
-        k[len("object.") : -len(".pose")]: arrays[k]
-        for k in arrays
-        if k.startswith("object.") and k.endswith(".pose")
-    }
-    frames = {
-        k[len("sensor.") : -len(".frame")]: arrays[k]
-        for k in arrays
-        if k.startswith("sensor.") and k.endswith(".frame")
-    }
-    true_pairs = tuple(str(p) for p in arrays.get("true_pairs", ()))
-    true_distance = arrays.get("true_distance", np.zeros((arrays["t"].size, 0)))
+    per = _per_robot(arrays, robots, str(Path(folder) / "log.npz"))
     extras: dict[str, Any] = dict(meta.get("extras") or {})
-    lower: dict[str, NDArray[np.float64]] = {}
-    upper: dict[str, NDArray[np.float64]] = {}
-    vmax: dict[str, NDArray[np.float64]] = {}
-    robot_models: dict[str, Robot] = {}
-    sc: Scenario | None = None
-    from reachwise.sim.scenarios import builtin_scenarios
-
-    if scenario is not None:
-        sc = load_scenario(scenario)
-    elif meta["scenario"] in builtin_scenarios():
-        sc = load_scenario(meta["scenario"])
-    if sc is not None:
-        robot_models = {rs.name: robot_of(rs, sc) for rs in sc.spec.robots}
-    for r in robots:
-        n = per["q"][r].shape[1] if per["q"][r].ndim == 2 else 0
-        model = robot_models.get(r)
-        if all(f"{r}.{k}" in arrays for k in ("lower", "upper", "vmax")):  # saved in the log
-            lower[r], upper[r] = arrays[f"{r}.lower"], arrays[f"{r}.upper"]
-            vmax[r] = arrays[f"{r}.vmax"]
-        elif model is not None and model.n == n:
-            lower[r], upper[r] = np.asarray(model.lower), np.asarray(model.upper)
-            vmax[r] = np.asarray(model.vmax)
-        else:
-            lower[r], upper[r] = np.full(n, -np.inf), np.full(n, np.inf)
-            vmax[r] = np.full(n, np.inf)
-            extras["limits"] = "unknown: the log's scenario was not found; limits are ±inf"
-    events = tuple(
-        Event(float(e["t"]), str(e["robot"]), str(e["kind"]), str(e["text"]))
-        for e in meta.get("events", [])
-    )
-    goals = tuple(
-        GoalRecord(
-            str(g["robot"]),
-            int(g["index"]),
-            str(g["name"]),
-            float(g["work"]),
-            None if g["reached_at"] is None else float(g["reached_at"]),
-            float(g["position_error"]),
-            float(g["orientation_error"]),
-        )
-        for g in meta.get("goals", [])
-    )
+    lower, upper, vmax = _limits(arrays, robots, per["q"], _log_robots(meta, scenario), extras)
     fc = meta.get("first_collision")
     return SimulationLog(
         scenario=str(meta["scenario"]),
@@ -419,8 +340,11 @@ def load_log(folder: str | Path, scenario: Scenario | str | Path | None = None) 
         lower=lower,
         upper=upper,
         vmax=vmax,
-        events=events,
-        goals=goals,
+        events=tuple(
+            Event(float(e["t"]), str(e["robot"]), str(e["kind"]), str(e["text"]))
+            for e in meta.get("events", [])
+        ),
+        goals=_goal_records(meta),
         first_collision=None if fc is None else float(fc),
         first_collision_pair=meta.get("first_collision_pair"),
         joint_names={
@@ -429,8 +353,116 @@ def load_log(folder: str | Path, scenario: Scenario | str | Path | None = None) 
             if f"{r}.joint_names" in arrays
         },
         extras=extras,
-        object_poses=objects,
-        true_pairs=true_pairs,
-        true_distance=true_distance,
-        frames=frames,
+        object_poses=_named(arrays, "object.", ".pose"),
+        true_pairs=tuple(str(p) for p in arrays.get("true_pairs", ())),
+        true_distance=arrays.get("true_distance", np.zeros((arrays["t"].size, 0))),
+        frames=_named(arrays, "sensor.", ".frame"),
+    )
+
+
+def _read_log_files(src: Path) -> tuple[dict[str, Any], dict[str, NDArray[Any]]]:
+    """``summary.json`` and the arrays of ``log.npz`` in ``src``, each checked for the
+    keys every log has; a missing or unreadable file or key is an ``InputError``."""
+    npz_path, sum_path = src / "log.npz", src / "summary.json"
+    for p in (npz_path, sum_path):
+        if not p.is_file():
+            raise InputError(str(p), "", "missing: not a simulation log folder")
+    try:
+        meta = json.loads(sum_path.read_text())
+    except (OSError, ValueError) as exc:
+        raise InputError(str(sum_path), "", f"unreadable: {exc}") from None
+    for key in ("scenario", "avoidance", "dt"):
+        if not isinstance(meta, dict) or key not in meta:
+            raise InputError(str(sum_path), key, "missing")
+    try:
+        with np.load(npz_path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except (OSError, ValueError) as exc:
+        raise InputError(str(npz_path), "", f"unreadable: {exc}") from None
+    for key in ("t", "distance", "signed", "margins", "pairs"):
+        if key not in arrays:
+            raise InputError(str(npz_path), key, "missing")
+    return meta, arrays
+
+
+def _per_robot(
+    arrays: dict[str, NDArray[Any]], robots: tuple[str, ...], source: str
+) -> dict[str, dict[str, NDArray[Any]]]:
+    """``{field: {robot: array}}`` of the per-robot arrays (``<robot>.<field>``)."""
+    per: dict[str, dict[str, NDArray[Any]]] = {}
+    for field_ in ("q", "qdot", "command", "tool", "state", "goal_index"):
+        per[field_] = {}
+        for r in robots:
+            key = f"{r}.{field_}"
+            if key not in arrays:
+                raise InputError(source, key, "missing")
+            per[field_][r] = arrays[key]
+    return per
+
+
+def _named(arrays: dict[str, NDArray[Any]], prefix: str, suffix: str) -> dict[str, NDArray[Any]]:
+    """``{name: array}`` of the arrays keyed ``<prefix><name><suffix>``."""
+    return {
+        k[len(prefix) : -len(suffix)]: arrays[k]
+        for k in arrays
+        if k.startswith(prefix) and k.endswith(suffix)
+    }
+
+
+def _log_robots(meta: dict[str, Any], scenario: Scenario | str | Path | None) -> dict[str, Robot]:
+    """The robots of ``scenario``, or of the built-in scenario the log names (none
+    when it names no built-in one)."""
+    from reachwise.sim.scenarios import builtin_scenarios
+
+    sc: Scenario | None = None
+    if scenario is not None:
+        sc = load_scenario(scenario)
+    elif meta["scenario"] in builtin_scenarios():
+        sc = load_scenario(meta["scenario"])
+    if sc is None:
+        return {}
+    return {rs.name: robot_of(rs, sc) for rs in sc.spec.robots}
+
+
+def _limits(
+    arrays: dict[str, NDArray[Any]],
+    robots: tuple[str, ...],
+    q: dict[str, NDArray[Any]],
+    models: dict[str, Robot],
+    extras: dict[str, Any],
+) -> tuple[dict[str, NDArray[np.float64]], ...]:
+    """Each robot's joint limits and speed bounds (lower, upper, vmax): saved in the
+    log, else its model's in ``models``, else unbounded (noted in ``extras``)."""
+    lower: dict[str, NDArray[np.float64]] = {}
+    upper: dict[str, NDArray[np.float64]] = {}
+    vmax: dict[str, NDArray[np.float64]] = {}
+    for r in robots:
+        n = q[r].shape[1] if q[r].ndim == 2 else 0
+        model = models.get(r)
+        if all(f"{r}.{k}" in arrays for k in ("lower", "upper", "vmax")):  # saved in the log
+            lower[r], upper[r] = arrays[f"{r}.lower"], arrays[f"{r}.upper"]
+            vmax[r] = arrays[f"{r}.vmax"]
+        elif model is not None and model.n == n:
+            lower[r], upper[r] = np.asarray(model.lower), np.asarray(model.upper)
+            vmax[r] = np.asarray(model.vmax)
+        else:
+            lower[r], upper[r] = np.full(n, -np.inf), np.full(n, np.inf)
+            vmax[r] = np.full(n, np.inf)
+            extras["limits"] = "unknown: the log's scenario was not found; limits are ±inf"
+    return lower, upper, vmax
+
+
+def _goal_records(meta: dict[str, Any]) -> tuple[GoalRecord, ...]:
+    """The goal records of ``summary.json``."""
+    return tuple(
+        GoalRecord(
+            str(g["robot"]),
+            int(g["index"]),
+            str(g["name"]),
+            float(g["work"]),
+            None if g["reached_at"] is None else float(g["reached_at"]),
+            float(g["position_error"]),
+            float(g["orientation_error"]),
+        )
+        for g in meta.get("goals", [])
     )
