@@ -135,7 +135,11 @@ _SIG = [
 @njit(_SIG, cache=True, nogil=True)
 def _thin(points, voxel):  # type: ignore[no-untyped-def]
     """``(kept points, status)``: status 0 done, 1 a coordinate is not finite, 2 the
-    grid is too fine for 62-bit voxel numbers (the caller falls back)."""
+    grid is too fine for 62-bit voxel numbers (the caller falls back). One compiled
+    function on purpose: its three passes (each point's cell and the grid's bounds;
+    the voxel numbers and their order; each voxel's point nearest its centroid) share
+    the buffers allocated once for the cloud, which helpers would pass around; the
+    sorts it calls are compiled helpers of their own."""
     n = points.shape[0]
     pts = np.empty((n, 3))
     cell = np.empty((n, 3), np.int64)

@@ -120,7 +120,10 @@ SETTINGS_SPEC = {
 
 @njit(cache=True)
 def _iterate(chain, target, bounds, settings, q0):  # type: ignore[no-untyped-def]
-    """The iteration of :func:`ik_loop` (below) on named groups."""
+    """The iteration of :func:`ik_loop` (below) on named groups. One compiled
+    function on purpose: the iterate, the error, the damped step and its clamping to
+    the joint bounds share their work arrays, allocated once per solve, and numba
+    would pass them through memory at every helper call inside the loop."""
     kind = chain.kind
     qidx = chain.qidx
     classic = chain.classic
