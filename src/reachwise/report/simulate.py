@@ -282,41 +282,7 @@ def simulation_html(
     ``baseline`` and ``reference`` when run) as HTML."""
     spec = scenario.spec
     main = next(iter(logs.values()))
-    robots = ", ".join(f"{r.name} ({r.robot}, {r.plant.kind} plant)" for r in spec.robots)
-    body: list[Raw] = [
-        section(
-            "Summary",
-            key_values(
-                {
-                    "scenario": spec.name,
-                    "description": spec.description or "–",
-                    "source": scenario.source,
-                    "robots": robots,
-                    "time step": f"{spec.dt * 1e3:.1f} ms",
-                    "watched pairs": f"{len(main.pairs)}, margins "
-                    + ", ".join(_cm(float(m)) for m in np.unique(main.margins)),
-                    "environment cloud": "none" if cloud is None else f"{len(cloud)} points",
-                }
-            ),
-            table(
-                [
-                    "run",
-                    "plant",
-                    "goals",
-                    "min distance",
-                    "first collision",
-                    "limits held",
-                    "speeds held",
-                    "stalls",
-                    "simulated",
-                ],
-                outcome_rows(logs),
-                id="outcome",
-                left=(0, 1, 4),
-            ),
-            id="summary",
-        )
-    ]
+    body: list[Raw] = [_summary(scenario, logs, cloud)]
     entry = _THESIS.get(main.scenario)
     if entry is not None:
         key, make = entry
@@ -332,10 +298,64 @@ def simulation_html(
     body += [
         section("Goals", _goals(logs), _legs(logs), id="goals-section"),
         section("Distances", _pairs(logs), id="distances"),
+        *_event_sections(logs),
     ]
+    if figures is None:
+        body.append(section("Figures", para("Figures were not drawn (--no-figures).", "note")))
+    elif figures:
+        parts = [figure(src, _FIGURES.get(n, n)) for n, src in figures.items()]
+        body.append(section("Figures", *parts, id="figures"))
+    return page(f"Simulation: {spec.name}", "Collision avoidance (thesis §3.3)", body)
+
+
+def _summary(
+    scenario: Scenario, logs: Mapping[str, SimulationLog], cloud: NDArray[np.float64] | None
+) -> Raw:
+    """The report's first section: the scenario, its robots and pairs, and each run's
+    outcome in one row."""
+    spec = scenario.spec
+    main = next(iter(logs.values()))
+    robots = ", ".join(f"{r.name} ({r.robot}, {r.plant.kind} plant)" for r in spec.robots)
+    return section(
+        "Summary",
+        key_values(
+            {
+                "scenario": spec.name,
+                "description": spec.description or "–",
+                "source": scenario.source,
+                "robots": robots,
+                "time step": f"{spec.dt * 1e3:.1f} ms",
+                "watched pairs": f"{len(main.pairs)}, margins "
+                + ", ".join(_cm(float(m)) for m in np.unique(main.margins)),
+                "environment cloud": "none" if cloud is None else f"{len(cloud)} points",
+            }
+        ),
+        table(
+            [
+                "run",
+                "plant",
+                "goals",
+                "min distance",
+                "first collision",
+                "limits held",
+                "speeds held",
+                "stalls",
+                "simulated",
+            ],
+            outcome_rows(logs),
+            id="outcome",
+            left=(0, 1, 4),
+        ),
+        id="summary",
+    )
+
+
+def _event_sections(logs: Mapping[str, SimulationLog]) -> list[Raw]:
+    """The runs' stalls, and every event folded away (none when there are none)."""
+    out: list[Raw] = []
     stalls = [(lab, e) for lab, log in logs.items() for e in log.events if e.kind == "stalled"]
     if stalls:
-        body.append(
+        out.append(
             section(
                 "Stalls",
                 table(
@@ -351,7 +371,7 @@ def simulation_html(
         for e in log.events
     ]
     if ev:
-        body.append(
+        out.append(
             section(
                 "Events",
                 details(
@@ -365,12 +385,7 @@ def simulation_html(
                 ),
             )
         )
-    if figures is None:
-        body.append(section("Figures", para("Figures were not drawn (--no-figures).", "note")))
-    elif figures:
-        parts = [figure(src, _FIGURES.get(n, n)) for n, src in figures.items()]
-        body.append(section("Figures", *parts, id="figures"))
-    return page(f"Simulation: {spec.name}", "Collision avoidance (thesis §3.3)", body)
+    return out
 
 
 def simulation_figures(
