@@ -194,36 +194,7 @@ def topology_html(
     """The sweep report as HTML; ``designs`` are ``write_report``'s entries (rank,
     topology, yaml, urdf, figure): their figures are embedded."""
     cfg = result.config
-    task = result.task
-    sub = (
-        "none (one round on the complete task)"
-        if result.subset is None
-        else (
-            f"{len(result.subset)} descriptive points (round 1), top {cfg.top} feasible to the "
-            f"complete task (round 2)"
-        )
-    )
-    body: list[Raw] = [
-        section(
-            "Summary",
-            key_values(
-                {
-                    "task": f"{task.name}: {len(task)} points",
-                    "topologies": f"{len(result.topologies)}",
-                    "subset": sub,
-                    "runs": f"{cfg.runs} per topology and round (seeds {cfg.seed}–"
-                    f"{cfg.seed + cfg.runs - 1}), solver {cfg.solver}",
-                    "ranked by": f"{cfg.rank_key} (GCI = mean LCI, P-II Eq. 38; KCI = worst "
-                    "LCI, Eq. 39; mean = (GCI + KCI)/2)",
-                    "advanced to the complete task": ", ".join(result.advanced) or "none",
-                    "this invocation": f"{result.new_items} runs done now, {result.stored_items} "
-                    "found in the results store",
-                    "sweep id": result.sweep_id,
-                }
-            ),
-            id="summary",
-        )
-    ]
+    body: list[Raw] = [_summary(result)]
     comp = _comparison(result)
     if comp is not None:
         body.append(
@@ -259,32 +230,72 @@ def topology_html(
                 ),
             )
         )
-    if figures:
-        parts = [
-            figure(
-                indices_figure(result),
-                "GCI and KCI of every topology next to P-II "
-                "Table 2 (black marks) where it is one of P-II's six.",
-            )
-        ]
-        for d in designs:
-            if d.get("figure"):
-                parts.append(
-                    figure(
-                        Path(d["figure"]),
-                        f"#{d['rank']} {d['topology']}: the "
-                        "optimized design at every other task point (P-II "
-                        "Figs. 3–4; green: pose reached).",
-                    )
-                )
-        body.append(section("Figures", *parts, id="figures"))
-    else:
-        body.append(section("Figures", para("Figures were not drawn (--no-figures).", "note")))
+    body.append(
+        _figures(result, designs)
+        if figures
+        else section("Figures", para("Figures were not drawn (--no-figures).", "note"))
+    )
     return page(
-        f"Topology sweep on {task.name}",
+        f"Topology sweep on {result.task.name}",
         "Topology synthesis and ranking (thesis §2.4, P-II)",
         body,
     )
+
+
+def _summary(result: SweepResult) -> Raw:
+    """The report's first section: the task, the topologies, the rounds and runs, the
+    ranking key and what this invocation computed."""
+    cfg = result.config
+    task = result.task
+    sub = (
+        "none (one round on the complete task)"
+        if result.subset is None
+        else (
+            f"{len(result.subset)} descriptive points (round 1), top {cfg.top} feasible to the "
+            f"complete task (round 2)"
+        )
+    )
+    return section(
+        "Summary",
+        key_values(
+            {
+                "task": f"{task.name}: {len(task)} points",
+                "topologies": f"{len(result.topologies)}",
+                "subset": sub,
+                "runs": f"{cfg.runs} per topology and round (seeds {cfg.seed}–"
+                f"{cfg.seed + cfg.runs - 1}), solver {cfg.solver}",
+                "ranked by": f"{cfg.rank_key} (GCI = mean LCI, P-II Eq. 38; KCI = worst "
+                "LCI, Eq. 39; mean = (GCI + KCI)/2)",
+                "advanced to the complete task": ", ".join(result.advanced) or "none",
+                "this invocation": f"{result.new_items} runs done now, {result.stored_items} "
+                "found in the results store",
+                "sweep id": result.sweep_id,
+            }
+        ),
+        id="summary",
+    )
+
+
+def _figures(result: SweepResult, designs: Sequence[Mapping[str, Any]]) -> Raw:
+    """The indices figure and each best design's figure (P-II Figs. 3–4)."""
+    parts = [
+        figure(
+            indices_figure(result),
+            "GCI and KCI of every topology next to P-II "
+            "Table 2 (black marks) where it is one of P-II's six.",
+        )
+    ]
+    for d in designs:
+        if d.get("figure"):
+            parts.append(
+                figure(
+                    Path(d["figure"]),
+                    f"#{d['rank']} {d['topology']}: the "
+                    "optimized design at every other task point (P-II "
+                    "Figs. 3–4; green: pose reached).",
+                )
+            )
+    return section("Figures", *parts, id="figures")
 
 
 def write_topology_report(
