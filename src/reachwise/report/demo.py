@@ -99,26 +99,7 @@ def headline(done: Mapping[str, Mapping[str, Any]]) -> list[tuple[object, ...]]:
         )
     t = done.get("topology")
     if t is not None:
-        ours = t["ranked"][0] if t["ranked"] else "none feasible"
-        solved = sum(1 for row in t["table"] if row["feasible"])
-        n_t = sum(thesis.P2_TABLE2.get(n) is not None for n in t["topologies"])
-        best = f"configuration {thesis.P2_BEST[-1]} ({thesis.P2_BEST})"
-        rows.append(
-            (
-                "P-II: best topology by GCI and KCI",
-                best,
-                ours,
-                "ours ranked by the mean of GCI and KCI",
-            )
-        )
-        rows.append(
-            (
-                "P-II: topologies with a solution",
-                f"{n_t} of {len(t['topologies'])}",
-                f"{solved} of {len(t['topologies'])}",
-                "ours: feasible in the last round each reached",
-            )
-        )
+        rows += _topology_rows(t)
     p3 = done.get("p3")
     if p3 is not None and "baseline" in p3:
         c = p3["baseline"]["first_collision_s"]
@@ -141,36 +122,64 @@ def headline(done: Mapping[str, Mapping[str, Any]]) -> list[tuple[object, ...]]:
         )
     p5 = done.get("p5")
     if p5 is not None and "baseline" in p5:
-        c = p5["baseline"]["first_collision_s"]
+        rows += _p5_rows(p5)
+    return rows
+
+
+def _topology_rows(t: Mapping[str, Any]) -> list[tuple[object, ...]]:
+    """P-II's rows of :func:`headline`: the best topology, and how many have a solution."""
+    ours = t["ranked"][0] if t["ranked"] else "none feasible"
+    solved = sum(1 for row in t["table"] if row["feasible"])
+    n_t = sum(thesis.P2_TABLE2.get(n) is not None for n in t["topologies"])
+    best = f"configuration {thesis.P2_BEST[-1]} ({thesis.P2_BEST})"
+    return [
+        (
+            "P-II: best topology by GCI and KCI",
+            best,
+            ours,
+            "ours ranked by the mean of GCI and KCI",
+        ),
+        (
+            "P-II: topologies with a solution",
+            f"{n_t} of {len(t['topologies'])}",
+            f"{solved} of {len(t['topologies'])}",
+            "ours: feasible in the last round each reached",
+        ),
+    ]
+
+
+def _p5_rows(p5: Mapping[str, Any]) -> list[tuple[object, ...]]:
+    """P-V's rows of :func:`headline`: both controllers, and the scanned cloud's size."""
+    rows: list[tuple[object, ...]] = []
+    c = p5["baseline"]["first_collision_s"]
+    rows.append(
+        (
+            "P-V: conventional controller",
+            "the grabber collides with the obstacle",
+            "no collision" if c is None else f"collides at {c:.2f} s",
+            "",
+        )
+    )
+    a = p5["avoidance"]
+    legs = a.get("legs_m", [])
+    there_back = f"; path {legs[0]:.2f} m there, {legs[1]:.2f} m back" if len(legs) > 1 else ""
+    rows.append(
+        (
+            "P-V: with avoidance",
+            "collision-free there and back; the way back has unwanted movements (occlusion gap)",
+            _sim_line("", a).lstrip(": ") + there_back,
+            "Figs. 4–5",
+        )
+    )
+    if p5.get("scan_points") is not None:
         rows.append(
             (
-                "P-V: conventional controller",
-                "the grabber collides with the obstacle",
-                "no collision" if c is None else f"collides at {c:.2f} s",
-                "",
+                "P-V: scanned cloud",
+                f"≈{thesis.P5_SCAN_POINTS} points",
+                f"{p5['scan_points']} points",
+                "Fig. 3",
             )
         )
-        a = p5["avoidance"]
-        legs = a.get("legs_m", [])
-        there_back = f"; path {legs[0]:.2f} m there, {legs[1]:.2f} m back" if len(legs) > 1 else ""
-        rows.append(
-            (
-                "P-V: with avoidance",
-                "collision-free there and back; the way back has "
-                "unwanted movements (occlusion gap)",
-                _sim_line("", a).lstrip(": ") + there_back,
-                "Figs. 4–5",
-            )
-        )
-        if p5.get("scan_points") is not None:
-            rows.append(
-                (
-                    "P-V: scanned cloud",
-                    f"≈{thesis.P5_SCAN_POINTS} points",
-                    f"{p5['scan_points']} points",
-                    "Fig. 3",
-                )
-            )
     return rows
 
 
