@@ -272,9 +272,35 @@ def run(quick: bool = False) -> BenchReport:
         f"{n} near queries, achieved separations {w['near_sep'].min():.3f}–"
         f"{w['near_sep'].max():.3f} m (median {np.median(w['near_sep']):.3f})"
     )
-
     fcl_query = _fcl_setup(part, env_pts)
-    ckd = _ckdtree_query(tree, part)
+    _near_queries(rep, a, b, near, fcl_query, _ckdtree_query(tree, part), quick)
+    _coherent(rep, a, b, fcl_query, quick)
+    _far(rep, a, b, near, tree, quick)
+    n_big = _big_environment(rep, a, b, near, quick)
+    _rebuild(rep, a, b, near, n_big)
+    # threads: default threading (here) vs every pool limited to 1 thread (child)
+    mine = _near_default_samples(quick)
+    child = _single_thread_child(quick)["samples"]
+    rep.add_samples("threads_default", mine)
+    rep.add_samples("threads_single", child)
+    rep.targets["default_over_single_thread"] = Target(
+        rep.ratio("threads_default", "threads_single"), 1.2
+    )
+    return rep
+
+
+def _near_queries(
+    rep: BenchReport,
+    a: PointCloud,
+    b: PointCloud,
+    near: list[NDArray[np.float64]],
+    fcl_query: Callable[[NDArray[np.float64]], object] | None,
+    ckd: Callable[[NDArray[np.float64]], float],
+    quick: bool,
+) -> None:
+    """The near queries: ours (default and thesis strategies) against cKDTree and FCL,
+    interleaved; brute force on a subset; ours checked exact against cKDTree."""
+    n = len(near)
     ours: dict[str, float] = {}
 
     def default(i: int) -> None:
@@ -324,7 +350,15 @@ def run(quick: bool = False) -> BenchReport:
         rep.ratio("default", "fcl")
         rep.targets["default_over_fcl"] = Target(rep.ratios["default_over_fcl"], 0.85)
 
-    # coherent 100 Hz trajectory, warm-started PairQuery vs fcl
+
+def _coherent(
+    rep: BenchReport,
+    a: PointCloud,
+    b: PointCloud,
+    fcl_query: Callable[[NDArray[np.float64]], object] | None,
+    quick: bool,
+) -> None:
+    """A coherent 100 Hz trajectory: the warm-started PairQuery against FCL."""
     traj = trajectory(200 if quick else 2000)
     pq = PairQuery(a, b, margin=MARGIN)
     tfns: dict[str, Callable[[int], object]] = {"coherent_default": lambda i: pq(traj[i])}
@@ -341,7 +375,18 @@ def run(quick: bool = False) -> BenchReport:
             rep.ratios["coherent_default_over_coherent_fcl"], 0.75
         )
 
-    # far queries
+
+def _far(
+    rep: BenchReport,
+    a: PointCloud,
+    b: PointCloud,
+    near: list[NDArray[np.float64]],
+    tree: Any,
+    quick: bool,
+) -> None:
+    """Far queries (beyond the margin) against near ones, interleaved."""
+    n = len(near)
+    part = a.points
     rng = np.random.default_rng(4)
     far, _ = random_poses(tree, part, 60 if quick else 1000, (MARGIN, 2.0), rng)
     fs = time_interleaved(
@@ -355,7 +400,13 @@ def run(quick: bool = False) -> BenchReport:
         rep.add_samples(k, s)
     rep.targets["far_over_near"] = Target(rep.ratio("far_default", "near_default"), 0.4)
 
-    # 1 M-point environment (same scene, dense)
+
+def _big_environment(
+    rep: BenchReport, a: PointCloud, b: PointCloud, near: list[NDArray[np.float64]], quick: bool
+) -> int:
+    """The same scene with a 1 M-point environment (100 000 when quick): its index build
+    and its queries against the small one's. Returns its number of points."""
+    n = len(near)
     n_big = 100_000 if quick else 1_000_000
     big = PointCloud(environment_points(n_big, seed=5), name="environment-1M")
     t0 = time.perf_counter()
@@ -373,8 +424,13 @@ def run(quick: bool = False) -> BenchReport:
     rep.targets["big_over_small"] = Target(rep.ratio("big_default", "small_default"), 2.0)
     if quick:
         rep.notes.append(f"quick mode: the large environment has {n_big} points, not 1 M")
+    return n_big
 
-    # index rebuild when a scene's environment is replaced
+
+def _rebuild(
+    rep: BenchReport, a: PointCloud, b: PointCloud, near: list[NDArray[np.float64]], n_big: int
+) -> None:
+    """The index rebuild when a scene's environment is replaced by a new scan."""
     scene = Scene()
     scene.add_object("environment", b)
     scene.add_object("part", a, pose=near[0])
@@ -385,13 +441,3 @@ def run(quick: bool = False) -> BenchReport:
     rebuild = time.perf_counter() - t0
     rep.metrics["scene.replace_cloud_s"] = rebuild
     rep.targets["replace_cloud_1M_s"] = Target(rebuild, 1.0)
-
-    # threads: default threading (here) vs every pool limited to 1 thread (child)
-    mine = _near_default_samples(quick)
-    child = _single_thread_child(quick)["samples"]
-    rep.add_samples("threads_default", mine)
-    rep.add_samples("threads_single", child)
-    rep.targets["default_over_single_thread"] = Target(
-        rep.ratio("threads_default", "threads_single"), 1.2
-    )
-    return rep

@@ -175,17 +175,7 @@ def mujoco_model(
             raise InputError(src, name, f"must be a finite value > 0, got {v}")
     if not (math.isfinite(min_inertia) and min_inertia >= 0):
         raise InputError(src, "min_inertia", f"must be >= 0, got {min_inertia}")
-
-    spec = mujoco.MjSpec()
-    spec.modelname = robot.name
-    spec.compiler.degree = False
-    spec.compiler.boundmass = min_mass
-    spec.compiler.boundinertia = min_inertia
-    spec.option.timestep = timestep
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    spec.option.gravity = [0.0, 0.0, -9.81 if gravity else 0.0]
-    spec.option.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
-
+    spec = _new_spec(mujoco, robot.name, (min_mass, min_inertia), timestep, gravity)
     bodies, joint_names = _bodies(mujoco, spec, robot, damp)
     T_tool = np.asarray(robot.tool)
     bodies[-1].add_site(name="tool", pos=T_tool[:3, 3], quat=_quat(mujoco, T_tool))
@@ -196,7 +186,34 @@ def mujoco_model(
         model = spec.compile()
     except ValueError as exc:
         raise InputError(src, "mujoco", f"the MuJoCo model does not compile: {exc}") from None
-    body_ids = np.array([model.body(f"link_{i}").id for i in range(len(bodies))], dtype=np.int64)
+    return _compiled(robot, spec, model, len(bodies), joint_names)
+
+
+def _new_spec(
+    mujoco: Any, name: str, bounds: tuple[float, float], timestep: float, gravity: bool
+) -> Any:
+    """An empty ``MjSpec`` named ``name``: angles in radians, mass and inertia bounded
+    below by ``bounds`` (kg, kg·m²), the ``implicitfast`` integrator at ``timestep``
+    (s), gravity along −z (or none) and no contacts."""
+    spec = mujoco.MjSpec()
+    spec.modelname = name
+    spec.compiler.degree = False
+    spec.compiler.boundmass, spec.compiler.boundinertia = bounds
+    spec.option.timestep = timestep
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.option.gravity = [0.0, 0.0, -9.81 if gravity else 0.0]
+    spec.option.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+    return spec
+
+
+def _compiled(
+    robot: Robot, spec: Any, model: Any, n_bodies: int, joint_names: list[str]
+) -> MujocoRobot:
+    """The compiled ``model`` with the indices of its bodies (``link_i``), tool site,
+    joints' positions and velocities and the actuated joints' actuators (−1 for a
+    passive joint)."""
+    act = np.asarray(robot.actuated, dtype=bool)
+    body_ids = np.array([model.body(f"link_{i}").id for i in range(n_bodies)], dtype=np.int64)
     jids = [model.joint(nm).id for nm in joint_names]
     actuator_ids = np.full(robot.n, -1, dtype=np.int64)
     for k, name in enumerate(joint_names):
