@@ -39,6 +39,24 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(20171208)
 
 
+#: Markers of the suite's longest files (minutes of CPU each, one fixture shared by their
+#: tests): under pytest-xdist these files are handed out first.
+FIRST_UNDER_XDIST = ("docs", "wheel", "memory_scenarios")
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """In a pytest-xdist worker (our ``addopts``: ``--dist loadfile
+    --no-loadscope-reorder``, each file on one worker, files in collection order), move
+    the longest files to the front, keeping the random order of everything else: a
+    long file handed out last would keep one worker busy while the other idles. Every
+    worker sorts the same collection the same way, as xdist requires. A run without
+    workers keeps pytest-randomly's order as it is."""
+    if not hasattr(config, "workerinput"):
+        return
+    items.sort(key=lambda item: not any(item.get_closest_marker(m) for m in FIRST_UNDER_XDIST))
+
+
 def pytest_sessionstart(session: pytest.Session) -> None:
     """Print pytest-randomly's seed even under ``-q`` (its own header line is hidden
     there), so that a failing order can be replayed with ``pytest --randomly-seed=N``."""
