@@ -300,3 +300,44 @@ def test_the_benchmarks_per_ray_baseline_marks_what_the_memory_marks() -> None:
     _per_ray(state, depth, body, camera, T, np.array([*LOWER, cfg.voxel]))
     assert np.array_equal(state == 2, mem.state == OCC)
     assert (state == 1).sum() > 0
+
+
+def test_what_the_robot_hides_keeps_its_state_and_the_robot_casts_no_shadow() -> None:
+    """A camera on the z axis; the robot 1 m away covers the image's centre. Space it
+    hides keeps what was seen there before: free stays free, shadow stays shadow,
+    never-seen stays unknown; and nothing behind the robot's pixels becomes occupied or
+    shadow, even without a scene surface behind it."""
+    K = ViewIntrinsics(fx=60.0, fy=60.0, cx=39.5, cy=29.5, near=0.2, far=4.0)
+    T = np.eye(4)
+    cfg = MemoryConfig(voxel=0.05, shadow_depth=0.5, free_hold_s=0.0)
+    body = np.zeros((60, 80), dtype=bool)
+    body[15:45, 25:55] = True
+    robot = np.full((60, 80), np.nan)
+    robot[body] = 1.0
+    ahead, behind = [0.0, 0.0, 0.7], [0.0, 0.0, 1.8]  # in front of / behind the robot
+    # (hidden: the voxels between the robot and 2.9 m whose centre's pixel sees it)
+    # never seen: the robot alone (no scene surface anywhere) frees what lies in front
+    # of it and leaves everything behind it unknown
+    mem = SceneMemory([-1.0, -1.0, 0.5], [1.0, 1.0, 3.5], cfg)
+    mem.integrate(robot, T, K, t=0.0, body=body)
+    assert mem.state[mem.voxel_of(ahead)] == FREE
+    hidden = np.zeros(mem.shape, dtype=bool)
+    for key in zip(*np.indices(mem.shape).reshape(3, -1), strict=True):
+        c = mem.centre(key)
+        u = math.floor(K.fx * c[0] / c[2] + K.cx + 0.5)
+        v = math.floor(K.fy * c[1] / c[2] + K.cy + 0.5)
+        if 1.0 < c[2] < 2.9 and 0 <= u < 80 and 0 <= v < 60 and body[v, u]:
+            hidden[key] = True
+    assert hidden.any() and np.all(mem.state[hidden] == UNKNOWN)
+    # seen free (a wall at 3 m), then hidden by the robot: stays free
+    mem.integrate(np.full((60, 80), 3.0), T, K, t=0.1)
+    assert np.all(mem.state[hidden] == FREE)
+    mem.integrate(np.where(body, 1.0, 3.0), T, K, t=0.2, body=body)
+    assert np.all(mem.state[hidden] == FREE)
+    # a person at 1.5 m shadows what lies behind them; the robot then hides it: kept
+    person = np.full((60, 80), 3.0)
+    person[20:40, 30:50] = 1.5
+    mem.integrate(person, T, K, t=0.3)
+    assert mem.state[mem.voxel_of(behind)] == SHADOW
+    mem.integrate(np.where(body, 1.0, 3.0), T, K, t=0.4, body=body)
+    assert mem.state[mem.voxel_of(behind)] == SHADOW
