@@ -149,13 +149,30 @@ def _worst(problem: SynthesisProblem, ev: Evaluation) -> float:
     return float(max(np.max(ev.position_error / task.tol_position), np.max(ori)))
 
 
+#: Damping ``λ²`` (m², the rows' units) of the restoration's steps, tried in turn until
+#: one lowers the residual: the first is Gauss–Newton's (``λ → 0``).
+RESTORE_DAMPING = (1e-12, 1e-9, 1e-7, 1e-5, 1e-3)
+
+
+def _residual(ev: Evaluation, wx: Array) -> float:
+    """``½‖W_x e‖²``, the task residual the restoration lowers."""
+    e = ev.e * wx
+    return 0.5 * float(np.sum(e * e))
+
+
 def restore(
     problem: SynthesisProblem, z: Array, iterations: int = 6, fraction: float = 0.25
 ) -> tuple[Array, Evaluation]:
     """Gauss–Newton steps (bounded DLS, ``λ → 0``) from ``z`` until every pose is within
     ``fraction`` of its tolerance (or ``iterations`` are spent). The joints alone are
     moved first — the design stays what the improvement chose — and the design too
-    only if the joints cannot restore the poses. Returns the last iterate."""
+    only if the joints cannot restore the poses. Returns the last iterate.
+
+    A step is taken only if it lowers the residual ``½‖W_x e‖²``; otherwise it is damped
+    (Levenberg–Marquardt, ``RESTORE_DAMPING``), and the restoration stops when no damping
+    lowers it. Near a singular posture the undamped step is huge: on the sb60 in the
+    tunnel a residual of 0.06 mm moved joints by 1 rad to another posture of the same
+    pose, through the bodies' clearance, and so every trial of the improvement failed."""
     lo, hi = problem.bounds
     p, K, nf = problem.p, problem.K, problem.n_free_joints
     wx = row_weights(problem)
@@ -173,15 +190,20 @@ def restore(
         D, J = ev.D * wx[:, :, None], ev.J * wx[:, :, None]
         if i < joints_only:
             D = np.zeros_like(D)
-        bs = bounded_step(
-            D, J, problem.active_rows, ev.e * wx, 1e-12,
-            VariableBox(
-                (z[:p], z[p:].reshape(K, nf)), (lo[:p], lo[p:].reshape(K, nf)),
-                (hi[:p], hi[p:].reshape(K, nf)), (span[:p], span[p:].reshape(K, nf)),
-            ),
+        box = VariableBox(
+            (z[:p], z[p:].reshape(K, nf)), (lo[:p], lo[p:].reshape(K, nf)),
+            (hi[:p], hi[p:].reshape(K, nf)), (span[:p], span[p:].reshape(K, nf)),
         )  # fmt: skip
-        z = np.clip(z + np.concatenate([bs.design, bs.joints.ravel()]), lo, hi)
-        ev = problem.evaluate(z)
+        before = _residual(ev, wx)
+        for lam2 in RESTORE_DAMPING:
+            bs = bounded_step(D, J, problem.active_rows, ev.e * wx, lam2, box)
+            z_try = np.clip(z + np.concatenate([bs.design, bs.joints.ravel()]), lo, hi)
+            ev_try = problem.evaluate(z_try)
+            if _residual(ev_try, wx) < before:
+                break
+        else:
+            break  # no step lowers the residual
+        z, ev = z_try, ev_try
     return z, ev
 
 
@@ -267,6 +289,168 @@ def _two_loop(g: Array, pairs: list[tuple[Array, Array]]) -> Array:
     return q
 
 
+@dataclass(frozen=True)
+class _Guards:
+    """What every accepted iterate must keep: the walls' barriers (``_walls``) and the
+    kept indices' (``keep``). Called with a vector it returns the barriers' value, their
+    gradient and whether the vector keeps them all."""
+
+    problem: SynthesisProblem
+    workspace: Workspace | None
+    opt: ImproveOptions
+    clearance: ClearanceModel | None
+    objective: Objective
+    floors: dict[str, float]
+
+    def __call__(self, x: Array) -> tuple[float, Array, bool]:
+        value, g, ok = _walls(self.problem, x, self.workspace, self.opt, self.clearance)
+        if not self.floors or self.opt.keep_weight <= 0:
+            return value, g, ok and self._floors_hold(x)
+        v2, g2, ok2 = keep_barrier(
+            self.problem, x, self.floors, self.objective.bodies, self.objective.margin
+        )
+        w = self.opt.keep_weight
+        return value + w * v2, g + w * g2, ok and ok2
+
+    def _floors_hold(self, x: Array) -> bool:
+        obj = self.objective
+        now = kept_floors(self.problem, x, obj.keep, obj.bodies, obj.margin)
+        return all(OBJECTIVES[n] * (now[n] - f) >= 0 for n, f in self.floors.items())
+
+
+@dataclass(frozen=True)
+class _Context:
+    """The improvement's fixed data: the problem, the referenced objective, the options,
+    the guards, the variables' ``span`` and ``scale`` (``x = z / scale``) and the rows'
+    weights ``wx``."""
+
+    problem: SynthesisProblem
+    obj: Objective
+    opt: ImproveOptions
+    guards: _Guards
+    span: Array
+    scale: Array
+    wx: Array
+
+
+@dataclass(frozen=True)
+class _Direction:
+    """One iteration's search direction: ``d`` in scaled coordinates, the step ``w ∘ d``
+    in ``z``, the effective bounds (``_kinks``), the projected gradient ``gx`` that
+    makes the next curvature pair and the L-BFGS pairs it was built with."""
+
+    d: Array
+    step: Array
+    lo: Array
+    hi: Array
+    gx: Array
+    pairs: list[tuple[Array, Array]]
+
+
+def _direction(
+    ctx: _Context, z: Array, g: Array, terms: Terms, ev: Evaluation,
+    pairs: list[tuple[Array, Array]], last: tuple[Array, Array] | None,
+) -> _Direction:  # fmt: skip
+    """Step 2 of the module docstring: the scaled, bound-aware L-BFGS direction in the
+    null space of the task from the gradient ``g``, with the working set of the bounds
+    (a fixed variable whose multiplier has the wrong sign is released once, a free one
+    that the step drives out is fixed)."""
+    problem, opt, span, scale = ctx.problem, ctx.opt, ctx.span, ctx.scale
+    p, K, nf = problem.p, problem.K, problem.n_free_joints
+    active = problem.active_rows
+    Dx, Jx = ev.D * ctx.wx[:, :, None], ev.J * ctx.wx[:, :, None]
+    near = opt.active_band * span  # this close to a bound counts as at it
+    g, lo_e, hi_e = _kinks(problem, ctx.obj, terms, z, g, near)
+    lo_z, hi_z = z <= lo_e + near, z >= hi_e - near
+    # a variable at a bound that the descent −g pushes outward stays (weight 0)
+    w = scale * ~((lo_z & (g > 0)) | (hi_z & (g < 0)))
+    D, J = weighted(Dx, Jx, w[:p], w[p:].reshape(K, nf))
+    gx = _project(BlockSystem.build(D, J, active, 1e-12), w, w * g, p, active)
+    if last is not None:  # the curvature pair of the last accepted step
+        s_, y_ = z / scale - last[0], gx - last[1]
+        if float(s_ @ y_) > 1e-10 * float(np.linalg.norm(s_) * np.linalg.norm(y_)):
+            pairs = [*pairs[-7:], (s_, y_)]
+    movable = (span > 0) & (lo_e < hi_e)  # not a fixed parameter, not held at a kink
+    released = np.zeros(problem.size, dtype=np.bool_)
+    Df, Jf = weighted(Dx, Jx, scale[:p], scale[p:].reshape(K, nf))
+    for _ in range(opt.max_passes):  # each pass fixes or releases variables
+        D, J = weighted(Dx, Jx, w[:p], w[p:].reshape(K, nf))
+        sysn = BlockSystem.build(D, J, active, 1e-12)
+        gw = _project(sysn, w, w * g, p, active)
+        d = _project(sysn, w, -_two_loop(gw, pairs), p, active)
+        if float(gw @ d) >= 0:  # not a descent direction: steepest descent
+            d, pairs = -gw, []
+        step = w * d
+        out = (lo_z & (step < 0)) | (hi_z & (step > 0))
+        if out.any():
+            w = np.where(out, 0.0, w)  # coupling through Φ pushes it out: fix it too
+            continue
+        r = _reduced_gradient(sysn, Df, Jf, w, g, scale, active)
+        wrong = (w == 0) & movable & ~released & ((lo_z & (r < 0)) | (hi_z & (r > 0)))
+        if not wrong.any():
+            break
+        w = np.where(wrong, scale, w)
+        released |= wrong
+    return _Direction(d, step, lo_e, hi_e, gx, pairs)
+
+
+def _step_lengths(z: Array, di: _Direction, alpha: float, min_radius: float) -> list[float]:
+    """The projected search's trial lengths along ``di.step``: halving from ``alpha`` down
+    to the ratio test's length, where the first free variable meets its bound, and
+    below it down to ``min_radius`` (scaled). Steps past a bound are clipped there (the
+    restoration repairs the task): with ~K·n_f joints near their limits, stopping at the
+    first bound (one new bound per iteration) made the steps vanishingly short and ended
+    the improvement early."""
+    biggest = float(np.max(np.abs(di.d)))
+    step = di.step
+    with np.errstate(divide="ignore", invalid="ignore"):
+        room = np.where(
+            step < 0, (di.lo - z) / step, np.where(step > 0, (di.hi - z) / step, np.inf)
+        )
+    first = min(alpha, float(np.min(np.maximum(room, 0.0))))
+    trials = []
+    while alpha > first and alpha * biggest >= min_radius:
+        trials.append(alpha)
+        alpha *= 0.5
+    alpha = first
+    while alpha * biggest >= min_radius:
+        trials.append(alpha)
+        alpha *= 0.5
+    return trials
+
+
+@dataclass(frozen=True)
+class _Iterate:
+    """An accepted iterate: the vector, its evaluation, the objective's terms, the cost
+    (objective plus barriers) and the barriers' gradient."""
+
+    z: Array
+    ev: Evaluation
+    terms: Terms
+    cost: float
+    gwall: Array
+
+
+def _first_descent(
+    ctx: _Context, now: _Iterate, di: _Direction, trials: list[float]
+) -> tuple[_Iterate, float] | None:
+    """Step 3–4 of the module docstring: the first trial length whose restored vector
+    reaches every pose, keeps every guard and lowers the cost, with that length."""
+    opt = ctx.opt
+    for alpha in trials:
+        z_try, ev_try = restore(
+            ctx.problem, np.clip(now.z + alpha * di.step, di.lo, di.hi), opt.restore_iter,
+            opt.restore_tolerance,
+        )  # fmt: skip
+        if converged(ctx.problem, ev_try):
+            t_try = ctx.obj.terms(ctx.problem, z_try)
+            w_try, gw_try, in_try = ctx.guards(z_try)
+            c_try = ctx.obj.cost(t_try) + w_try
+            if in_try and c_try < now.cost:
+                return _Iterate(z_try, ev_try, t_try, c_try, gw_try), alpha
+    return None
+
+
 def improve(
     problem: SynthesisProblem,
     z0: Array,
@@ -285,138 +469,53 @@ def improve(
     opt = options or ImproveOptions()
     if clearance is not None and objective.bodies is None:
         objective = replace(objective, bodies=clearance)
-    bodies = objective.bodies
     lo, hi = problem.bounds
-    p, K, nf = problem.p, problem.K, problem.n_free_joints
     span = _spans(problem)
     # coordinates x = z / scale: each variable in units of its range; a posture's joints
     # weigh sqrt(K) more, since each posture carries 1/K of a mean over the task
     scale = np.where(span > 0, span, 1.0)
-    scale[p:] *= np.sqrt(K)
+    scale[problem.p :] *= np.sqrt(problem.K)
     z = np.clip(np.asarray(z0, dtype=np.float64), lo, hi)
     ev = problem.evaluate(z)
-    margin = objective.margin
-    floors = kept_floors(problem, z, objective.keep, bodies, margin)
-
-    def barriers(x: Array) -> tuple[float, Array, bool]:
-        """The walls' barriers and the kept indices', and whether ``x`` keeps all."""
-        value, g, ok = _walls(problem, x, workspace, opt, clearance)
-        if not floors or opt.keep_weight <= 0:
-            return value, g, ok and kept_floors_hold(x)
-        v2, g2, ok2 = keep_barrier(problem, x, floors, bodies, margin)
-        return value + opt.keep_weight * v2, g + opt.keep_weight * g2, ok and ok2
-
-    def kept_floors_hold(x: Array) -> bool:
-        now = kept_floors(problem, x, objective.keep, bodies, margin)
-        return all(OBJECTIVES[n] * (now[n] - f) >= 0 for n, f in floors.items())
-
+    floors = kept_floors(problem, z, objective.keep, objective.bodies, objective.margin)
+    guards = _Guards(problem, workspace, opt, clearance, objective, floors)
     if converged(problem, ev):  # every iterate from here on lies well inside the tolerance
         z1, ev1 = restore(problem, z, opt.restore_iter, opt.restore_tolerance)
-        if converged(problem, ev1) and barriers(z1)[2]:  # restoring may cost clearance
+        if converged(problem, ev1) and guards(z1)[2]:  # restoring may cost clearance
             z, ev = z1, ev1
     start = objective.terms(problem, z)
     obj = objective if objective.reference else objective.referenced(start)
-    terms = start
-    wall, gwall, inside = barriers(z)
+    wall, gwall, inside = guards(z)
     if not (converged(problem, ev) and inside):
         return ImproveOutcome(z, ev, start, start, obj, 0, 0, [], floors)
-    cost = obj.cost(terms) + wall
-    history = [cost]
-    wx = row_weights(problem)
-    active = problem.active_rows
+    ctx = _Context(problem, obj, opt, guards, span, scale, row_weights(problem))
+    now = _Iterate(z, ev, start, obj.cost(start) + wall, gwall)
+    history = [now.cost]
     pairs: list[tuple[Array, Array]] = []
     last: tuple[Array, Array] | None = None  # (x, reduced gradient) of the last iterate
     radius = opt.radius
-    accepted = 0
-    it = 0
-    Dx, Jx = ev.D * wx[:, :, None], ev.J * wx[:, :, None]
+    accepted = it = 0
     while it < opt.max_iter:
         it += 1
-        g = obj.gradient(terms) + gwall
-        x = z / scale
-        near = opt.active_band * span  # this close to a bound counts as at it
-        g, lo_e, hi_e = _kinks(problem, obj, terms, z, g, near)
-        lo_z, hi_z = z <= lo_e + near, z >= hi_e - near
-        # a variable at a bound that the descent −g pushes outward stays (weight 0)
-        w = scale * ~((lo_z & (g > 0)) | (hi_z & (g < 0)))
-        D, J = weighted(Dx, Jx, w[:p], w[p:].reshape(K, nf))
-        gx = _project(BlockSystem.build(D, J, active, 1e-12), w, w * g, p, active)
-        if last is not None:  # the curvature pair of the last accepted step
-            s_, y_ = x - last[0], gx - last[1]
-            if float(s_ @ y_) > 1e-10 * float(np.linalg.norm(s_) * np.linalg.norm(y_)):
-                pairs = [*pairs[-7:], (s_, y_)]
-        # the working set: a fixed variable whose multiplier has the wrong sign is
-        # released (once per iteration), a free one that the step drives out is fixed
-        movable = (span > 0) & (lo_e < hi_e)  # not a fixed parameter, not held at a kink
-        released = np.zeros(problem.size, dtype=np.bool_)
-        Df, Jf = weighted(Dx, Jx, scale[:p], scale[p:].reshape(K, nf))
-        for _ in range(opt.max_passes):  # each pass fixes or releases variables
-            D, J = weighted(Dx, Jx, w[:p], w[p:].reshape(K, nf))
-            sysn = BlockSystem.build(D, J, active, 1e-12)
-            gw = _project(sysn, w, w * g, p, active)
-            d = _project(sysn, w, -_two_loop(gw, pairs), p, active)
-            if float(gw @ d) >= 0:  # not a descent direction: steepest descent
-                d, pairs = -gw, []
-            step = w * d
-            out = (lo_z & (step < 0)) | (hi_z & (step > 0))
-            if out.any():
-                w = np.where(out, 0.0, w)  # coupling through Φ pushes it out: fix it too
-                continue
-            r = _reduced_gradient(sysn, Df, Jf, w, g, scale, active)
-            wrong = (w == 0) & movable & ~released & ((lo_z & (r < 0)) | (hi_z & (r > 0)))
-            if not wrong.any():
-                break
-            w = np.where(wrong, scale, w)
-            released |= wrong
-        last = (x, gx)
-        biggest = float(np.max(np.abs(d)))
+        g = obj.gradient(now.terms) + now.gwall
+        di = _direction(ctx, now.z, g, now.terms, now.ev, pairs, last)
+        pairs, last = di.pairs, (now.z / scale, di.gx)
+        biggest = float(np.max(np.abs(di.d)))
         if biggest <= 0 or not np.isfinite(biggest):
             break
-        alpha = 1.0 if pairs else radius / biggest
-        alpha = min(alpha, opt.max_radius / biggest)
-        # projected search: steps that carry variables past their bounds are clipped
-        # there (the restoration repairs the task); halving down to the ratio test's
-        # step, where the first free variable meets its bound, and below. With ~K·n_f
-        # joints near their limits, stopping at the first bound (one new bound per
-        # iteration) made the steps vanishingly short and ended the improvement early.
-        with np.errstate(divide="ignore", invalid="ignore"):
-            room = np.where(
-                step < 0, (lo_e - z) / step, np.where(step > 0, (hi_e - z) / step, np.inf)
-            )
-        first = min(alpha, float(np.min(np.maximum(room, 0.0))))
-        trials = []
-        while alpha > first and alpha * biggest >= opt.min_radius:
-            trials.append(alpha)
-            alpha *= 0.5
-        alpha = first
-        while alpha * biggest >= opt.min_radius:
-            trials.append(alpha)
-            alpha *= 0.5
-        ok = False
-        for alpha in trials:
-            z_try, ev_try = restore(
-                problem, np.clip(z + alpha * step, lo_e, hi_e), opt.restore_iter,
-                opt.restore_tolerance,
-            )  # fmt: skip
-            if converged(problem, ev_try):
-                t_try = obj.terms(problem, z_try)
-                w_try, gw_try, in_try = barriers(z_try)
-                c_try = obj.cost(t_try) + w_try
-                if in_try and c_try < cost:
-                    ok = True
-                    break
-        if not ok:
+        alpha = min(1.0 if pairs else radius / biggest, opt.max_radius / biggest)
+        found = _first_descent(ctx, now, di, _step_lengths(now.z, di, alpha, opt.min_radius))
+        if found is None:
             if not pairs:
                 break
             pairs, last = [], None  # retry along the steepest descent
             continue
+        now, alpha = found
         radius = min(2.0 * alpha * biggest, opt.max_radius)
-        z, ev, terms, cost, gwall = z_try, ev_try, t_try, c_try, gw_try
-        Dx, Jx = ev.D * wx[:, :, None], ev.J * wx[:, :, None]
         accepted += 1
-        history.append(cost)
+        history.append(now.cost)
         if len(history) > opt.window:
             ref = history[-1 - opt.window]
-            if ref - cost <= opt.tolerance * max(abs(ref), 1.0):
+            if ref - now.cost <= opt.tolerance * max(abs(ref), 1.0):
                 break
-    return ImproveOutcome(z, ev, start, terms, obj, it, accepted, history, floors)
+    return ImproveOutcome(now.z, now.ev, start, now.terms, obj, it, accepted, history, floors)
