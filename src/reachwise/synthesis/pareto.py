@@ -73,6 +73,7 @@ from reachwise.synthesis.improve import ImproveOptions, improve
 from reachwise.synthesis.objectives import (
     OBJECTIVES,
     Objective,
+    Terms,
     check_objective,
     evaluate_terms,
     smallest_designable,
@@ -264,6 +265,111 @@ def measure(
     )  # fmt: skip
 
 
+@dataclass
+class _Sweep:
+    """The designs a sweep has found and how it improves one more (module docstring):
+    the problem, the two objectives ``a`` and ``b``, the workspace, the improvement's
+    options, the bodies' model, the common reference of the objectives' terms and the
+    ``stop`` callback."""
+
+    problem: SynthesisProblem
+    a: str
+    b: str
+    workspace: Workspace | None
+    options: ImproveOptions
+    clearance: ClearanceModel | None
+    ref: Terms
+    stop: Callable[[], None] | None
+    found: list[ParetoPoint] = field(default_factory=list)
+
+    @property
+    def margin(self) -> float:
+        return self.problem.template.design.margin
+
+    def level_of(self, p: ParetoPoint, name: str) -> float:
+        """A design's value of ``name`` as a level is held: the optimized term's, which
+        for the clearance is the soft minimum (``objectives``), not the true one."""
+        if name != "clearance":
+            return p.values[name]
+        soft = evaluate_terms(self.problem, p.z, (name,), margin=self.margin, bodies=self.clearance)
+        return soft.values[name]
+
+    def solve(self, z: Array, name: str, level: float | None = None, stage: Stage = "level"
+              ) -> ParetoPoint:  # fmt: skip
+        """Improve ``name`` from ``z`` (holding the other objective at ``level``)."""
+        if self.stop is not None:
+            self.stop()
+        other = self.b if name == self.a else self.a
+        levels = {} if level is None else {other: level}
+        obj = Objective(
+            {name: 1.0}, margin=self.margin, levels=levels, penalty=LEVEL_PENALTY,
+            bodies=self.clearance,
+        ).referenced(self.ref)  # fmt: skip
+        z1 = improve(self.problem, z, obj, self.workspace, self.options, self.clearance).z
+        p = measure(
+            self.problem, z1, len(self.found), {name: 1.0, other: 0.0}, level, stage,
+            self.clearance,
+        )  # fmt: skip
+        self.found.append(p)
+        return p
+
+    def best(self, name: str) -> ParetoPoint:
+        """The design found best in ``name`` (of those reaching every pose, if any)."""
+        ok = [p for p in self.found if p.all_reached] or self.found
+        return max(ok, key=lambda p: OBJECTIVES[name] * p.values[name])
+
+    def ends_and_levels(self, z0: Array, points: int) -> None:
+        """Steps 1–3: the two ends, the fixed levels of ``b`` continued from each end
+        (from the ``b`` end every level is looser than the last, so each ε-problem starts
+        from a design that meets its level and the result is at least as good in ``a``;
+        from the ``a`` end the level pulls the design across: they follow different
+        basins of the improvement, the front keeps the best), and the polished ends."""
+        a, b = self.a, self.b
+        end_a = self.solve(z0, a, stage="end")
+        end_b = self.solve(z0, b, stage="end")
+        va, vb = self.level_of(end_a, b), self.level_of(end_b, b)
+        for ts, p in (
+            (np.linspace(1.0, 0.0, points), end_b),
+            (np.linspace(0.0, 1.0, points), end_a),
+        ):
+            for t in ts[1:-1]:
+                p = self.solve(p.z, a, float(va + t * (vb - va)))
+        for name, other in ((a, b), (b, a)):
+            top = self.solve(self.best(name).z, name, stage="polish")
+            self.solve(top.z, other, self.level_of(top, name), stage="polish")
+
+    def fill_gaps(self, points: int, budget: int, same: float) -> None:
+        """Step 4: new levels of ``b`` in the largest untried gaps of the front until it
+        has ``points`` designs, no gap is wider than two tolerances, or ``budget``
+        improvements are spent. Each level is solved first from the neighbour better in
+        ``b``, which meets the level (a feasible start: the result is at least as good
+        in ``a``), and from the other only if that gave no new front design."""
+        a, b = self.a, self.b
+        tried: set[tuple[int, int]] = set()
+        while len(self.found) < budget:
+            marked = classify(self.found, (a, b), same)
+            front = sorted((q for q in marked if not q.dominated), key=lambda q: q.values[a])
+            if len(front) >= points:
+                return
+            vals = np.array([[q.values[a], q.values[b]] for q in front]).reshape(-1, 2)
+            unit = extent(vals)
+            gaps = []
+            for (i, left), right in zip(enumerate(front[:-1]), front[1:], strict=True):
+                key = (left.index, right.index)
+                width = float(np.linalg.norm((vals[i + 1] - vals[i]) / unit))
+                if key not in tried and width > 2.0 * same:
+                    gaps.append((width, key, left, right))
+            if not gaps:
+                return
+            _, key, left, right = max(gaps, key=lambda g: g[0])
+            tried.add(key)
+            level = 0.5 * (self.level_of(left, b) + self.level_of(right, b))
+            first, second = sorted((left, right), key=lambda q: -OBJECTIVES[b] * q.values[b])
+            new = self.solve(first.z, a, level, stage="gap")
+            if len(self.found) < budget and not _on_front(new, self.found, (a, b), same):
+                self.solve(second.z, a, level, stage="gap")
+
+
 def pareto_sweep(
     problem: SynthesisProblem,
     z0: Array,
@@ -297,75 +403,7 @@ def pareto_sweep(
         raise InputError("pareto", "start", "the start design does not reach every pose")
     margin = problem.template.design.margin
     ref = Objective({a: 1.0, b: 1.0}, margin=margin, bodies=clearance).terms(problem, z0)
-    found: list[ParetoPoint] = []
-
-    def level_of(p: ParetoPoint, name: str) -> float:
-        """A design's value of ``name`` as a level is held: the optimized term's, which
-        for the clearance is the soft minimum (``objectives``), not the true one."""
-        if name != "clearance":
-            return p.values[name]
-        soft = evaluate_terms(problem, p.z, (name,), margin=margin, bodies=clearance)
-        return soft.values[name]
-
-    def solve(z: Array, name: str, level: float | None = None, stage: Stage = "level"
-              ) -> ParetoPoint:  # fmt: skip
-        """Improve ``name`` from ``z`` (holding the other objective at ``level``)."""
-        if stop is not None:
-            stop()
-        other = b if name == a else a
-        levels = {} if level is None else {other: level}
-        obj = Objective(
-            {name: 1.0}, margin=margin, levels=levels, penalty=LEVEL_PENALTY, bodies=clearance
-        ).referenced(ref)
-        z1 = improve(problem, z, obj, workspace, options or SWEEP_OPTIONS, clearance).z
-        p = measure(problem, z1, len(found), {name: 1.0, other: 0.0}, level, stage, clearance)
-        found.append(p)
-        return p
-
-    def best(name: str) -> ParetoPoint:
-        ok = [p for p in found if p.all_reached] or found
-        return max(ok, key=lambda p: OBJECTIVES[name] * p.values[name])
-
-    # 1. the two ends
-    end_a = solve(z0, a, stage="end")
-    end_b = solve(z0, b, stage="end")
-    # 2. fixed levels of b, a continuation from each end: from the b end every level is
-    # looser than the last, so each ε-problem starts from a design that meets its level
-    # (the result is at least as good in a); from the a end the level pulls the design
-    # across. They follow different basins of the improvement; the front keeps the best
-    va, vb = level_of(end_a, b), level_of(end_b, b)
-    for ts, p in ((np.linspace(1.0, 0.0, points), end_b), (np.linspace(0.0, 1.0, points), end_a)):
-        for t in ts[1:-1]:
-            p = solve(p.z, a, float(va + t * (vb - va)))
-    # 3. the ends polished from the best design for each objective, then lexicographic
-    for name, other in ((a, b), (b, a)):
-        top = solve(best(name).z, name, stage="polish")
-        solve(top.z, other, level_of(top, name), stage="polish")
-    # 4. adaptive levels in the largest gaps of the front
-    tried: set[tuple[int, int]] = set()
-    while len(found) < budget:
-        marked = classify(found, (a, b), same)
-        front = sorted((q for q in marked if not q.dominated), key=lambda q: q.values[a])
-        if len(front) >= points:
-            break
-        vals = np.array([[q.values[a], q.values[b]] for q in front]).reshape(-1, 2)
-        unit = extent(vals)
-        gaps = []
-        for (i, left), right in zip(enumerate(front[:-1]), front[1:], strict=True):
-            key = (left.index, right.index)
-            width = float(np.linalg.norm((vals[i + 1] - vals[i]) / unit))
-            if key not in tried and width > 2.0 * same:
-                gaps.append((width, key, left, right))
-        if not gaps:
-            break
-        _, key, left, right = max(gaps, key=lambda g: g[0])
-        tried.add(key)
-        level = 0.5 * (level_of(left, b) + level_of(right, b))
-        # first from the neighbour better in b, which meets the level (a feasible start:
-        # the result is at least as good in a), from the other only if that gave no new
-        # front design
-        first, second = sorted((left, right), key=lambda q: -OBJECTIVES[b] * q.values[b])
-        new = solve(first.z, a, level, stage="gap")
-        if len(found) < budget and not _on_front(new, found, (a, b), same):
-            solve(second.z, a, level, stage="gap")
-    return ParetoResult((a, b), start, tuple(classify(found, (a, b), same)), points, same)
+    sweep = _Sweep(problem, a, b, workspace, options or SWEEP_OPTIONS, clearance, ref, stop)
+    sweep.ends_and_levels(z0, points)
+    sweep.fill_gaps(points, budget, same)
+    return ParetoResult((a, b), start, tuple(classify(sweep.found, (a, b), same)), points, same)
