@@ -133,9 +133,10 @@ class CloudTopic:
 
     def fuse(
         self, memory: SceneMemory, msg: Any, t: float, tree: TransformTree, frame: str
-    ) -> tuple[F64, float]:
+    ) -> tuple[PointCloud | F64, float]:
         """Fuse the depth image ``msg`` into ``memory``; its obstacles (voxel centres in
-        ``frame``) and the image's stamp."""
+        ``frame``: a cloud with its index built, or :data:`NOWHERE` while there are
+        none) and the image's stamp."""
         T, stamp = self.pose(msg, t, tree, frame)
         cam = self._projector(stamp).camera
         z = depth_image_metres(msg, topic=self.topic)
@@ -144,8 +145,8 @@ class CloudTopic:
         i = cam.intrinsics
         view = ViewIntrinsics(i.fx, i.fy, i.cx, i.cy, 0.0, _FAR)
         memory.integrate(z, np.eye(4) if T is None else T, view, stamp)
-        pts = memory.obstacles(stamp)
-        return (pts if len(pts) else NOWHERE), stamp
+        cloud = memory.obstacle_cloud(stamp, name=self.topic)
+        return (NOWHERE if cloud is None else cloud), stamp
 
 
 def _indexed(points: F64, codes: NDArray[np.int64], centroid: F64, topic: str) -> PointCloud:

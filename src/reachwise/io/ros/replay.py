@@ -302,7 +302,8 @@ def _drive(
                 voxels, stamp = src.fuse(memory, m.msg, m.t, tree, spec.frame)
                 scene.replace_cloud(MEMORY, voxels, block=spec.block, stamp=stamp)
                 if on_cloud is not None:
-                    on_cloud(MEMORY, stamp, voxels)
+                    points = voxels.points if isinstance(voxels, PointCloud) else voxels
+                    on_cloud(MEMORY, stamp, points)
             else:
                 cloud, stamp = src.points(m.msg, m.t, tree, spec.frame)
                 scene.replace_cloud(m.topic, cloud, block=spec.block, stamp=stamp)
