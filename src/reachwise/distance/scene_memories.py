@@ -1,0 +1,173 @@
+"""Scene memories as objects of a distance scene: depth frames fused where the scene
+lives, in process and through the collision server alike.
+
+:func:`add_memory` gives a :class:`~reachwise.distance.scene.Scene` a voxel memory
+(:class:`~reachwise.distance.scene_memory.SceneMemory`) of a world box and an object of
+the same name that pairs watch like any cloud. :func:`fuse_depth` fuses one depth frame
+into it and hands the memory's occupied and shadow voxels' centres to that object, with
+the hand-over rules of :meth:`Scene.replace_cloud
+<reachwise.distance.scene.Scene.replace_cloud>`: the cloud comes with its distance
+index built already (:meth:`SceneMemory.obstacle_cloud
+<reachwise.distance.scene_memory.SceneMemory.obstacle_cloud>`), so the swap builds
+nothing, and it is stamped with the newest frame's capture time, so the object's age is
+the age of that frame and ``SafetyConfig.max_cloud_age`` applies to it as to a camera's
+cloud. While the memory holds no obstacle, the object is one point far above its box
+("nothing here": a cloud has a point); before the first frame that point does not age.
+
+Every centre lies within :attr:`SceneMemory.inflation
+<reachwise.distance.scene_memory.SceneMemory.inflation>` (half a voxel's diagonal) of
+the points it stands for, so a pair watched against a memory keeps its margin plus the
+memory's inflation (:func:`memory_margin`, the rule the simulation's memories follow
+too); :func:`watch_memory` watches a pair so.
+
+The functions are registered scene operations (:mod:`reachwise.distance.scene_ops`):
+called with a ``reachwise.server.client.SceneClient`` they run on the collision
+server's scene, the depth image travelling as a float64 array (NaN: no return). Adding
+a memory and watching against it change the scene's rules (``scene_change``); a frame
+only replaces the memory object's cloud, as a streamed cloud does, so the server neither
+persists nor re-sends its layout per frame. A server's state directory does not keep a
+memory: after a restart, add it again.
+"""
+
+from __future__ import annotations
+
+import weakref
+from collections.abc import Mapping
+from typing import Annotated
+
+import numpy as np
+from numpy.typing import NDArray
+
+from reachwise.distance.pairs import PairKind, WatchedPair
+from reachwise.distance.scene import Scene
+from reachwise.distance.scene_memory import MemoryConfig, SceneMemory, ViewIntrinsics
+from reachwise.distance.scene_ops import ArrayShape, scene_change, scene_operation
+from reachwise.errors import InputError, UnknownName
+from reachwise.geometry.cloud import PointCloud
+
+__all__ = [
+    "DepthImage",
+    "add_memory",
+    "fuse_depth",
+    "memories_of",
+    "memory_inflation",
+    "memory_margin",
+    "watch_memory",
+]
+
+#: A point or a box corner (m, world): three finite numbers.
+Vec3 = Annotated[NDArray[np.float64], ArrayShape((3,))]
+#: A 4 × 4 homogeneous transform (m), finite.
+Pose = Annotated[NDArray[np.float64], ArrayShape((4, 4))]
+#: A depth image, ``(height, width)``, m along the optical axis; NaN (or 0): no return.
+DepthImage = Annotated[NDArray[np.float64], ArrayShape((None, None), finite=False)]
+#: A depth image's pinhole model ``(fx, fy, cx, cy, near, far)``
+#: (:class:`~reachwise.distance.scene_memory.ViewIntrinsics`).
+Intrinsics = tuple[float, float, float, float, float, float]
+
+#: How far above its box the point of an empty memory lies (m).
+_EMPTY_LIFT = 1.0e3
+
+_MEMORIES: weakref.WeakKeyDictionary[Scene, dict[str, SceneMemory]] = weakref.WeakKeyDictionary()
+
+
+def memories_of(scene: Scene) -> Mapping[str, SceneMemory]:
+    """The memories of ``scene`` by name (read them; change them through
+    :func:`fuse_depth`)."""
+    return dict(_MEMORIES.get(scene, {}))
+
+
+def memory_margin(inflation: Mapping[str, float], a: str, b: str, margin: float) -> float:
+    """The margin (m) of the pair ``a``, ``b`` watched with ``margin``: plus the
+    ``inflation`` of each scene memory in it (objects not in ``inflation`` add
+    nothing), so a distance to the memory's voxel centres within it is never larger
+    than the distance to the observed points."""
+    return margin + inflation.get(a, 0.0) + inflation.get(b, 0.0)
+
+
+@scene_change
+def add_memory(
+    scene: Scene, name: str, lower: Vec3, upper: Vec3, config: MemoryConfig | None = None
+) -> float:
+    """Add a scene memory of the world box ``lower`` … ``upper`` (m) fusing frames
+    under ``config`` (default :class:`~reachwise.distance.scene_memory.MemoryConfig`),
+    and the object ``name`` that holds its obstacles; returns the memory's inflation
+    (m), what pairs against it add to their margin."""
+    if name in scene.objects:
+        raise InputError("scene", f"object {name!r}", "already exists")
+    memory = SceneMemory(lower, upper, config)
+    scene.add_object(name, _empty(memory, name))
+    _MEMORIES.setdefault(scene, {})[name] = memory
+    return memory.inflation
+
+
+@scene_operation
+def memory_inflation(scene: Scene, name: str) -> float:
+    """The inflation (m) of the memory ``name``: half its voxel's diagonal."""
+    return _memory(scene, name).inflation
+
+
+@scene_change
+def watch_memory(
+    scene: Scene, a: str, memory: str, margin: float, kind: PairKind = "robot-environment"
+) -> WatchedPair:
+    """Watch object ``a`` against the memory ``memory`` with ``margin`` (m) plus the
+    memory's inflation (:func:`memory_margin`)."""
+    m = _memory(scene, memory)
+    return scene.watch(
+        a, memory, memory_margin({memory: m.inflation}, a, memory, margin), kind=kind
+    )
+
+
+@scene_operation
+def fuse_depth(
+    scene: Scene,
+    name: str,
+    depth: DepthImage,
+    pose: Pose,
+    intrinsics: Intrinsics,
+    t: float,
+    body: DepthImage | None = None,
+) -> int:
+    """Fuse one ``depth`` image taken at time ``t`` (s) by a camera at ``pose`` (4 × 4,
+    optical frame → world) with ``intrinsics`` into the memory ``name``
+    (:meth:`SceneMemory.integrate
+    <reachwise.distance.scene_memory.SceneMemory.integrate>`; ``body``: nonzero where
+    the pixel saw the robot) and swap the memory's obstacles in as the object's cloud,
+    stamped with the newest frame's time; returns the cloud's version."""
+    memory = _memory(scene, name)
+    mask = None if body is None else np.asarray(body) != 0
+    memory.integrate(depth, pose, ViewIntrinsics(*_intrinsics(intrinsics)), t, mask)
+    cloud = memory.obstacle_cloud(name=name)
+    return scene.replace_cloud(
+        name, cloud if cloud is not None else _empty(memory, name), block=True, stamp=memory.stamp
+    )
+
+
+def _memory(scene: Scene, name: str) -> SceneMemory:
+    memories = _MEMORIES.get(scene, {})
+    memory = memories.get(name)
+    if memory is None:
+        raise UnknownName("scene", "memory", name, memories)
+    return memory
+
+
+def _intrinsics(value: object) -> tuple[float, ...]:
+    try:
+        row = tuple(float(v) for v in value)  # type: ignore[attr-defined]
+    except (TypeError, ValueError):
+        raise InputError(
+            "scene memory", "intrinsics", f"expected six numbers, got {value!r}"
+        ) from None
+    if len(row) != 6:
+        raise InputError(
+            "scene memory", "intrinsics", f"expected (fx, fy, cx, cy, near, far), got {value!r}"
+        )
+    return row
+
+
+def _empty(memory: SceneMemory, name: str) -> PointCloud:
+    """One point far above the memory's box: the cloud of a memory with no obstacle."""
+    top = memory.origin + np.asarray(memory.shape) * memory.config.voxel
+    centre = 0.5 * (memory.origin + top)
+    return PointCloud((centre + np.array([0.0, 0.0, _EMPTY_LIFT]))[None], name=name)
