@@ -56,8 +56,12 @@ class ScenePersistence(ServiceCore):
         if self.store is None:
             return None
         objects = []
+        kept = set()
         for name, obj in self.scene.objects.items():
             meta = self._meta[name]
+            if meta.cloud_file is None:  # added by a scene operation: not saved
+                continue
+            kept.add(name)
             source, pose, robot, link = self._source(name, obj)
             objects.append(
                 ObjectState(
@@ -77,7 +81,9 @@ class ScenePersistence(ServiceCore):
             robots=tuple(RobotState(name=k, model=v) for k, v in self._models.items()),
             objects=tuple(objects),
             pairs=tuple(
-                PairState(a=p.a, b=p.b, margin=p.margin, kind=p.kind) for p in self.scene.pairs
+                PairState(a=p.a, b=p.b, margin=p.margin, kind=p.kind)
+                for p in self.scene.pairs
+                if p.a in kept and p.b in kept
             ),
         )
 

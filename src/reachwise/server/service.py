@@ -210,6 +210,7 @@ class SceneService(SceneAnswering, CloudHandover):
                 result = op.function(self.scene, **req.arguments)
             finally:
                 if op.mutates:  # a failed call may have changed part of the scene
+                    self._adopt_objects()
                     self._pairs_changed()
                     manifest = self._manifest()
             reply = P.OperationResult(P.encode_value(result, op.result))

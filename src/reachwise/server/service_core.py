@@ -158,6 +158,15 @@ class ServiceCore:
         if name not in self._meta:
             raise unknown_error("object", name, self._meta, where)
 
+    def _adopt_objects(self) -> None:
+        """Know the objects a scene operation added to the scene (a scene memory's,
+        :func:`reachwise.distance.scene_memories.add_memory`): in the layout like any
+        object, fixed in world, without a saved cloud (the state directory leaves them
+        out). Call under the lock."""
+        for name, obj in self.scene.objects.items():
+            if name not in self._meta:
+                self._meta[name] = ObjectMeta(None, None, len(obj.cloud))
+
     def _check_q(self, robot: Robot, q: NDArray[np.float64], where: str) -> None:
         if q.shape != (robot.n,):
             raise wire_error(

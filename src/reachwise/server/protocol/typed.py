@@ -36,7 +36,9 @@ from typing import Annotated, Any, Literal, TypeVar
 
 import numpy as np
 
-import reachwise.distance.scene_queries  # noqa: F401  (registers the scene's own operations)
+# the scene's own operations and the scene memories' are registered by importing them
+import reachwise.distance.scene_memories
+import reachwise.distance.scene_queries  # noqa: F401
 from reachwise.distance.scene_ops import OPERATIONS, ArrayShape, SceneOperation
 from reachwise.server.protocol.fields import (
     FLOAT,

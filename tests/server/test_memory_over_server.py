@@ -1,0 +1,134 @@
+"""A scene memory on the collision server: a client adds it, sends depth frames of a
+known box and reads the watched pair's distance; the answer is the in-process scene's for
+the same frames (the same operations, written once), within the memory's inflation of
+the box's observed points; a frame with the box gone frees it; the object's cloud
+carries the newest frame's time; bad frames are typed errors naming the field."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from reachwise.benchmarks.server import ServerProcess
+from reachwise.distance.scene import Scene
+from reachwise.distance.scene_memories import (
+    add_memory,
+    fuse_depth,
+    memory_inflation,
+    watch_memory,
+)
+from reachwise.distance.scene_memory import MemoryConfig
+from reachwise.server import protocol as P
+from reachwise.server.client import SceneClient
+from reachwise.server.client.errors import ServerInputError
+from reachwise.server.service import SceneService
+from reachwise.server.state import StateStore
+
+from ..distance.test_scene_memories import (
+    CAMERA,
+    INTRINSICS,
+    LOWER,
+    MARGIN,
+    POSE,
+    PROBE,
+    UPPER,
+    frames,
+)
+from .conftest import HANG_GUARD
+
+CONFIG = MemoryConfig(voxel=0.03, shadow_depth=0.4)
+
+
+@pytest.fixture
+def client(server: ServerProcess) -> Iterator[SceneClient]:
+    with SceneClient(server.endpoint, deadline=HANG_GUARD, setup_deadline=HANG_GUARD) as c:
+        c.clear()
+        yield c
+
+
+def _build(scene: Scene | SceneClient) -> float:
+    inflation = add_memory(scene, "memory", LOWER, UPPER, CONFIG)
+    scene.add_object("probe", PROBE)
+    watch_memory(scene, "probe", "memory", MARGIN)
+    return inflation
+
+
+def test_frames_fused_on_the_server_answer_as_in_process(client: SceneClient) -> None:
+    local = Scene()
+    inflation = _build(local)
+    assert _build(client) == inflation == memory_inflation(client, "memory")
+    assert [(p.a, p.b, p.margin) for p in client.describe().pairs] == [
+        (p.a, p.b, p.margin) for p in local.pairs
+    ]
+    with_box, without = frames()
+    observed = CAMERA.points(with_box, POSE)
+    seen = observed[np.all((observed >= LOWER) & (observed <= UPPER), axis=1)]
+    d_observed = float(np.linalg.norm(seen - PROBE, axis=1).min())
+
+    assert fuse_depth(client, "memory", with_box, POSE, INTRINSICS, 3.0) == 1
+    fuse_depth(local, "memory", with_box, POSE, INTRINSICS, 3.0)
+    res, ref = client.query_all(), local.query_all()
+    assert res.valid, res.reason
+    d = res.get("probe", "memory").result.distance
+    assert d == pytest.approx(ref.get("probe", "memory").result.distance, abs=1e-12)
+    assert abs(d - d_observed) <= inflation + 1e-9
+    assert res.cloud_stamps["memory"] == 3.0  # the newest frame's time: it ages
+
+    assert fuse_depth(client, "memory", without, POSE, INTRINSICS, 3.5) == 2
+    res = client.query_all()
+    assert res.get("probe", "memory").result.distance > d + 1.0  # freed
+    assert res.cloud_stamps["memory"] == 3.5
+    local.close()
+
+
+def test_bad_frames_through_the_server_are_typed_errors_naming_the_field(
+    client: SceneClient,
+) -> None:
+    _build(client)
+    with_box, _ = frames()
+    bad_pose = POSE.copy()
+    bad_pose[1, 1] = np.nan
+    cases = [
+        ((with_box[0], POSE, INTRINSICS, 1.0), "depth"),  # one row, not an image
+        ((with_box, bad_pose, INTRINSICS, 1.0), "pose"),
+        ((with_box, POSE, (0.0, 60.0, 31.5, 23.5, 0.2, 6.0), 1.0), "intrinsics"),
+        ((with_box, POSE, INTRINSICS, math.nan), "t"),
+    ]
+    for args, field in cases:
+        with pytest.raises(ServerInputError) as info:
+            fuse_depth(client, "memory", *args)  # type: ignore[arg-type]
+        assert info.value.field.endswith(field), (field, info.value)
+    with pytest.raises(ServerInputError) as info:
+        fuse_depth(client, "memroy", with_box, POSE, INTRINSICS, 1.0)
+    assert info.value.code == P.ErrorCode.UNKNOWN_ID and "'memory'" in str(info.value)
+    res = client.query_all()  # nothing of the bad frames was fused
+    assert res.valid and res.get("probe", "memory").result.distance == math.inf
+
+
+def test_a_state_directory_keeps_the_scene_without_its_memory(tmp_path: Path) -> None:
+    svc = SceneService(store=StateStore(tmp_path))
+    svc.load()
+    svc.handle(P.AddObject("probe", PROBE, None))
+    for name, *args in [
+        ("add_memory", "memory", LOWER, UPPER, CONFIG),
+        ("watch_memory", "probe", "memory", MARGIN),
+        ("fuse_depth", "memory", frames()[0], POSE, INTRINSICS, 3.0),
+    ]:
+        assert isinstance(svc.handle(P.OperationCall.of(name, *args)), P.OperationResult)
+    rows = svc.handle(P.Query(stamp=4.0))
+    assert isinstance(rows, P.QueryReply) and rows.rows[0, 0] < MARGIN  # answered
+
+    again = SceneService(store=StateStore(tmp_path))
+    again.load()  # the memory is not saved: the rest comes back, ready
+    assert again.ready, again.reason
+    after = again.handle(P.Describe())
+    assert isinstance(after, P.DescribeReply)
+    assert [o.name for o in after.objects] == ["probe"] and after.pairs == ()
+    assert isinstance(
+        again.handle(P.OperationCall.of("add_memory", "memory", LOWER, UPPER, CONFIG)),
+        P.OperationResult,
+    )
