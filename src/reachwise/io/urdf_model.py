@@ -50,7 +50,6 @@ from __future__ import annotations
 
 import logging
 import math
-import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -59,9 +58,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from reachwise.errors import RobotFileError
+from reachwise.io.urdf_attributes import (
+    XmlErrors,
+    attr_numbers,
+    attr_required,
+    attr_scalar,
+    one_child,
+    optional_child,
+    origin_pose,
+)
 from reachwise.io.xml_tree import XmlElement, read_xml
 from reachwise.kinematics.link_geometry import ShapeKind
-from reachwise.kinematics.transforms import pose_from_xyz_rpy
 
 __all__ = [
     "JOINT_TYPES",
@@ -87,8 +94,6 @@ JOINT_TYPES: tuple[str, ...] = (
     "floating",
     "planar",
 )
-_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
-_NONFINITE = re.compile(r"^[+-]?(nan|inf|infinity)$", re.IGNORECASE)
 
 Mat = NDArray[np.float64]
 
@@ -161,97 +166,13 @@ class UrdfModel:
         return None
 
 
-# ---- attribute parsing --------------------------------------------------------------
-class _Err:
-    """Raises RobotFileError(source, '<what> <tag attr="value"> (line n)', reason)."""
-
-    def __init__(self, source: str) -> None:
-        self.source = source
-
-    def __call__(
-        self, what: str, el: XmlElement | None, reason: str, attr: str | None = None
-    ) -> RobotFileError:
-        field = what
-        if el is not None:
-            shown = f' {attr}="{el.get(attr)}"' if attr is not None and attr in el.attrib else ""
-            tag = f"<{el.tag}{shown}>"
-            if what.split(" ", 1)[0] == el.tag and not shown:  # the joint/link itself
-                tag = ""
-            field = " ".join(x for x in (what, tag) if x)
-            field += f" (line {el.line})"
-        return RobotFileError(self.source, field, reason)
-
-
-def _number(text: str) -> float | None:
-    t = text.strip()
-    if _NUMBER.match(t) or _NONFINITE.match(t):
-        return float(t)
-    return None
-
-
-def _numbers(
-    err: _Err, what: str, el: XmlElement, attr: str, count: tuple[int, ...], default: str | None
-) -> list[float]:
-    raw = el.get(attr, default)
-    if raw is None:
-        raise err(what, el, f"{attr} is required", attr)
-    parts = raw.split()
-    values = [_number(p) for p in parts]
-    if any(v is None for v in values):
-        bad = next(p for p, v in zip(parts, values, strict=True) if v is None)
-        raise err(what, el, f"{attr}: {bad!r} is not a number", attr)
-    if len(values) not in count:
-        want = " or ".join(str(c) for c in count)
-        raise err(what, el, f"{attr} needs exactly {want} numbers, got {len(values)}", attr)
-    out = [float(v) for v in values if v is not None]
-    if not all(math.isfinite(v) for v in out):
-        raise err(what, el, f"{attr} must be finite", attr)
-    return out
-
-
-def _scalar(err: _Err, what: str, el: XmlElement, attr: str) -> float | None:
-    """An optional single number (``None`` when the attribute is absent)."""
-    if attr not in el.attrib:
-        return None
-    return _numbers(err, what, el, attr, (1,), None)[0]
-
-
-def _required(err: _Err, what: str, el: XmlElement, attr: str) -> float:
-    return _numbers(err, what, el, attr, (1,), None)[0]
-
-
-def _optional(err: _Err, what: str, el: XmlElement, tag: str) -> XmlElement | None:
-    """The one child ``<tag>`` of ``el`` or ``None``; two are an error."""
-    found = el.findall(tag)
-    if len(found) > 1:
-        raise err(what, found[1], f"more than one <{tag}>")
-    return found[0] if found else None
-
-
-def _child(err: _Err, what: str, el: XmlElement, tag: str) -> XmlElement:
-    """The one child ``<tag>`` of ``el``; none or two are an error."""
-    found = _optional(err, what, el, tag)
-    if found is None:
-        raise err(what, el, f"<{tag}> is required")
-    return found
-
-
-def _origin(err: _Err, what: str, el: XmlElement) -> Mat:
-    o = _optional(err, what, el, "origin")
-    if o is None:
-        return np.eye(4)
-    xyz = _numbers(err, what, o, "xyz", (3,), "0 0 0")
-    rpy = _numbers(err, what, o, "rpy", (3,), "0 0 0")
-    return pose_from_xyz_rpy(xyz, rpy)
-
-
 # ---- links and shapes -----------------------------------------------------------------
 def _shape(
-    err: _Err, link: str, el: XmlElement, kind: Literal["collision", "visual"], index: int
+    err: XmlErrors, link: str, el: XmlElement, kind: Literal["collision", "visual"], index: int
 ) -> UrdfShape:
     what = f"link {link!r} <{kind} #{index}>"
-    origin = _origin(err, what, el)
-    geo = _child(err, what, el, "geometry")
+    origin = origin_pose(err, what, el)
+    geo = one_child(err, what, el, "geometry")
     shapes = [c for c in geo.children if c.tag in ("box", "cylinder", "sphere", "mesh", "capsule")]
     others = [c.tag for c in geo.children if c.tag not in ("box", "cylinder", "sphere", "mesh",
                                                            "capsule")]  # fmt: skip
@@ -267,40 +188,40 @@ def _shape(
             raise err(what, s, f"{attr} must be > 0", attr)
 
     if s.tag == "box":
-        size = _numbers(err, what, s, "size", (3,), None)
+        size = attr_numbers(err, what, s, "size", (3,), None)
         positive("size", size)
         return UrdfShape(kind="box", size=(size[0], size[1], size[2]), **common)  # type: ignore[arg-type]
     if s.tag in ("cylinder", "capsule"):
-        r = _required(err, what, s, "radius")
-        h = _required(err, what, s, "length")
+        r = attr_required(err, what, s, "radius")
+        h = attr_required(err, what, s, "length")
         positive("radius", [r])
         positive("length", [h])
         return UrdfShape(kind=s.tag, radius=r, length=h, **common)  # type: ignore[arg-type]
     if s.tag == "sphere":
-        r = _required(err, what, s, "radius")
+        r = attr_required(err, what, s, "radius")
         positive("radius", [r])
         return UrdfShape(kind="sphere", radius=r, **common)  # type: ignore[arg-type]
     filename = s.get("filename")
     if filename is None or not filename.strip():
         raise err(what, s, "filename is required (a package://, file:// or relative path)")
-    scale = _numbers(err, what, s, "scale", (1, 3), "1 1 1")
+    scale = attr_numbers(err, what, s, "scale", (1, 3), "1 1 1")
     if any(v == 0 for v in scale):
         raise err(what, s, "scale factors must be ≠ 0 (a negative factor mirrors)", "scale")
     sc = (scale[0],) * 3 if len(scale) == 1 else (scale[0], scale[1], scale[2])
     return UrdfShape(kind="mesh", mesh=filename.strip(), scale=sc, **common)  # type: ignore[arg-type]
 
 
-def _numbers_of(err: _Err, what: str, el: XmlElement, attrs: dict[str, int | None]) -> None:
+def _numbers_of(err: XmlErrors, what: str, el: XmlElement, attrs: dict[str, int | None]) -> None:
     """Check the numeric attributes ``attrs`` of ``el`` (name -> how many numbers; ``None``:
     one, optional)."""
     for attr, count in attrs.items():
         if count is None:
-            _scalar(err, what, el, attr)
+            attr_scalar(err, what, el, attr)
         else:
-            _numbers(err, what, el, attr, (count,), None)
+            attr_numbers(err, what, el, attr, (count,), None)
 
 
-def _unused(err: _Err, what: str, el: XmlElement, lenient: bool) -> None:
+def _unused(err: XmlErrors, what: str, el: XmlElement, lenient: bool) -> None:
     """Elements reachwise does not use are still checked, so a broken file is not
     taken for a good one: ``<inertial>`` (``origin``, ``mass value`` ≥ 0, the six
     ``inertia`` numbers), ``<material><color rgba>`` (four numbers in [0, 1]),
@@ -308,19 +229,19 @@ def _unused(err: _Err, what: str, el: XmlElement, lenient: bool) -> None:
     ``lenient`` a problem is logged and ignored."""
     try:
         if el.tag == "link":
-            inertial = _optional(err, what, el, "inertial")
+            inertial = optional_child(err, what, el, "inertial")
             if inertial is not None:
-                _origin(err, what, inertial)
-                mass = _child(err, what, inertial, "mass")
-                if _required(err, what, mass, "value") < 0:
+                origin_pose(err, what, inertial)
+                mass = one_child(err, what, inertial, "mass")
+                if attr_required(err, what, mass, "value") < 0:
                     raise err(what, mass, "must be ≥ 0", "value")
-                inertia = _child(err, what, inertial, "inertia")
+                inertia = one_child(err, what, inertial, "inertia")
                 names = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
                 _numbers_of(err, what, inertia, dict.fromkeys(names, 1))
             for vis in el.findall("visual"):
                 for mat in vis.findall("material"):
                     for color in mat.findall("color"):
-                        rgba = _numbers(err, what, color, "rgba", (4,), None)
+                        rgba = attr_numbers(err, what, color, "rgba", (4,), None)
                         if not all(0.0 <= v <= 1.0 for v in rgba):
                             raise err(what, color, "rgba values must lie in [0, 1]", "rgba")
         else:
@@ -330,7 +251,7 @@ def _unused(err: _Err, what: str, el: XmlElement, lenient: bool) -> None:
                                        "k_velocity")),
                 ("calibration", ("rising", "falling", "reference_position")),
             ):  # fmt: skip
-                sub = _optional(err, what, el, tag)
+                sub = optional_child(err, what, el, tag)
                 if sub is not None:
                     _numbers_of(err, what, sub, dict.fromkeys(attrs))
     except RobotFileError as exc:
@@ -339,7 +260,7 @@ def _unused(err: _Err, what: str, el: XmlElement, lenient: bool) -> None:
         log.warning("%s (lenient: ignored; reachwise does not use it)", exc)
 
 
-def _link(err: _Err, el: XmlElement, lenient: bool) -> UrdfLink:
+def _link(err: XmlErrors, el: XmlElement, lenient: bool) -> UrdfLink:
     name = el.get("name")
     if name is None or not name.strip():
         raise err("link", el, "name is required")
@@ -357,7 +278,7 @@ def _link(err: _Err, el: XmlElement, lenient: bool) -> UrdfLink:
 
 
 # ---- joints ---------------------------------------------------------------------------
-def _joint(err: _Err, el: XmlElement, lenient: bool) -> UrdfJoint:
+def _joint(err: XmlErrors, el: XmlElement, lenient: bool) -> UrdfJoint:
     name = el.get("name")
     if name is None or not name.strip():
         raise err("joint", el, "name is required")
@@ -374,32 +295,32 @@ def _joint(err: _Err, el: XmlElement, lenient: bool) -> UrdfJoint:
         )
     ends = {}
     for tag in ("parent", "child"):
-        e = _child(err, what, el, tag)
+        e = one_child(err, what, el, tag)
         link = e.get("link")
         if link is None or not link.strip():
             raise err(what, e, "link is required", "link")
         ends[tag] = link
-    origin = _origin(err, what, el)
+    origin = origin_pose(err, what, el)
     moving = jtype not in ("fixed", "floating")
-    ax_el = _optional(err, what, el, "axis")
+    ax_el = optional_child(err, what, el, "axis")
     axis = np.array([1.0, 0.0, 0.0])
     if ax_el is not None:
-        axis = np.array(_numbers(err, what, ax_el, "xyz", (3,), None))
+        axis = np.array(attr_numbers(err, what, ax_el, "xyz", (3,), None))
     norm = float(np.linalg.norm(axis))
     if moving and not norm > 0:
         raise err(what, ax_el, "the axis must not be zero", "xyz")
     if norm > 0:
         axis = axis / norm
-    lim = _optional(err, what, el, "limit")
+    lim = optional_child(err, what, el, "limit")
     lower = upper = None
     velocity = math.inf
     if lim is not None:
-        lower = _scalar(err, what, lim, "lower")
-        upper = _scalar(err, what, lim, "upper")
-        vel = _scalar(err, what, lim, "velocity")
+        lower = attr_scalar(err, what, lim, "lower")
+        upper = attr_scalar(err, what, lim, "upper")
+        vel = attr_scalar(err, what, lim, "velocity")
         if vel is None and jtype in ("revolute", "prismatic"):
             raise err(what, lim, "velocity is required (write 0 for no bound)")
-        eff = _scalar(err, what, lim, "effort")
+        eff = attr_scalar(err, what, lim, "effort")
         if vel is not None and vel < 0:
             raise err(what, lim, "must be ≥ 0 (0 means no bound)", "velocity")
         if eff is not None and eff < 0:
@@ -415,13 +336,13 @@ def _joint(err: _Err, el: XmlElement, lenient: bool) -> UrdfJoint:
         if lower > upper:
             raise err(what, lim, f"lower {lower!r} > upper {upper!r}", "lower")
     mimic = None
-    m = _optional(err, what, el, "mimic")
+    m = optional_child(err, what, el, "mimic")
     if m is not None:
         leader = m.get("joint")
         if leader is None or not leader.strip():
             raise err(what, m, "joint is required", "joint")
-        mult = _scalar(err, what, m, "multiplier")
-        off = _scalar(err, what, m, "offset")
+        mult = attr_scalar(err, what, m, "multiplier")
+        off = attr_scalar(err, what, m, "offset")
         mimic = (leader, 1.0 if mult is None else mult, 0.0 if off is None else off)
     passive = any(PASSIVE_MARK in c for c in el.comments)
     return UrdfJoint(
@@ -448,7 +369,7 @@ def read_urdf(path: str | Path, *, lenient: bool = False, source: str | None = N
     src = str(path) if source is None else source
     if not p.is_file():
         raise RobotFileError(src, "", "no such file")
-    err = _Err(src)
+    err = XmlErrors(src)
     root = read_xml(p, src, RobotFileError)
     if root.tag != "robot":
         raise err("", root, "the root element of a URDF must be <robot>")
