@@ -17,6 +17,7 @@ from reachwise.control.avoidance import SceneConverter
 from reachwise.control.controller import Controller, ControllerConfig, Goal
 from reachwise.control.safety import SafetyConfig
 from reachwise.distance.scene import Scene, SceneLike, WatchedPair
+from reachwise.distance.scene_memories import memory_margin
 from reachwise.errors import InputError, check_choice
 from reachwise.kinematics.robot import Robot
 from reachwise.sim.contact import Solid
@@ -286,13 +287,8 @@ def _watch_pairs(
             scene, res.scenario, listed, w, w.margin + spec.monitor, f"watch[{i}]", inflation
         )
         for pair in made:
-            control[(pair.a, pair.b)] = w.margin + _extra(inflation, pair.a, pair.b)
+            control[(pair.a, pair.b)] = memory_margin(inflation, pair.a, pair.b, w.margin)
     return control
-
-
-def _extra(inflation: dict[str, float], a: str, b: str) -> float:
-    """What a pair adds to its margins: the inflation of the scene memories in it."""
-    return inflation.get(a, 0.0) + inflation.get(b, 0.0)
 
 
 def _watch_rule(
@@ -327,7 +323,7 @@ def _watch_rule(
         mine = _robot_objects(scene, w.robot, w.links, sc.source, where)
         for o in mine:
             for e in w.environment:
-                qe = qm + _extra(inflation, o, e)
+                qe = memory_margin(inflation, o, e, qm)
                 made.append(scene.watch(o, e, qe, kind="robot-environment"))
     elif w.robots is not None:
         ra, rb = w.robots
