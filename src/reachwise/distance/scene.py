@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 import numbers
 import weakref
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Mapping
 from types import MappingProxyType
 
 import numpy as np
@@ -38,6 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 
 import reachwise.distance._batch as B
 import reachwise.distance._kernels as K
+import reachwise.distance.scene_rules as scene_rules
 from reachwise.distance._common import (
     as_cloud,
     check_margin,
@@ -340,56 +341,10 @@ class Scene:
         ]
         return tuple(sorted(objs, key=lambda o: order[o.source.link]))  # type: ignore[union-attr]
 
-    @scene_change
-    def watch_self(
-        self,
-        robot: str,
-        margin: float,
-        exclude: Iterable[tuple[str, str]] = (),
-    ) -> tuple[WatchedPair, ...]:
-        """Self-collision pairs of ``robot``: every two of its objects except those on
-        the same link, on adjacent links (neighbours in ``link_names``: joint i joins
-        link_{i-1} and link_i; the tool is adjacent to the last link) and the pairs in
-        ``exclude`` (each a pair of link names or object names, either order)."""
-        r = self._robot(robot)
-        index = {n: i for i, n in enumerate(r.link_names)}
-        excl = {frozenset(e) for e in exclude}
-        objs = self.robot_objects(robot)
-        out = []
-        for i, oa in enumerate(objs):
-            for ob in objs[i + 1 :]:
-                la = oa.source.link  # type: ignore[union-attr]
-                lb = ob.source.link  # type: ignore[union-attr]
-                if abs(index[la] - index[lb]) <= 1:
-                    continue
-                if frozenset((la, lb)) in excl or frozenset((oa.name, ob.name)) in excl:
-                    continue
-                out.append(self.watch(oa.name, ob.name, margin, kind="self"))
-        return tuple(out)
-
-    @scene_change
-    def watch_environment(
-        self, robot: str, margin: float, objects: Iterable[str] | None = None
-    ) -> tuple[WatchedPair, ...]:
-        """Pairs of every object of ``robot`` with every object not on a robot (or with
-        the named ``objects``)."""
-        mine = self.robot_objects(robot)
-        if objects is None:
-            others = [o.name for o in self._objects.values() if not isinstance(o.source, OnLink)]
-        else:
-            others = [self._object(n).name for n in objects]
-        return tuple(
-            self.watch(o.name, e, margin, kind="robot-environment") for o in mine for e in others
-        )
-
-    @scene_change
-    def watch_robots(self, robot_a: str, robot_b: str, margin: float) -> tuple[WatchedPair, ...]:
-        """Pairs of every object of ``robot_a`` with every object of ``robot_b``."""
-        if robot_a == robot_b:
-            raise InputError("scene", "watch_robots", "use watch_self for one robot")
-        oa = self.robot_objects(robot_a)
-        ob = self.robot_objects(robot_b)
-        return tuple(self.watch(x.name, y.name, margin, kind="robot-robot") for x in oa for y in ob)
+    # the pair rules over a robot's objects, written once for any SceneLike
+    watch_self = scene_rules.watch_self
+    watch_environment = scene_rules.watch_environment
+    watch_robots = scene_rules.watch_robots
 
     # ------------------------------------------------------------------ queries
     def poses(self) -> dict[str, NDArray[np.float64]]:
