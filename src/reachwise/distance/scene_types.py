@@ -78,9 +78,7 @@ class OnLink:
 
 @dataclass(frozen=True)
 class Runtime:
-    """Set at run time with
-    :meth:`Scene.set_pose <reachwise.distance.scene.Scene.set_pose>` (identity until
-    then)."""
+    """Set at run time with :meth:`Scene.set_pose` (identity until then)."""
 
 
 PoseSource = Fixed | OnLink | Runtime
@@ -97,8 +95,7 @@ class SceneObject:
 
 @dataclass(frozen=True)
 class SceneResult:
-    """Every watched pair's answer from one
-    :meth:`Scene.query_all <reachwise.distance.scene.Scene.query_all>` call.
+    """Every watched pair's answer from one :meth:`Scene.query_all` call.
 
     ``sequence`` numbers the answers (1, 2, …; it only grows); ``measured_at`` (s) is
     the time stamp of the oldest input the answer depends on (joint states and run-time
@@ -158,9 +155,8 @@ class SceneResult:
 
 @runtime_checkable
 class SceneLike(Protocol):
-    """The scene interface a controller and a simulation use:
-    :class:`~reachwise.distance.scene.Scene` in process,
-    :class:`reachwise.server.client.SceneClient` over the network. Code
+    """The scene interface a controller and a simulation use: :class:`Scene` in
+    process, :class:`reachwise.server.client.SceneClient` over the network. Code
     written against it never knows which of the two it talks to."""
 
     @property
