@@ -312,29 +312,7 @@ def _joint(err: XmlErrors, el: XmlElement, lenient: bool) -> UrdfJoint:
     if norm > 0:
         axis = axis / norm
     lim = optional_child(err, what, el, "limit")
-    lower = upper = None
-    velocity = math.inf
-    if lim is not None:
-        lower = attr_scalar(err, what, lim, "lower")
-        upper = attr_scalar(err, what, lim, "upper")
-        vel = attr_scalar(err, what, lim, "velocity")
-        if vel is None and jtype in ("revolute", "prismatic"):
-            raise err(what, lim, "velocity is required (write 0 for no bound)")
-        eff = attr_scalar(err, what, lim, "effort")
-        if vel is not None and vel < 0:
-            raise err(what, lim, "must be ≥ 0 (0 means no bound)", "velocity")
-        if eff is not None and eff < 0:
-            raise err(what, lim, "must be ≥ 0 (0 means not given)", "effort")
-        if vel is not None and vel > 0:
-            velocity = vel
-    if jtype in ("revolute", "prismatic"):
-        if lim is None:
-            raise err(what, el, f"a {jtype} joint needs <limit lower=… upper=… velocity=…>")
-        if lower is None or upper is None:
-            missing = "lower" if lower is None else "upper"
-            raise err(what, lim, f"a {jtype} joint needs {missing}", missing)
-        if lower > upper:
-            raise err(what, lim, f"lower {lower!r} > upper {upper!r}", "lower")
+    lower, upper, velocity = _limits(err, what, el, lim, jtype)
     mimic = None
     m = optional_child(err, what, el, "mimic")
     if m is not None:
@@ -360,6 +338,38 @@ def _joint(err: XmlErrors, el: XmlElement, lenient: bool) -> UrdfJoint:
         line=el.line,
         has_limit=lim is not None,
     )
+
+
+def _limits(
+    err: XmlErrors, what: str, el: XmlElement, lim: XmlElement | None, jtype: str
+) -> tuple[float | None, float | None, float]:
+    """A joint's ``<limit>``: its lower and upper bounds (rad or m, ``None`` when not
+    given) and its speed bound (rad/s or m/s, ``inf`` for none or 0); a revolute or
+    prismatic joint needs all three, with lower ≤ upper."""
+    lower = upper = None
+    velocity = math.inf
+    if lim is not None:
+        lower = attr_scalar(err, what, lim, "lower")
+        upper = attr_scalar(err, what, lim, "upper")
+        vel = attr_scalar(err, what, lim, "velocity")
+        if vel is None and jtype in ("revolute", "prismatic"):
+            raise err(what, lim, "velocity is required (write 0 for no bound)")
+        eff = attr_scalar(err, what, lim, "effort")
+        if vel is not None and vel < 0:
+            raise err(what, lim, "must be ≥ 0 (0 means no bound)", "velocity")
+        if eff is not None and eff < 0:
+            raise err(what, lim, "must be ≥ 0 (0 means not given)", "effort")
+        if vel is not None and vel > 0:
+            velocity = vel
+    if jtype in ("revolute", "prismatic"):
+        if lim is None:
+            raise err(what, el, f"a {jtype} joint needs <limit lower=… upper=… velocity=…>")
+        if lower is None or upper is None:
+            missing = "lower" if lower is None else "upper"
+            raise err(what, lim, f"a {jtype} joint needs {missing}", missing)
+        if lower > upper:
+            raise err(what, lim, f"lower {lower!r} > upper {upper!r}", "lower")
+    return lower, upper, velocity
 
 
 # ---- the file -------------------------------------------------------------------------
