@@ -143,6 +143,36 @@ def _geometry_elements(link: ET.Element, robot: Robot, frame: str) -> None:
             _shape_element(link, "collision", g)
 
 
+def _joint_element(
+    root: ET.Element,
+    name: str,
+    jtype: str,
+    ends: tuple[str, str],
+    origin: Mat,
+    j: Joint | None = None,
+) -> None:
+    """Add ``<joint name type>`` to ``root``: its origin, parent and child links
+    (``ends``), and for a moving row ``j`` its z axis and limits (a passive joint
+    marked by a comment; an unbounded speed written as 0)."""
+    el = ET.SubElement(root, "joint", name=name, type=jtype)
+    if j is not None and j.passive:
+        el.append(ET.Comment(f" {PASSIVE_MARK} "))
+    _origin(el, origin)
+    ET.SubElement(el, "parent", link=ends[0])
+    ET.SubElement(el, "child", link=ends[1])
+    if j is not None and jtype != "fixed":
+        ET.SubElement(el, "axis", xyz="0 0 1")
+        vel = j.vmax if math.isfinite(j.vmax) else 0.0
+        ET.SubElement(
+            el,
+            "limit",
+            lower=_f(j.limits[0]),
+            upper=_f(j.limits[1]),
+            effort="0",
+            velocity=_f(vel),
+        )
+
+
 def export_urdf(robot: Robot, path: str | Path | None = None) -> str:
     """The robot as a URDF XML string (written to ``path`` when given).
 
@@ -174,23 +204,7 @@ def export_urdf(robot: Robot, path: str | Path | None = None) -> str:
     def add_joint(
         name: str, jtype: str, parent: str, child: str, origin: Mat, j: Joint | None = None
     ) -> None:
-        el = ET.SubElement(root, "joint", name=name, type=jtype)
-        if j is not None and j.passive:
-            el.append(ET.Comment(f" {PASSIVE_MARK} "))
-        _origin(el, origin)
-        ET.SubElement(el, "parent", link=parent)
-        ET.SubElement(el, "child", link=child)
-        if j is not None and jtype != "fixed":
-            ET.SubElement(el, "axis", xyz="0 0 1")
-            vel = j.vmax if math.isfinite(j.vmax) else 0.0
-            ET.SubElement(
-                el,
-                "limit",
-                lower=_f(j.limits[0]),
-                upper=_f(j.limits[1]),
-                effort="0",
-                velocity=_f(vel),
-            )
+        _joint_element(root, name, jtype, (parent, child), origin, j)
 
     add_link("world")
     add_link("link_0")
