@@ -336,6 +336,23 @@ def load_urdf(
         raise RobotFileError(source, "joints", "the chain has no revolute or prismatic joint")
     template = {uj.name: j for uj, j in rows_in}
 
+    joints, after, base, tool = _dh_rows(chain, template)
+    tip_link = chain[-1].child if chain else model.root
+    first_moving = next(uj for uj in chain if uj.type != "fixed")
+    frames = _frame_names(model, chain, [first_moving.parent, *after], tip_link)
+    robot = Robot(model.name, joints, base=base, tool=tool, source=source, frame_names=frames)
+    geometry, visual, bodies = place_shapes(
+        model, chain, robot, package_dirs=package_dirs or (), lenient=lenient
+    )
+    return replace(robot, geometry=geometry, visual=visual, bodies=bodies)
+
+
+def _dh_rows(
+    chain: list[UrdfJoint], template: dict[str, Joint]
+) -> tuple[tuple[Joint, ...], list[str], Mat, Mat]:
+    """The modified DH rows of ``chain`` (each moving joint's row from its ``template``;
+    a transform :func:`decompose_transform` cannot take adds a fixed row), the URDF
+    link or joint each row's frame is named after, the base and the tool transform."""
     rows: list[dict[str, Any]] = []  # DH rows: joint template + a, alpha, d, theta
     after: list[str] = []  # the URDF link or joint each row's frame is named after
     base = np.eye(4)
@@ -373,24 +390,21 @@ def load_urdf(
     def clean(v: float) -> float:  # drop rounding dust (|v| < 1e-15) for readable tables
         return 0.0 if abs(v) < 1e-15 else float(v)
 
-    joints = tuple(
-        replace(
-            r["joint"],
-            a=clean(r["a"]),
-            alpha=clean(r["alpha"]),
-            d=clean(r["d"]),
-            theta=clean(r["theta"]),
-        )
-        for r in rows
+    return (
+        tuple(
+            replace(
+                r["joint"],
+                a=clean(r["a"]),
+                alpha=clean(r["alpha"]),
+                d=clean(r["d"]),
+                theta=clean(r["theta"]),
+            )
+            for r in rows
+        ),
+        after,
+        base,
+        acc,
     )
-    tip_link = chain[-1].child if chain else model.root
-    first_moving = next(uj for uj in chain if uj.type != "fixed")
-    frames = _frame_names(model, chain, [first_moving.parent, *after], tip_link)
-    robot = Robot(model.name, joints, base=base, tool=acc, source=source, frame_names=frames)
-    geometry, visual, bodies = place_shapes(
-        model, chain, robot, package_dirs=package_dirs or (), lenient=lenient
-    )
-    return replace(robot, geometry=geometry, visual=visual, bodies=bodies)
 
 
 def _frame_names(
