@@ -102,33 +102,7 @@ def place_shapes(
             k += 1
         frame_of[j.child] = 0 if k == 0 else robot.movable_joints[k - 1] + 1
     tip = chain[-1].child if chain else model.root
-    children: dict[str, list[UrdfJoint]] = {}
-    for j in model.joints.values():
-        children.setdefault(j.parent, []).append(j)
-    P: dict[str, Mat] = {model.root: np.eye(4)}
-    ride = {model.root: model.root}
-    held: dict[str, str] = {}  # off-chain link -> how it is held (for the log)
-    blocked: dict[str, UrdfJoint] = {}  # links below a floating/planar off-chain joint
-    todo = [model.root]
-    while todo:
-        parent = todo.pop()
-        for j in children.get(parent, []):
-            c = j.child
-            todo.append(c)
-            if j.name in on_chain:
-                P[c] = P[parent] @ j.origin
-                ride[c] = c
-                continue
-            ride[c] = ride[parent]
-            if parent in blocked:
-                blocked[c] = blocked[parent]
-            if j.type in ("floating", "planar"):
-                blocked[c] = j
-            value = held_value(model, j, on_chain)
-            P[c] = P[parent] @ j.origin @ joint_motion(j, value)
-            note = "" if j.type == "fixed" else f"joint {j.name!r} held at {value:g}"
-            up = held.get(parent, "")
-            held[c] = ", ".join(x for x in (up, note) if x)
+    P, ride, held, blocked = _link_poses(model, on_chain)
     F = robot.fk_all(np.zeros(robot.n))
     geometry: dict[str, list[LinkGeometry]] = {}
     visual: dict[str, list[LinkGeometry]] = {}
@@ -186,6 +160,42 @@ def place_shapes(
         {k: tuple(v) for k, v in visual.items()},
         bodies,
     )
+
+
+def _link_poses(
+    model: UrdfModel, on_chain: set[str]
+) -> tuple[dict[str, Mat], dict[str, str], dict[str, str], dict[str, UrdfJoint]]:
+    """Walking the tree from the root with the off-chain joints held: each link's pose
+    at zero, the chain link it rides on, how it is held (for the log), and the
+    floating or planar off-chain joint it hangs below, if any."""
+    children: dict[str, list[UrdfJoint]] = {}
+    for j in model.joints.values():
+        children.setdefault(j.parent, []).append(j)
+    P: dict[str, Mat] = {model.root: np.eye(4)}
+    ride = {model.root: model.root}
+    held: dict[str, str] = {}  # off-chain link -> how it is held (for the log)
+    blocked: dict[str, UrdfJoint] = {}  # links below a floating/planar off-chain joint
+    todo = [model.root]
+    while todo:
+        parent = todo.pop()
+        for j in children.get(parent, []):
+            c = j.child
+            todo.append(c)
+            if j.name in on_chain:
+                P[c] = P[parent] @ j.origin
+                ride[c] = c
+                continue
+            ride[c] = ride[parent]
+            if parent in blocked:
+                blocked[c] = blocked[parent]
+            if j.type in ("floating", "planar"):
+                blocked[c] = j
+            value = held_value(model, j, on_chain)
+            P[c] = P[parent] @ j.origin @ joint_motion(j, value)
+            note = "" if j.type == "fixed" else f"joint {j.name!r} held at {value:g}"
+            up = held.get(parent, "")
+            held[c] = ", ".join(x for x in (up, note) if x)
+    return P, ride, held, blocked
 
 
 def _geometry(
