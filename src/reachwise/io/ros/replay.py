@@ -296,21 +296,7 @@ def _drive(
         if m.topic in infos:
             infos[m.topic].set_info(m.msg)
         elif m.topic in sources:
-            src = sources[m.topic]
-            src.count += 1
-            if memory is not None and src.msgtype == IMAGE:
-                voxels, stamp = src.fuse(memory, m.msg, m.t, tree, spec.frame)
-                scene.replace_cloud(MEMORY, voxels, block=spec.block, stamp=stamp)
-                if on_cloud is not None:
-                    points = voxels.points if isinstance(voxels, PointCloud) else voxels
-                    on_cloud(MEMORY, stamp, points)
-            else:
-                cloud, stamp = src.points(m.msg, m.t, tree, spec.frame)
-                scene.replace_cloud(m.topic, cloud, block=spec.block, stamp=stamp)
-                if on_cloud is not None:
-                    on_cloud(
-                        m.topic, stamp, cloud.points if isinstance(cloud, PointCloud) else cloud
-                    )
+            _take_cloud(sources[m.topic], m, memory, tree, spec, scene, on_cloud)
         else:
             q = matcher.positions(m.msg, topic=m.topic)
             t = _joint_time(m.msg, m.t)
@@ -345,6 +331,32 @@ def _drive(
         np.where(fresh_all[..., None], R[..., 4:7], np.nan),
         {c: len(v) for c, v in seen.items()},
     )
+
+
+def _take_cloud(
+    src: CloudTopic,
+    m: BagMessage,
+    memory: SceneMemory | None,
+    tree: TransformTree,
+    spec: ReplaySpec,
+    scene: Scene,
+    on_cloud: CloudHook | None,
+) -> None:
+    """A cloud topic's message into the scene: a depth image fused into the scene
+    memory (which replaces the memory's cloud) when there is one, else its points
+    replace the topic's cloud; ``on_cloud`` is told either way."""
+    src.count += 1
+    if memory is not None and src.msgtype == IMAGE:
+        voxels, stamp = src.fuse(memory, m.msg, m.t, tree, spec.frame)
+        scene.replace_cloud(MEMORY, voxels, block=spec.block, stamp=stamp)
+        if on_cloud is not None:
+            points = voxels.points if isinstance(voxels, PointCloud) else voxels
+            on_cloud(MEMORY, stamp, points)
+    else:
+        cloud, stamp = src.points(m.msg, m.t, tree, spec.frame)
+        scene.replace_cloud(m.topic, cloud, block=spec.block, stamp=stamp)
+        if on_cloud is not None:
+            on_cloud(m.topic, stamp, cloud.points if isinstance(cloud, PointCloud) else cloud)
 
 
 def _in_time_order(messages: Iterable[BagMessage], rank: dict[str, int]) -> Iterator[BagMessage]:
