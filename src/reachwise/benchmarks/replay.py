@@ -163,14 +163,6 @@ def _pin_one_core() -> str:
 
 def run(quick: bool = False) -> BenchReport:
     """Replay a recorded cell and decode its depth images (see the module docstring)."""
-    from reachwise.distance.index import build_index, index_of_ordered
-    from reachwise.geometry.cloud import PointCloud
-    from reachwise.io.robot_file import load_robot
-    from reachwise.io.ros.bag import Recording
-    from reachwise.io.ros.depth_image import DepthProjector, camera_from_info, depth_points
-    from reachwise.io.ros.pointcloud2 import pointcloud2_points
-    from reachwise.io.ros.replay import ReplaySpec, replay_recording
-
     rep = BenchReport("replay")
     affinity = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
     rep.notes.append(_pin_one_core())
@@ -179,81 +171,99 @@ def run(quick: bool = False) -> BenchReport:
         with tempfile.TemporaryDirectory() as tmp:
             bag = Path(tmp) / "cell.mcap"
             _record(bag, seconds)
-            robot = load_robot("panda")
-            rng = np.random.default_rng(0)
-            clouds = {
-                link: PointCloud(rng.normal(scale=0.06, size=(1000, 3)))
-                for link in ("link_3", "link_5", "link_7")
-            }
-            spec = ReplaySpec(joints="/joint_states", clouds=("/depth/image",))
-            replay_recording(bag, robot, spec, link_clouds=clouds)  # compile, warm caches
-            per_frame = []
-            cpu_per_frame = []
-            frames = 0
-            for _ in range(1 if quick else 3):
-                t0, c0 = time.perf_counter(), time.process_time()
-                res = replay_recording(bag, robot, spec, link_clouds=clouds)
-                wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-                frames = res.clouds["/depth/image"]
-                per_frame.append(wall / frames * 1e6)
-                cpu_per_frame.append(cpu / frames * 1e6)
-            rep.add_samples("replay.frame", np.array(per_frame))
-            rep.add_samples("replay.cpu_frame", np.array(cpu_per_frame))
-            fps = 1e6 / float(np.median(per_frame))
-            cpu_fps = 1e6 / float(np.median(cpu_per_frame))
-            rep.metrics["replay.frames_per_s"] = fps
-            rep.metrics["replay.frames_per_cpu_s"] = cpu_fps
-            rep.metrics["replay.camera_frames"] = float(frames)
-            rep.metrics["replay.joint_states"] = float(res.t.size)
-            rep.metrics["replay.points_per_frame"] = float(W * H)
-            rep.targets["replay.frames_per_s"] = Target(fps, float(FPS), higher_is_better=True)
-            rep.targets["replay.frames_per_cpu_s"] = Target(
-                cpu_fps, float(FPS), higher_is_better=True
-            )
-            with Recording(bag) as rec:
-                it = rec.messages(["/depth/image", "/depth/camera_info"])
-                info = next(m.msg for m in it if m.topic == "/depth/camera_info")
-                image = next(m.msg for m in rec.messages(["/depth/image"]))
-            cam = camera_from_info(info)
-            i = cam.intrinsics
-            samples = time_interleaved(
-                {
-                    "decode.ours": lambda _: depth_points(image, cam),
-                    "decode.loop": lambda _: _loop_decode(image, i.fx, i.fy, i.cx, i.cy),
-                },
-                repeat=1 if quick else 3,
-                warmup=1,
-            )
-            proj = DepthProjector(cam)
-            pose = np.eye(4)
-
-            def ordered(_: int) -> object:
-                pts, codes, centroid = proj.ordered_points(image, pose)
-                return index_of_ordered(pts, codes, centroid)
-
-            samples |= time_interleaved(
-                {
-                    "index.ordered": ordered,
-                    "index.sorted": lambda _: build_index(proj.points(image, pose)),
-                },
-                repeat=3 if quick else 10,
-                warmup=1,
-            )
-            cloud = _cloud_message(depth_points(image, cam))
-            samples |= time_interleaved(
-                {
-                    "cloud.ours": lambda _: pointcloud2_points(cloud, dtype=np.float32),
-                    "cloud.loop": lambda _: _loop_cloud(cloud),
-                },
-                repeat=1 if quick else 3,
-                warmup=1,
-            )
-            for name, s in samples.items():
-                rep.add_samples(name, s)
-            rep.ratio("decode.loop", "decode.ours")
-            rep.ratio("cloud.loop", "cloud.ours")
-            rep.ratio("index.sorted", "index.ordered")
+            _replay_rate(rep, bag, quick)
+            _decode_costs(rep, bag, quick)
     finally:
         if affinity is not None:
             os.sched_setaffinity(0, affinity)
     return rep
+
+
+def _replay_rate(rep: BenchReport, bag: Path, quick: bool) -> None:
+    """Frames replayed per second (wall and CPU) of the recorded cell ``bag``."""
+    from reachwise.geometry.cloud import PointCloud
+    from reachwise.io.robot_file import load_robot
+    from reachwise.io.ros.replay import ReplaySpec, replay_recording
+
+    robot = load_robot("panda")
+    rng = np.random.default_rng(0)
+    clouds = {
+        link: PointCloud(rng.normal(scale=0.06, size=(1000, 3)))
+        for link in ("link_3", "link_5", "link_7")
+    }
+    spec = ReplaySpec(joints="/joint_states", clouds=("/depth/image",))
+    replay_recording(bag, robot, spec, link_clouds=clouds)  # compile, warm caches
+    per_frame = []
+    cpu_per_frame = []
+    frames = 0
+    for _ in range(1 if quick else 3):
+        t0, c0 = time.perf_counter(), time.process_time()
+        res = replay_recording(bag, robot, spec, link_clouds=clouds)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        frames = res.clouds["/depth/image"]
+        per_frame.append(wall / frames * 1e6)
+        cpu_per_frame.append(cpu / frames * 1e6)
+    rep.add_samples("replay.frame", np.array(per_frame))
+    rep.add_samples("replay.cpu_frame", np.array(cpu_per_frame))
+    fps = 1e6 / float(np.median(per_frame))
+    cpu_fps = 1e6 / float(np.median(cpu_per_frame))
+    rep.metrics["replay.frames_per_s"] = fps
+    rep.metrics["replay.frames_per_cpu_s"] = cpu_fps
+    rep.metrics["replay.camera_frames"] = float(frames)
+    rep.metrics["replay.joint_states"] = float(res.t.size)
+    rep.metrics["replay.points_per_frame"] = float(W * H)
+    rep.targets["replay.frames_per_s"] = Target(fps, float(FPS), higher_is_better=True)
+    rep.targets["replay.frames_per_cpu_s"] = Target(cpu_fps, float(FPS), higher_is_better=True)
+
+
+def _decode_costs(rep: BenchReport, bag: Path, quick: bool) -> None:
+    """Decoding the first depth image of ``bag`` into points, its ordered index and a
+    PointCloud2's points, each against its plain-loop or sorted baseline."""
+    from reachwise.distance.index import build_index, index_of_ordered
+    from reachwise.io.ros.bag import Recording
+    from reachwise.io.ros.depth_image import DepthProjector, camera_from_info, depth_points
+    from reachwise.io.ros.pointcloud2 import pointcloud2_points
+
+    with Recording(bag) as rec:
+        it = rec.messages(["/depth/image", "/depth/camera_info"])
+        info = next(m.msg for m in it if m.topic == "/depth/camera_info")
+        image = next(m.msg for m in rec.messages(["/depth/image"]))
+    cam = camera_from_info(info)
+    i = cam.intrinsics
+    samples = time_interleaved(
+        {
+            "decode.ours": lambda _: depth_points(image, cam),
+            "decode.loop": lambda _: _loop_decode(image, i.fx, i.fy, i.cx, i.cy),
+        },
+        repeat=1 if quick else 3,
+        warmup=1,
+    )
+    proj = DepthProjector(cam)
+    pose = np.eye(4)
+
+    def ordered(_: int) -> object:
+        pts, codes, centroid = proj.ordered_points(image, pose)
+        return index_of_ordered(pts, codes, centroid)
+
+    samples |= time_interleaved(
+        {
+            "index.ordered": ordered,
+            "index.sorted": lambda _: build_index(proj.points(image, pose)),
+        },
+        repeat=3 if quick else 10,
+        warmup=1,
+    )
+    cloud = _cloud_message(depth_points(image, cam))
+    samples |= time_interleaved(
+        {
+            "cloud.ours": lambda _: pointcloud2_points(cloud, dtype=np.float32),
+            "cloud.loop": lambda _: _loop_cloud(cloud),
+        },
+        repeat=1 if quick else 3,
+        warmup=1,
+    )
+    for name, s in samples.items():
+        rep.add_samples(name, s)
+    rep.ratio("decode.loop", "decode.ours")
+    rep.ratio("cloud.loop", "cloud.ours")
+    rep.ratio("index.sorted", "index.ordered")
