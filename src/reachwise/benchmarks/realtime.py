@@ -69,7 +69,6 @@ for a build; ≥ 29 swaps/s; hand-off p99 ≤ 2 ms; builds: 300 k ≤ 20 ms, 1 M
 
 from __future__ import annotations
 
-import gc
 import importlib
 import threading
 import time
@@ -80,8 +79,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise.benchmarks._baseline_build import ingest_baseline
 from reachwise.benchmarks._harness import BenchReport, Target
+from reachwise.benchmarks.realtime_builds import index_builds
 from reachwise.benchmarks.realtime_probes import (
     DT,
     STALL_GAP,
@@ -106,7 +105,6 @@ from reachwise.benchmarks.realtime_room import (
 from reachwise.control.avoidance import SceneConverter
 from reachwise.control.controller import Controller, ControllerConfig, Goal
 from reachwise.control.safety import SafetyConfig
-from reachwise.distance.ingest import ready_cloud
 from reachwise.distance.scene import OnLink, Scene
 from reachwise.errors import MissingDependency
 from reachwise.runtime.realtime import keep_freed_memory, realtime_settings
@@ -141,37 +139,6 @@ CAMERA_HZ = 30.0
 #: The loop thread's SCHED_FIFO priority where permitted (ros2_control's default, 50).
 LOOP_PRIORITY = 50
 MARGIN = 0.05  # m, the panda-shelf scenario's environment margin
-
-
-# --------------------------------------------------------------------------- builds
-
-
-def _builds(rep: BenchReport, quick: bool) -> None:
-    reps = 3 if quick else 9
-    camera = camera_frame(0).astype(np.float64)
-    clouds = {"300k": camera[:300_000], "1M": room_points()}
-    for name, pts in clouds.items():
-        ready_cloud("warm", 1, pts[:1000], 0.0)
-        ingest_baseline(pts[:1000])
-        wall: dict[str, list[float]] = {"new": [], "old": []}
-        cpu: dict[str, list[float]] = {"new": [], "old": []}
-        for _ in range(reps):
-            for method in ("new", "old"):
-                w0, c0 = time.perf_counter(), time.thread_time()
-                if method == "new":
-                    ready_cloud("cloud", 1, pts, 0.0)
-                else:
-                    ingest_baseline(pts)
-                wall[method].append((time.perf_counter() - w0) * 1e6)
-                cpu[method].append((time.thread_time() - c0) * 1e6)
-                gc.collect()
-        for method in ("new", "old"):
-            rep.add_samples(f"build.{name}.{method}", np.array(wall[method]))
-            rep.metrics[f"build.{name}.{method}_cpu.median"] = float(np.median(cpu[method]))
-            rep.metrics[f"build.{name}.{method}.min"] = float(np.min(wall[method]))
-        rep.ratio(f"build.{name}.old", f"build.{name}.new")
-    rep.targets["build_300k"] = Target(rep.metrics["build.300k.new.median"], 20_000.0)
-    rep.targets["build_1M"] = Target(rep.metrics["build.1M.new.median"], 80_000.0)
 
 
 # --------------------------------------------------------------------------- the loop
@@ -300,27 +267,11 @@ def _loop(
     stop = threading.Event()
     start = time.perf_counter()
 
-    def camera() -> None:
-        k = 1
-        due = time.perf_counter()
-        while not stop.is_set():
-            due += 1.0 / CAMERA_HZ
-            pause = due - time.perf_counter()
-            if pause > 0:
-                time.sleep(pause)
-            t0 = time.perf_counter()
-            if feed is None:
-                scene.replace_cloud("camera", frames[k % FRAMES], stamp=t0 - start)
-            else:
-                feed(scene, k, t0 - start)
-            handoff.append((time.perf_counter() - t0) * 1e6)
-            k += 1
-
     # warm up (compile, fill caches) before the settings freeze what exists
     scene.set_joints(robot.name, q, stamp=0.0)
     ctrl.step(q, arm.goals[0], converter(scene.query_all(), stamp=0.0), 0.0)
     ctrl.reset()
-    thread = threading.Thread(target=camera, name="bench-camera", daemon=True)
+    thread = _camera_thread(scene, feed, frames, stop, handoff, lambda: start)
     swaps0, deferred0, during0 = scene.swaps, scene.swaps_deferred, scene.queries_during_build
     clock = time.perf_counter_ns
     cpu = time.thread_time_ns
@@ -359,7 +310,71 @@ def _loop(
             stop.set()
             thread.join()
     scene.close()
-    swaps = scene.swaps - swaps0
+    run = _LoopRun(
+        tick_us, cpu_us, during, switched, handoff, reached, stopped, elapsed,
+        scene.swaps - swaps0, scene.swaps_deferred - deferred0,
+        scene.queries_during_build - during0, counted,
+    )  # fmt: skip
+    _report_loop(rep, run, scene, applied, which)
+
+
+@dataclass(frozen=True)
+class _LoopRun:
+    """What the 1 kHz loop measured: per tick its wall and CPU time (µs), whether a
+    build ran, its context switches and page faults; the hand-overs (µs); goals
+    reached, protective stops, the loop's length (s); the scene's swaps, deferred
+    swaps and queries answered during a build over the loop; whether the platform
+    counts context switches."""
+
+    tick_us: NDArray[np.float64]
+    cpu_us: NDArray[np.float64]
+    during: NDArray[np.bool_]
+    switched: NDArray[np.int64]
+    handoff: list[float]
+    reached: int
+    stopped: int
+    elapsed: float
+    swaps: int
+    deferred: int
+    during_build: int
+    counted: bool
+
+
+def _camera_thread(
+    scene: Scene,
+    feed: CameraFeed | None,
+    frames: list[NDArray[np.float32]],
+    stop: threading.Event,
+    handoff: list[float],
+    origin: Callable[[], float],
+) -> threading.Thread:
+    """The camera thread: at :data:`CAMERA_HZ` until ``stop``, the next of ``frames``
+    into the scene's ``camera`` object (or ``feed``), stamped in seconds since
+    ``origin()``, each hand-over's time (µs) appended to ``handoff``."""
+
+    def camera() -> None:
+        k = 1
+        due = time.perf_counter()
+        while not stop.is_set():
+            due += 1.0 / CAMERA_HZ
+            pause = due - time.perf_counter()
+            if pause > 0:
+                time.sleep(pause)
+            t0 = time.perf_counter()
+            if feed is None:
+                scene.replace_cloud("camera", frames[k % FRAMES], stamp=t0 - origin())
+            else:
+                feed(scene, k, t0 - origin())
+            handoff.append((time.perf_counter() - t0) * 1e6)
+            k += 1
+
+    return threading.Thread(target=camera, name="bench-camera", daemon=True)
+
+
+def _report_loop(rep: BenchReport, run: _LoopRun, scene: Scene, applied: Any, which: str) -> None:
+    """The loop's figures, targets and note into ``rep``."""
+    tick_us, cpu_us, handoff, elapsed = run.tick_us, run.cpu_us, run.handoff, run.elapsed
+    swaps = run.swaps
     rep.add_samples("loop.tick", tick_us)
     worst = int(np.argmax(tick_us))
     rep.metrics["loop.tick.max"] = float(tick_us[worst])
@@ -371,19 +386,19 @@ def _loop(
     rep.metrics["loop.swaps"] = float(swaps)
     rep.metrics["loop.swaps_per_s"] = swaps / elapsed
     rep.metrics["loop.handoffs"] = float(len(handoff))
-    rep.metrics["loop.swaps_deferred"] = float(scene.swaps_deferred - deferred0)
-    rep.metrics["loop.ticks_during_build"] = float(scene.queries_during_build - during0)
+    rep.metrics["loop.swaps_deferred"] = float(run.deferred)
+    rep.metrics["loop.ticks_during_build"] = float(run.during_build)
     classes = slow_tick_classes(
-        tick_us, during, switched, fifo=applied.priority is not None, counted=counted
+        tick_us, run.during, run.switched, fifo=applied.priority is not None, counted=run.counted
     )
     rep.metrics.update({f"loop.{k}": v for k, v in classes.items()})
     waited = int(classes["ticks_waited_for_build"])
-    if not counted:
+    if not run.counted:
         rep.notes.append("loop: no per-thread context-switch counts on this platform")
-    rep.metrics["loop.goals_reached"] = float(reached)
+    rep.metrics["loop.goals_reached"] = float(run.reached)
     rep.metrics["loop.fifo_priority"] = float(applied.priority or 0)
     rep.metrics["loop.huge_pages_off"] = float(applied.huge_pages_off)
-    rep.metrics["loop.protective_stops"] = float(stopped)
+    rep.metrics["loop.protective_stops"] = float(run.stopped)
     rep.metrics["loop.superseded"] = float(scene.ingest.superseded)
     rep.add_samples("handoff", np.array(handoff))
     rep.metrics["handoff.max"] = float(max(handoff))
@@ -394,7 +409,7 @@ def _loop(
     rep.targets["swaps_per_s"] = Target(rep.metrics["loop.swaps_per_s"], 29.0, True)
     rep.targets["handoff_p99"] = Target(rep.metrics["handoff.p99"], 2000.0)
     rep.notes.append(
-        f"loop: {which}; {len(scene.pairs)} pairs; {ticks} ticks at dt = 1 ms paced in real "
+        f"loop: {which}; {len(scene.pairs)} pairs; {len(tick_us)} ticks at dt = 1 ms paced in real "
         f"time ({elapsed:.1f} s); a {CAMERA_SIZE[0]}x{CAMERA_SIZE[1]} camera frame handed "
         f"over {CAMERA_HZ:g} times a second from another thread; room {ROOM_POINTS} points; "
         + (
@@ -463,7 +478,7 @@ def run(quick: bool = False) -> BenchReport:
     rep = BenchReport("realtime")
     kept = keep_freed_memory()
     rep.notes.append(f"freed memory kept for reuse (glibc mallopt): {kept}")
-    _builds(rep, quick)
+    index_builds(rep, quick)
     _loop(rep, quick)
     _machine(rep, quick)
     _server(rep, quick)
