@@ -242,7 +242,8 @@ def _apply(decision, lo3, ext, state, freed_at, held, code, view, rules, W, H): 
     """Apply a brick test's ``decision`` to its voxels (voxel by voxel for ``_EACH``),
     flagging their brick in ``held`` (:func:`collect_ordered`) when one turns shadow;
     returns how many of them projected onto a pixel with a return. The voxels lie in
-    one brick of ``BRICK``³."""
+    one brick of ``BRICK``³. Compiled with numba, which takes the grids, the view and
+    the rules as arrays one by one, not as one object."""
     band, shadow, t, hold = rules[0], rules[1], rules[2], rules[3]
     bi, bj, bk = lo3[0], lo3[1], lo3[2]
     ei, ej, ek = ext[0], ext[1], ext[2]
