@@ -4,9 +4,10 @@ loader) with ``pairs: auto`` and a 2 cm self margin reach 20 random reachable go
 each as often as the same controller without self pairs (within one goal).
 
 A reachable goal is the tool position of a random configuration (seeded, uniform within
-the joint limits) in which every watched pair is more than 2 cm apart (outside its
-margin); goal ``k`` starts from the configuration of goal ``k − 1`` (the first from one
-more such configuration), so every trial starts outside every margin and both
+the joint limits) in which every watched pair is outside its margin (the controller's:
+2 cm between the surfaces plus both clouds' resolutions, or the pair's own); goal ``k``
+starts from the configuration of goal ``k − 1`` (the first from one more such
+configuration), so every trial starts outside every margin and both
 controllers start each trial from the same state. The loop is the controller's own fast
 path, as ``reachwise bench control`` runs it: the distance scene's query, the conversion
 into avoidance points and the controller step, the joints integrated kinematically (no
@@ -18,7 +19,9 @@ the surfaces touch or cross) does not count: it was not reached.
 
 With the pairs the arm stays clear of itself: no watched pair comes closer than 5 mm
 at any tick (the margin is 2 cm; the repulsion and the guard may let a pair into it,
-never through it).
+never through it), nor a pair with a margin of its own under 1 cm (structurally close,
+its clouds too coarse to promise its surfaces apart, like the UR5's forearm and
+wrist_2) closer than half that margin, the damper's stop distance.
 """
 
 from __future__ import annotations
@@ -42,8 +45,8 @@ GOALS = 20
 MARGIN = 0.02
 DT = 0.01
 TICKS = 500
-CLEAR = MARGIN  # a start or goal configuration keeps every watched pair this far apart
 CONTACT = 0.005  # a watched pair this close (cloud distance): the links touch
+SLACK = 1e-4  # the damper holds a pair at its stop distance, to rounding and one tick
 
 
 def _scenario(tmp_path: Path, name: str, self_pairs: bool) -> ResolvedScenario:
@@ -80,21 +83,27 @@ def _watched(world: World) -> list[tuple[str, str]]:
 
 
 def _trials(res: ResolvedScenario, world: World, seed: int) -> np.ndarray:
-    """``GOALS + 1`` random configurations with every watched pair beyond ``CLEAR``."""
+    """``GOALS + 1`` random configurations with every watched pair beyond its margin."""
     robot = world.robots["arm"]
     clouds = {k.split("/", 1)[1]: c for k, (c, _) in res.link_clouds.items()}
     Q = random_configurations(robot, 100 * (GOALS + 1), seed)
-    clear = ~pair_hits(robot, clouds, _watched(world), CLEAR, Q).any(axis=1)
+    clear = np.ones(len(Q), dtype=bool)
+    for pair, margin in zip(_watched(world), world.margins, strict=True):
+        clear &= ~pair_hits(robot, clouds, [pair], float(margin), Q)[:, 0]
     assert clear.sum() > GOALS, int(clear.sum())
     return Q[clear][: GOALS + 1]
 
 
 def _reach(world: World, watch: World, starts: np.ndarray, goals: list[Goal]) -> tuple[int, float]:
     """How many goals the controller of ``world`` reaches, each from its start, without
-    a watched pair of ``watch`` (the world with the pairs) closing below ``CONTACT``,
-    and the smallest watched-pair distance at any tick."""
+    a watched pair of ``watch`` (the world with the pairs) closing below its contact
+    distance (``CONTACT``, or half its margin when that is smaller: a structurally
+    close pair whose own margin is below 0, its clouds too coarse to tell, is kept at
+    least that far apart by the damper), and the smallest watched-pair distance less
+    its contact distance at any tick."""
     agent = world.agents[0]
     robot, ctrl, scene = agent.robot, agent.controller, watch.scene
+    floor = np.minimum(CONTACT, 0.5 * watch.margins)
     reached, closest = 0, np.inf
     for q0, goal in zip(starts, goals, strict=True):
         q = q0.copy()
@@ -104,11 +113,12 @@ def _reach(world: World, watch: World, starts: np.ndarray, goals: list[Goal]) ->
             t = k * DT
             scene.set_joints("arm", q, stamp=t)
             res = scene.query_all()
-            nearest = min(nearest, min(p.result.distance for p in res.pairs))
+            d = np.array([p.result.distance for p in res.pairs])
+            nearest = min(nearest, float(np.min(d - floor)))
             pts = agent.converter(res, stamp=t) if world.avoidance else None
             cmd, st = ctrl.step(q, goal, pts, t)
             if st.state == "reached":
-                reached += nearest > CONTACT
+                reached += nearest > -SLACK
                 break
             q = np.clip(q + np.clip(cmd, -robot.vmax, robot.vmax) * DT, robot.lower, robot.upper)
         closest = min(closest, nearest)
@@ -128,7 +138,7 @@ def test_automatic_pairs_reach_as_many_random_goals_as_none(tmp_path: Path, name
     with_pairs, closest = _reach(paired, paired, configs[:-1], goals)
     without, _ = _reach(bare, paired, configs[:-1], goals)
     print(f"{name}: {with_pairs}/{GOALS} with self pairs, {without}/{GOALS} without; "
-          f"closest pair {closest * 1000:.1f} mm")  # fmt: skip
+          f"closest pair {closest * 1000:.1f} mm beyond its contact distance")  # fmt: skip
     assert with_pairs >= without - 1, (with_pairs, without)
     assert with_pairs >= 2 * GOALS // 5  # not a comparison of failures (measured: 10-15)
-    assert closest > CONTACT
+    assert closest > -SLACK

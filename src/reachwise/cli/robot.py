@@ -225,8 +225,10 @@ def pairs(search: PairSearch, output: PairOutput, robot_file: RobotFileOptions) 
 
     Adjacent links are excluded; pairs within the margin at the home configuration (0,
     moved into the limits) are kept and listed for review; pairs within the margin in
-    at least 95 % of the random configurations (structurally close) and pairs never
-    within it are excluded; the rest are watched. The
+    at least 95 % of the random configurations (structurally close) are excluded, or
+    watched with a smaller margin of their own when their clouds come within their
+    resolutions (they may touch); pairs never within it are excluded; the rest are
+    watched. Distances are conservative by the clouds' resolutions. The
     file lists the rule behind each exclusion. Use it in a scenario with
     ``watch: [{self: {robot: NAME, pairs: auto}, margin: …}]``."""
     import time
@@ -267,6 +269,7 @@ def pairs(search: PairSearch, output: PairOutput, robot_file: RobotFileOptions) 
         "watched": len(found.watched),
         "excluded": rules,
         "review": [[p.a, p.b, p.home_distance] for p in found.review],
+        "own_margins": [[p.a, p.b, p.margin] for p in found.pairs if p.margin is not None],
         "samples": found.samples,
         "seconds": round(took, 3),
         "srdf": None if srdf is None else str(srdf),
@@ -283,7 +286,11 @@ def pairs(search: PairSearch, output: PairOutput, robot_file: RobotFileOptions) 
     for p in found.review:
         typer.echo(
             f"  review: {p.a} - {p.b} is {p.home_distance * 100:.1f} cm apart at home "
-            f"(margin {margin * 100:.1f} cm): watched; check whether they touch by design"
+            f"(margin {found.margins[(p.a, p.b)] * 100:.1f} cm): watched; check whether they "
+            "touch by design"
         )
+    for p in found.pairs:
+        if p.margin is not None:
+            typer.echo(f"  own margin: {p.a} - {p.b} {p.margin * 100:.1f} cm, {p.detail}")
     for p in found.always:
         typer.echo(f"  always: {p.a} - {p.b} excluded, {p.detail}")

@@ -11,14 +11,22 @@ margin instead of a contact test:
    flange is thus checked against the wrist links beyond the joint that moves it.
 2. **always** — a pair within the margin in at least :data:`ALWAYS_FRACTION` (95 %) of
    the ``samples`` random joint vectors (its clearance hardly ever exceeds the margin:
-   structurally close, like the two wrist links of a UR arm) is excluded, with that
-   share and the range of its clearance over the samples in its detail, so a pair
-   that can still close in shows its smallest clearance. This is MoveIt's ``Always``
-   (a pair in collision in nearly every sample is disabled): such a pair would repel
-   in every configuration, pushing the arm away from any goal, while its own geometry
-   holds its clearance in a narrow band. We exclude it rather than give it a smaller
-   margin of its own: a margin below its smallest clearance would never act, and one
-   above it would still repel in most of the joint space.
+   structurally close, like the two wrist links of a UR arm) would repel in nearly
+   every configuration, pushing the arm away from any goal. When its clouds stay
+   farther apart than their resolutions in every sample (the true surfaces never touch
+   there) it is excluded, with that share and the range of its clearance in its
+   detail: MoveIt's ``Always``. A pair whose clouds come within their resolutions
+   somewhere (it may touch, like the Panda's forearm and flange when joint 6 folds) is
+   watched with a **margin of its own** instead (:attr:`PairRule.margin`): its
+   clearance at the 5 % quantile less both resolutions, at least 0 (the clouds kept
+   their resolutions apart, so the surfaces never touch), so it acts only where the
+   pair closes in. A pair whose clouds are within their resolutions in 95 % of the
+   samples or more is beyond what its clouds can tell (like a Talos wrist and its
+   force-torque sensor, a few millimetres apart, with 1 cm clouds): it is judged on its
+   cloud distance as it is — excluded as ``always`` when that is within the margin in
+   95 % of the samples, else watched with the margin between the clouds (its own
+   margin, the margin less both resolutions, is then below 0, and its detail says the
+   controller cannot promise its surfaces apart; finer clouds would).
 3. **home** — every other pair is measured at the home (start) configuration; a pair
    within the margin there is reported for review (MoveIt disables such pairs as
    "default" collisions; a collision tool keeps them watched and lets the user
@@ -29,6 +37,12 @@ margin instead of a contact test:
    (the local search is ours: sampling alone misses pairs that come close only in a
    small region of the joint space).
 5. the rest is **watched**.
+
+Distances are conservative by the clouds' ``resolution``
+(:attr:`~reachwise.geometry.cloud.PointCloud.resolution`): a cloud covering its shapes
+within ``r`` has a point within ``r`` of every surface point, so two clouds' distance
+exceeds their surfaces' by at most ``r_a + r_b``; every rule compares a pair's cloud
+distance with its margin plus both resolutions (a margin is between the true surfaces).
 
 It is pure maths (robot, clouds and a random generator in, a :class:`SelfPairs` out)
 and fast: the forward kinematics of all samples is one batched call, each link cloud is
@@ -111,7 +125,9 @@ class PairRule:
     ``watched``;
     ``detail`` says why in words; ``home_distance`` (m) is the exact distance at the
     home configuration (``inf`` for adjacent pairs, which are not measured);
-    ``review`` marks a watched pair within the margin at home."""
+    ``review`` marks a watched pair within the margin at home; ``margin`` (m) is a
+    watched pair's own margin between the surfaces when it has one (a structurally
+    close pair, module docstring), else ``None`` (the pairs' common margin)."""
 
     a: str
     b: str
@@ -119,6 +135,7 @@ class PairRule:
     detail: str
     home_distance: float = math.inf
     review: bool = False
+    margin: float | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,6 +160,16 @@ class SelfPairs:
     @property
     def review(self) -> tuple[PairRule, ...]:
         return tuple(p for p in self.pairs if p.review)
+
+    @property
+    def margins(self) -> dict[tuple[str, str], float]:
+        """Each watched pair's margin (m, between the surfaces): its own, else
+        :attr:`margin`."""
+        return {
+            (p.a, p.b): self.margin if p.margin is None else p.margin
+            for p in self.pairs
+            if p.rule == "watched"
+        }
 
     @property
     def always(self) -> tuple[PairRule, ...]:
@@ -275,19 +302,21 @@ ALWAYS_FRACTION = 0.95
 
 def always_within(
     query: PairQuery, F: NDArray[np.float64], ia: int, ib: int, bounds: NDArray[np.float64]
-) -> tuple[float, float, float] | None:
-    """``(share, smallest, largest)``: the share of the configurations ``F`` in which a
-    pair is within ``query.margin`` and the smallest and largest clearance over them,
-    when that share is at least :data:`ALWAYS_FRACTION`, else ``None``. ``bounds`` are
-    its capsule lower bounds: too many bounds beyond the margin settle "not always" at
-    once, and the samples are queried farthest bound first, so a pair that often
-    leaves the margin does so within the first queries. The largest clearance is
-    exact for the samples within the margin and ``≥`` the margin otherwise."""
+) -> tuple[float, float, float, NDArray[np.float64]] | None:
+    """``(share, smallest, largest, within)``: the share of the configurations ``F`` in
+    which a pair is within ``query.margin``, the smallest and largest clearance over
+    them and the clearances within the margin, sorted, when that share is at least
+    :data:`ALWAYS_FRACTION`, else ``None``. ``bounds`` are its capsule lower bounds:
+    too many bounds beyond the margin settle "not always" at once, and the samples are
+    queried farthest bound first, so a pair that often leaves the margin does so within
+    the first queries. The largest clearance is exact for the samples within the margin
+    and ``≥`` the margin otherwise."""
     m = len(bounds)
     allowed = math.floor((1.0 - ALWAYS_FRACTION) * m + 1e-9)
     if int(np.count_nonzero(bounds > query.margin)) > allowed:
         return None
     out, lo, hi = 0, math.inf, 0.0
+    seen: list[float] = []
     for s in np.argsort(-bounds, kind="stable"):
         r = query(F[s, ia], F[s, ib])
         if r.no_risk:
@@ -297,18 +326,63 @@ def always_within(
                 return None
             continue
         lo, hi = min(lo, r.distance), max(hi, r.distance)
-    return (m - out) / m, lo, hi
+        seen.append(r.distance)
+    return (m - out) / m, lo, hi, np.sort(np.asarray(seen, dtype=float))
 
 
 def _always_rule(
-    a: str, b: str, band: tuple[float, float, float], margin: float, samples: int, home: float
+    a: str,
+    b: str,
+    band: tuple[float, float, float, NDArray[np.float64]],
+    margin: float,
+    coverage: float,
+    samples: int,
+    home: float,
 ) -> PairRule:
-    """The ``always`` rule of a pair with :func:`always_within`'s ``band``."""
-    detail = (
-        f"always within {margin:g} m: in {100 * band[0]:.1f} % of {samples} random "
-        f"configurations (clearance {band[1]:.4f} to {band[2]:.4f} m)"
+    """The rule of a pair within ``margin`` (between the surfaces) in most of the
+    ``samples``, with :func:`always_within`'s ``band`` (cloud distances; ``coverage``:
+    both clouds' resolutions): ``always`` (excluded) when its clouds stay more than
+    ``coverage`` apart; else watched with its own margin, the clearance it exceeds in
+    :data:`ALWAYS_FRACTION` of the samples less ``coverage``, at least 0; a pair whose
+    clouds are within ``coverage`` in :data:`ALWAYS_FRACTION` of them is judged on its
+    cloud distance as it is (module docstring)."""
+    within = f"{margin:g} m" + (
+        f" ({margin + coverage:g} m between the clouds)" if coverage else ""
     )
-    return PairRule(a, b, "always", detail, home)
+    seen = (
+        f"in {100 * band[0]:.1f} % of {samples} random configurations (clearance "
+        f"{band[1]:.4f} to {band[2]:.4f} m)"
+    )
+    if band[1] > coverage:
+        return PairRule(a, b, "always", f"always within {within}: {seen}", home)
+    k = math.floor((1.0 - ALWAYS_FRACTION) * samples + 1e-9)
+    low = float(band[3][min(k, len(band[3]) - 1)])
+    if int(np.count_nonzero(band[3] <= coverage)) >= ALWAYS_FRACTION * samples:
+        # the clouds are too coarse for this pair: judged on the cloud distance as it is
+        share = int(np.count_nonzero(band[3] <= margin)) / samples
+        if share >= ALWAYS_FRACTION:
+            detail = (
+                f"always within {within}: {seen}; its clouds are within their resolutions "
+                f"in {100 * ALWAYS_FRACTION:g} % of them or more, and within {margin:g} m "
+                f"in {100 * share:.1f} %"
+            )
+            return PairRule(a, b, "always", detail, home)
+        detail = (
+            f"within {within} {seen}; its clouds are within their resolutions in "
+            f"{100 * ALWAYS_FRACTION:g} % of them or more (too coarse to promise its "
+            f"surfaces apart): watched on the cloud distance as it is, its own margin "
+            f"{margin - coverage:.4f} m (the clouds kept {margin:g} m apart, within it in "
+            f"{100 * share:.1f} %; finer clouds would make it conservative)"
+        )
+        return PairRule(a, b, "watched", detail, home, home <= margin, margin=margin - coverage)
+    low = max(low, coverage)  # a margin of 0 (surfaces kept apart) acts rarely enough
+    own = low - coverage
+    share = int(np.count_nonzero(band[3] <= low)) / samples
+    detail = (
+        f"within {within} {seen}, its clouds within their resolutions somewhere: watched "
+        f"with its own margin {own:.4f} m (within it in {100 * share:.1f} %)"
+    )
+    return PairRule(a, b, "watched", detail, home, home <= low, margin=own)
 
 
 #: Local search: how many closest samples it starts from, perturbations per step, and its
@@ -393,7 +467,11 @@ def self_collision_pairs(
 ) -> SelfPairs:
     """The self-collision pairs of ``robot`` whose link ``clouds`` (each in its link's
     frame, keyed by link name) are given (see the module docstring). ``margin`` (m): the
-    distance within which a pair counts as close; ``home``: the start configuration
+    distance within which a pair counts as close, between the true surfaces: a cloud
+    distance overstates it by up to both clouds' ``resolution`` (a cloud point can be
+    that far from the surface point nearest the other link), so each pair's rules
+    compare its cloud distance with ``margin`` plus both resolutions; ``home``: the start
+    configuration
     (default: 0 moved into the limits); ``local_search=False`` excludes on the samples
     alone (MoveIt's rule; for comparison)."""
     if not (isinstance(margin, int | float) and math.isfinite(margin) and margin > 0):
@@ -421,35 +499,39 @@ def self_collision_pairs(
             if why is not None:
                 out.append(PairRule(la, lb, "adjacent", why))
                 continue
+            # a cloud distance overstates the surfaces' by up to both clouds' resolutions
+            coverage = clouds[la].resolution + clouds[lb].resolution
+            m = margin + coverage
+            within = f"{margin:g} m" + (f" ({m:g} m between the clouds)" if coverage else "")
             query = PairQuery(clouds[la], clouds[lb])
             d_home = query(F_home[idx[la]], F_home[idx[lb]]).distance
-            query = PairQuery(clouds[la], clouds[lb], margin=margin)
+            query = PairQuery(clouds[la], clouds[lb], margin=m)
             bounds = placer.bounds(F, la, lb)
             band = always_within(query, F, idx[la], idx[lb], bounds)
             if band is not None:
-                out.append(_always_rule(la, lb, band, margin, len(Q), d_home))
+                out.append(_always_rule(la, lb, band, margin, coverage, len(Q), d_home))
                 continue
             order = np.argsort(bounds, kind="stable")
-            order = order[bounds[order] <= margin]
+            order = order[bounds[order] <= m]
             hit = -1
             for s in order:
                 if not query(F[s, idx[la]], F[s, idx[lb]]).no_risk:
                     hit = int(s)
                     break
-            review = d_home <= margin
+            review = d_home <= m
             closest = math.inf
             if hit < 0 and not review and local_search:
-                search = _LocalSearch(robot, clouds[la], clouds[lb], idx[la], idx[lb], margin)
+                search = _LocalSearch(robot, clouds[la], clouds[lb], idx[la], idx[lb], m)
                 closest = search.run(Q, F, placer.bounds(F, la, lb), seed)
-                if closest > margin:
+                if closest > m:
                     detail = (
-                        f"never within {margin:g} m: {len(Q)} random configurations and a local "
+                        f"never within {within}: {len(Q)} random configurations and a local "
                         f"search from the {_SEEDS} closest (closest found {closest:.3f} m)"
                     )
                     out.append(PairRule(la, lb, "never", detail, d_home))
                     continue
             elif hit < 0 and not review:
-                detail = f"never within {margin:g} m in {len(Q)} random configurations"
+                detail = f"never within {within} in {len(Q)} random configurations"
                 out.append(PairRule(la, lb, "never", detail, d_home))
                 continue
             if review:

@@ -17,6 +17,7 @@
       never: …
     watched:                     # pairs to watch, with their distance at home
       - {a: link_0, b: link_5, home_distance: 0.636, detail: within the margin in …}
+      - {a: link_5, b: link_7, home_distance: 0.024, detail: …, margin: 0.004}  # its own
     review:                      # watched pairs already within the margin at home
       - {a: link_5, b: link_7, home_distance: 0.002}
     excluded:                    # every pair not watched, with its rule
@@ -26,12 +27,13 @@
 
 Every field is checked when the file is read (:func:`load_pairs`): a string robot
 name, a finite margin > 0, integer ``samples`` ≥ 1 and ``seed`` ≥ 0 (a boolean is not a
-number), finite ``home`` values, distances ≥ 0, known rules, no unknown keys, no link
-paired with itself, no pair listed twice (watched and excluded, say), every ``review``
-pair also watched; text that is not UTF-8 or nested too deep is refused. Each problem is
-an :class:`~reachwise.errors.InputError` naming the file and the field. ``key`` seals
-the content (:func:`seal`): a file whose pairs were edited no longer matches its key,
-so a cache holding it is recomputed, never trusted.
+number), finite ``home`` values, distances ≥ 0, a pair's own finite ``margin``, known
+rules, no unknown keys, no link paired with itself, no pair listed twice (watched and
+excluded, say), every ``review`` pair also watched; text that is not UTF-8 or nested
+too deep is refused. Each problem is an :class:`~reachwise.errors.InputError` naming
+the file and the field. ``key`` seals the content (:func:`seal`): a file whose pairs
+were edited no longer matches its key, so a cache holding it is recomputed, never
+trusted.
 """
 
 from __future__ import annotations
@@ -59,13 +61,17 @@ __all__ = ["RULES", "load_pairs", "pairs_to_dict", "save_pairs", "seal"]
 RULES = {
     "adjacent": "excluded: joined by one joint, rigidly connected, or no link with shapes "
     "between them (MoveIt's 'adjacent')",
-    "always": "excluded: within the margin in every one of the random joint vectors (its "
-    "clearance never exceeds the margin: structurally close; MoveIt's 'always in collision')",
+    "always": "excluded: within the margin in at least 95 % of the random joint vectors (its "
+    "clearance hardly ever exceeds the margin: structurally close; MoveIt's 'always in "
+    "collision'), its clouds never within their resolutions, or too coarse to tell (its detail)",
     "never": "excluded: never within the margin in any of the random joint vectors inside the "
     "limits (MoveIt's 'never in collision')",
     "review": "watched, but already within the margin at the home configuration: check "
     "whether the two links touch by design (MoveIt would disable them as 'default')",
-    "watched": "came within the margin in some random configuration: watched",
+    "watched": "came within the margin in some random configuration: watched; a pair with "
+    "its own margin is within the common one in at least 95 % of them and its clouds come "
+    "within their resolutions: it is beyond its own margin in 95 % (below 0: its clouds are "
+    "too coarse to promise the surfaces apart)",
 }
 
 _STRICT = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
@@ -78,6 +84,7 @@ class _Watched(BaseModel):
     b: str = _Name
     home_distance: float | None = Field(default=None, ge=0.0)
     detail: str = ""
+    margin: float | None = None
 
 
 class _Excluded(BaseModel):
@@ -154,6 +161,7 @@ def pairs_to_dict(pairs: SelfPairs, *, source: str = "", key: str = "") -> dict[
         "rules": dict(RULES),
         "watched": [
             {"a": p.a, "b": p.b, "home_distance": _dist(p.home_distance), "detail": p.detail}
+            | ({} if p.margin is None else {"margin": p.margin})
             for p in pairs.pairs
             if p.rule == "watched"
         ],
@@ -198,6 +206,7 @@ def load_pairs(path: str | os.PathLike[str]) -> tuple[SelfPairs, str]:
             e.detail,
             math.inf if e.home_distance is None else e.home_distance,
             frozenset((e.a, e.b)) in review,
+            e.margin,
         )
         for e in f.watched
     ]

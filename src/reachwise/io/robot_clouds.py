@@ -13,8 +13,9 @@ default). A cloud with a ``resolution`` covers the union instead: every point of
 surface lies within ``resolution`` of a cloud point, checked when the cloud is made
 (:func:`covering_points`); that is the default for a robot read from a URDF
 (:data:`RESOLUTION`, 1 cm). A cloud distance then overstates the surface distance by at
-most the two clouds' resolutions; the pair rules and the controller use the cloud
-distance as it is (they do not subtract the resolutions).
+most the two clouds' resolutions; the pair rules
+(:mod:`reachwise.distance.self_pairs`) and the simulation's controller add them to the
+margins, so their distances are conservative.
 
 Clouds are keyed by body (:attr:`Robot.body_names <reachwise.kinematics.robot.Robot.
 body_names>`: a URDF link, or a frame of a DH robot) and expressed in the frame the body

@@ -88,6 +88,9 @@ class ResolvedScenario:
     - ``scan_targets`` — scanned object → what its scanner scans;
     - ``self_pairs`` — index of a ``watch: {self: …}`` entry → the link pairs it lists or
       picks (``pairs: auto``), or ``None`` for every non-adjacent pair;
+    - ``self_margins`` — the same index → each of its pairs' margin (m, between the
+      surfaces): the watch's, or a pair's own (``pairs: auto``, a structurally close
+      pair, :mod:`reachwise.distance.self_pairs`);
     - ``link_meshes`` — robot name → link → its shapes as one mesh, for every link with a
       mesh shape (read from its file here; a MuJoCo plant takes its inertia from it).
     """
@@ -100,6 +103,7 @@ class ResolvedScenario:
     object_surfaces: Mapping[str, tuple[tuple[float, Surface], ...]] = field(default_factory=dict)
     scan_targets: Mapping[str, ScanScene] = field(default_factory=dict)
     self_pairs: Mapping[int, tuple[tuple[str, str], ...] | None] = field(default_factory=dict)
+    self_margins: Mapping[int, Mapping[tuple[str, str], float]] = field(default_factory=dict)
     link_meshes: Mapping[str, Mapping[str, trimesh.Trimesh]] = field(default_factory=dict)
 
 
@@ -138,6 +142,7 @@ def resolve_scenario(scenario: Scenario | str | Path | ResolvedScenario) -> Reso
         for k, c in enumerate(os_.clouds):
             clouds[cloud_key(os_.name, k)] = _object_cloud(c, sc, os_.name, os_.seed + k + 1)
     seen = bool(sc.spec.sensors) or not all(o.scene for o in sc.spec.objects)
+    own = _self_pairs(sc, robots, links)
     return ResolvedScenario(
         scenario=sc,
         robots=_frozen(robots),
@@ -146,7 +151,10 @@ def resolve_scenario(scenario: Scenario | str | Path | ResolvedScenario) -> Reso
         object_clouds=_frozen(clouds),
         object_surfaces=_frozen(_object_surfaces(sc) if seen else {}),
         scan_targets=_frozen(targets),
-        self_pairs=MappingProxyType(_self_pairs(sc, robots, links)),
+        self_pairs=MappingProxyType({i: None if m is None else tuple(m) for i, m in own.items()}),
+        self_margins=MappingProxyType(
+            {i: MappingProxyType(m) for i, m in own.items() if m is not None}
+        ),
         link_meshes=_frozen({name: _mesh_links(robot) for name, robot in robots.items()}),
     )
 
@@ -326,9 +334,10 @@ def _link_surfaces(sc: Scenario, robots: Mapping[str, Robot]) -> dict[str, Surfa
 
 def _self_pairs(
     sc: Scenario, robots: Mapping[str, Robot], links: Mapping[str, tuple[PointCloud, Solid]]
-) -> dict[int, tuple[tuple[str, str], ...] | None]:
-    """The link pairs of each ``self`` watch (listed, or picked for ``pairs: auto``)."""
-    out: dict[int, tuple[tuple[str, str], ...] | None] = {}
+) -> dict[int, dict[tuple[str, str], float] | None]:
+    """The link pairs of each ``self`` watch (listed, or picked for ``pairs: auto``),
+    each with its margin."""
+    out: dict[int, dict[tuple[str, str], float] | None] = {}
     for i, w in enumerate(sc.spec.watch):
         if w.self_ is None:
             continue
@@ -339,8 +348,7 @@ def _self_pairs(
             if link not in clouds:
                 what = f"robot {w.self_!r} has no cloud on {link!r}"
                 raise unknown(sc.source, f"watch[{i}].links", what, link, list(clouds))
-        listed = watched_self_pairs(w, robots[w.self_], rspec, clouds, sc, f"watch[{i}]")
-        out[i] = None if listed is None else tuple((a, b) for a, b in listed)
+        out[i] = watched_self_pairs(w, robots[w.self_], rspec, clouds, sc, f"watch[{i}]")
     return out
 
 

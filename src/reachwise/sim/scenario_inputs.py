@@ -102,11 +102,12 @@ def watched_self_pairs(
     clouds: Mapping[str, PointCloud],
     sc: Scenario,
     where: str,
-) -> list[tuple[str, str]] | None:
+) -> dict[tuple[str, str], float] | None:
     """The link pairs a ``self`` watch lists, or picks with ``pairs: auto`` (or all but
     an SRDF's disabled ones, ``pairs: {srdf: FILE}``) among the robot's link ``clouds``
-    (link → cloud in the link frame; restricted to ``links``); ``None`` when the watch
-    lists none (every non-adjacent pair)."""
+    (link → cloud in the link frame; restricted to ``links``), each with its margin
+    (m, between the surfaces: the watch's, or a pair's own that ``pairs: auto`` gave
+    it); ``None`` when the watch lists none (every non-adjacent pair)."""
     if w.pairs is None:
         return None
     keep = set(w.links) if w.links is not None else None
@@ -115,9 +116,10 @@ def watched_self_pairs(
 
         srdf = srdf_of(sc, w.pairs, where)
         mine = {k: c for k, c in clouds.items() if keep is None or k in keep}
-        return srdf_watched_pairs(srdf, robot, mine, sc.source, f"{where}.pairs.srdf")
+        listed = srdf_watched_pairs(srdf, robot, mine, sc.source, f"{where}.pairs.srdf")
+        return dict.fromkeys(listed, w.margin)
     if w.pairs != "auto":
-        return [(a, b) for a, b in w.pairs]
+        return {(a, b): w.margin for a, b in w.pairs}
     from reachwise.sim.self_pairs import auto_self_pairs
 
     mine = {k: c for k, c in clouds.items() if keep is None or k in keep}
@@ -130,4 +132,4 @@ def watched_self_pairs(
         )  # fmt: skip
     except InputError as exc:
         raise InputError(sc.source, where, str(exc)) from None
-    return list(pairs.watched)
+    return pairs.margins

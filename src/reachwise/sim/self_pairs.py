@@ -93,17 +93,23 @@ def auto_self_pairs(
 
 
 def _report(pairs: SelfPairs, label: str) -> None:
-    """Log the pairs excluded as always within the margin and the watched pairs
-    within it at home."""
+    """Log the pairs excluded as always within the margin, those watched with a margin
+    of their own, and the watched pairs within their margin at home."""
     for p in pairs.always:
         log.info(
             "%s: self pair %s-%s excluded, always within the %g m margin (%s)",
             label, p.a, p.b, pairs.margin, p.detail,
         )  # fmt: skip
+    for p in pairs.pairs:
+        if p.margin is not None:
+            log.info(
+                "%s: self pair %s-%s watched with its own %.4f m margin (%s)",
+                label, p.a, p.b, p.margin, p.detail,
+            )  # fmt: skip
     for p in pairs.review:
         log.warning(
             "%s: self pair %s-%s is %.4f m apart at home, within its %g m margin",
-            label, p.a, p.b, p.home_distance, pairs.margin,
+            label, p.a, p.b, p.home_distance, pairs.margins[(p.a, p.b)],
         )  # fmt: skip
 
 

@@ -138,6 +138,9 @@ def _assemble(scene: SceneLike, res: ResolvedScenario, avoidance: bool, plant: P
     movers = _add_objects(scene, res, solids)
     sight, sensors, memories = _add_sensors(scene, res, movers)
     inflation = {m.name: m.inflation for m in memories}
+    for obj, (cloud, _) in res.link_clouds.items():  # conservative by the cloud's coverage
+        if cloud.resolution > 0.0:
+            inflation[obj] = cloud.resolution
     control = _watch_pairs(scene, res, inflation)
     job_robots = set(sc.spec.jobs.robots) if sc.spec.jobs is not None else set()
     agents = [
@@ -278,40 +281,49 @@ def _watch_pairs(
 ) -> dict[tuple[str, str], float]:
     """Watch the scenario's pairs: the scene's margin is rho_O + the monitor range (the
     log sees the pairs approach); returns each pair's rho_O, the controller's margin. A
-    pair against a scene memory adds the memory's ``inflation`` to both."""
+    pair adds to both the ``inflation`` of each of its objects: a scene memory's (its
+    voxels' reach beyond the points seen) and a link cloud's ``resolution`` (a cloud
+    distance overstates the surface distance by up to that much), so the controller's
+    distance is conservative: measured distance less the inflation against rho_O."""
     spec = res.scenario.spec
     control: dict[tuple[str, str], float] = {}
     for i, w in enumerate(spec.watch):
         listed = res.self_pairs.get(i)
-        made = _watch_rule(
-            scene, res.scenario, listed, w, w.margin + spec.monitor, f"watch[{i}]", inflation
-        )
+        own = res.self_margins.get(i, {})
+        margins = None if listed is None else {p: own.get(p, w.margin) for p in listed}
+        made = _watch_rule(scene, res.scenario, margins, w, spec.monitor, f"watch[{i}]", inflation)
         for pair in made:
-            control[(pair.a, pair.b)] = memory_margin(inflation, pair.a, pair.b, w.margin)
+            rho = w.margin
+            if margins is not None and w.self_ is not None:
+                la, lb = pair.a[len(w.self_) + 1 :], pair.b[len(w.self_) + 1 :]
+                rho = margins.get((la, lb), margins.get((lb, la), w.margin))
+            control[(pair.a, pair.b)] = memory_margin(inflation, pair.a, pair.b, rho)
     return control
 
 
 def _watch_rule(
     scene: SceneLike,
     sc: Scenario,
-    listed: tuple[tuple[str, str], ...] | None,
+    listed: Mapping[tuple[str, str], float] | None,
     w: WatchSpec,
-    qm: float,
+    monitor: float,
     where: str,
     inflation: dict[str, float],
 ) -> list[WatchedPair]:
-    """The pairs one ``watch`` entry makes (self: the resolved link pairs ``listed``,
-    or every non-adjacent pair; robot-environment or robot-robot), watched with
-    margin ``qm`` (plus the ``inflation`` of a scene memory in the pair)."""
+    """The pairs one ``watch`` entry makes (self: the resolved link pairs ``listed``
+    with their margins, or every non-adjacent pair; robot-environment or robot-robot),
+    watched with margin + ``monitor`` (plus the ``inflation`` in the pair)."""
     made = []
+    qm = w.margin + monitor
     if w.self_ is not None:
         if listed is not None:
-            for la, lb in listed:
+            for (la, lb), rho in listed.items():
                 a, b = f"{w.self_}/{la}", f"{w.self_}/{lb}"
                 for o in (a, b):
                     if o not in scene.objects:
                         raise InputError(sc.source, where, f"no cloud {o!r}")
-                made.append(scene.watch(a, b, qm, kind="self"))
+                qs = memory_margin(inflation, a, b, rho + monitor)
+                made.append(scene.watch(a, b, qs, kind="self"))
         else:
             own = scene.robot_objects(w.self_)
             keep = {o.name for o in own}
