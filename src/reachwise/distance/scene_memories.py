@@ -31,8 +31,10 @@ memory: after a restart, add it again.
 
 from __future__ import annotations
 
+import threading
 import weakref
 from collections.abc import Mapping
+from dataclasses import dataclass, field
 from typing import Annotated
 
 import numpy as np
@@ -41,7 +43,12 @@ from numpy.typing import NDArray
 from reachwise.distance.pairs import PairKind, WatchedPair
 from reachwise.distance.scene import Scene
 from reachwise.distance.scene_memory import MemoryConfig, SceneMemory, ViewIntrinsics
-from reachwise.distance.scene_ops import ArrayShape, scene_change, scene_operation
+from reachwise.distance.scene_ops import (
+    ArrayShape,
+    scene_change,
+    scene_operation,
+    staged_operation,
+)
 from reachwise.errors import InputError, UnknownName
 from reachwise.geometry.cloud import PointCloud
 
@@ -68,13 +75,26 @@ Intrinsics = tuple[float, float, float, float, float, float]
 #: How far above its box the point of an empty memory lies (m).
 _EMPTY_LIFT = 1.0e3
 
-_MEMORIES: weakref.WeakKeyDictionary[Scene, dict[str, SceneMemory]] = weakref.WeakKeyDictionary()
+
+@dataclass(eq=False)
+class _Held:
+    """A scene's memory with its guards: ``fusing`` lets one frame at a time into it,
+    ``swap`` orders the hand-overs; ``frames`` fused so far, the latest ``swapped`` in."""
+
+    memory: SceneMemory
+    fusing: threading.Lock = field(default_factory=threading.Lock)
+    swap: threading.Lock = field(default_factory=threading.Lock)
+    frames: int = 0
+    swapped: int = 0
+
+
+_MEMORIES: weakref.WeakKeyDictionary[Scene, dict[str, _Held]] = weakref.WeakKeyDictionary()
 
 
 def memories_of(scene: Scene) -> Mapping[str, SceneMemory]:
     """The memories of ``scene`` by name (read them; change them through
     :func:`fuse_depth`)."""
-    return dict(_MEMORIES.get(scene, {}))
+    return {name: held.memory for name, held in _MEMORIES.get(scene, {}).items()}
 
 
 def memory_margin(inflation: Mapping[str, float], a: str, b: str, margin: float) -> float:
@@ -97,7 +117,7 @@ def add_memory(
         raise InputError("scene", f"object {name!r}", "already exists")
     memory = SceneMemory(lower, upper, config)
     scene.add_object(name, _empty(memory, name))
-    _MEMORIES.setdefault(scene, {})[name] = memory
+    _MEMORIES.setdefault(scene, {})[name] = _Held(memory)
     return memory.inflation
 
 
@@ -119,7 +139,33 @@ def watch_memory(
     )
 
 
-@scene_operation
+@dataclass(frozen=True)
+class _Fused:
+    """A fused frame's obstacles, ready to swap in: the memory's ``held`` record, the
+    ``frame`` count they include, the ``cloud`` (index built) and its ``stamp`` (s)."""
+
+    name: str
+    held: _Held
+    frame: int
+    cloud: PointCloud
+    stamp: float
+
+
+def _swap_in(scene: Scene, fused: _Fused) -> int:
+    """The hand-over of :func:`fuse_depth`: the fused cloud replaces the memory
+    object's cloud, unless a cloud of a later frame is in already (two frames fused at
+    once swap in their order); returns the cloud's version in use."""
+    held = _held(scene, fused.name)
+    if held is not fused.held:  # the memory was removed (and maybe added again)
+        raise UnknownName("scene", "memory", fused.name, _MEMORIES.get(scene, {}))
+    with held.swap:
+        if fused.frame <= held.swapped:
+            return scene.versions[fused.name]
+        held.swapped = fused.frame
+        return scene.replace_cloud(fused.name, fused.cloud, block=True, stamp=fused.stamp)
+
+
+@staged_operation(_swap_in)
 def fuse_depth(
     scene: Scene,
     name: str,
@@ -128,28 +174,44 @@ def fuse_depth(
     intrinsics: Intrinsics,
     t: float,
     body: DepthImage | None = None,
-) -> int:
+) -> _Fused:
     """Fuse one ``depth`` image taken at time ``t`` (s) by a camera at ``pose`` (4 × 4,
     optical frame → world) with ``intrinsics`` into the memory ``name``
     (:meth:`SceneMemory.integrate
     <reachwise.distance.scene_memory.SceneMemory.integrate>`; ``body``: nonzero where
     the pixel saw the robot) and swap the memory's obstacles in as the object's cloud,
-    stamped with the newest frame's time; returns the cloud's version."""
-    memory = _memory(scene, name)
+    stamped with the newest frame's time; returns the cloud's version.
+
+    On the collision server the fusing runs without the scene lock (one frame at a
+    time per memory), so queries are answered meanwhile; only the swap of the ready
+    cloud holds it."""
+    held = _held(scene, name)
     mask = None if body is None else np.asarray(body) != 0
-    memory.integrate(depth, pose, ViewIntrinsics(*_intrinsics(intrinsics)), t, mask)
-    cloud = memory.obstacle_cloud(name=name)
-    return scene.replace_cloud(
-        name, cloud if cloud is not None else _empty(memory, name), block=True, stamp=memory.stamp
-    )
+    view = ViewIntrinsics(*_intrinsics(intrinsics))
+    with held.fusing:
+        memory = held.memory
+        memory.integrate(depth, pose, view, t, mask)
+        cloud = memory.obstacle_cloud(name=name)
+        held.frames += 1
+        return _Fused(
+            name,
+            held,
+            held.frames,
+            cloud if cloud is not None else _empty(memory, name),
+            memory.stamp,
+        )
+
+
+def _held(scene: Scene, name: str) -> _Held:
+    memories = _MEMORIES.get(scene, {})
+    held = memories.get(name)
+    if held is None:
+        raise UnknownName("scene", "memory", name, memories)
+    return held
 
 
 def _memory(scene: Scene, name: str) -> SceneMemory:
-    memories = _MEMORIES.get(scene, {})
-    memory = memories.get(name)
-    if memory is None:
-        raise UnknownName("scene", "memory", name, memories)
-    return memory
+    return _held(scene, name).memory
 
 
 def _intrinsics(value: object) -> tuple[float, ...]:

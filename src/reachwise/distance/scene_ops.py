@@ -25,6 +25,9 @@ thread, persists the scene before it replies and sends a new layout with the nex
 answer, and a client that mirrors the scene applies the same function to its copy.
 A method of :class:`~reachwise.distance.scene.Scene` can be registered as it is
 (``self`` is the scene), so the remote scene takes it over by assignment.
+An operation too slow to hold the lock (fusing a depth frame) is registered with
+:func:`staged_operation`: its expensive stage runs without the lock and only a cheap
+hand-over under it.
 
 Argument and result types the wire carries: ``bool``, ``int``, ``float``, ``str``,
 ``None``, ``Literal`` names, float64 arrays (``NDArray[np.float64]``, their shape
@@ -52,11 +55,13 @@ __all__ = [
     "SceneOperation",
     "scene_change",
     "scene_operation",
+    "staged_operation",
 ]
 
 _P = ParamSpec("_P")
 _R = TypeVar("_R")
 _S = TypeVar("_S")
+_T = TypeVar("_T")
 
 
 @runtime_checkable
@@ -93,13 +98,17 @@ class Argument:
 class SceneOperation:
     """A registered scene operation: wire ``name``, the ``function`` that answers it on
     a scene, its typed ``arguments`` (after the scene), ``result`` type and whether it
-    ``mutates`` the scene."""
+    ``mutates`` the scene. With a ``hand_over`` (:func:`staged_operation`) the
+    ``function`` is the operation's first stage, run without the server's scene lock,
+    and ``hand_over(scene, prepared)`` its second, run under it; the answer is the
+    second's."""
 
     name: str
     function: Callable[..., Any]
     arguments: tuple[Argument, ...]
     result: Any
     mutates: bool = False
+    hand_over: Callable[[Any, Any], Any] | None = None
 
     def bind(self, args: tuple[Any, ...], kwargs: dict[str, Any]) -> dict[str, Any]:
         """The call's arguments by name (defaults left out); a wrong call is an
@@ -129,7 +138,12 @@ class SceneOperation:
 OPERATIONS: dict[str, SceneOperation] = {}
 
 
-def _describe(function: Callable[..., Any], name: str, mutates: bool) -> SceneOperation:
+def _describe(
+    function: Callable[..., Any],
+    name: str,
+    mutates: bool,
+    hand_over: Callable[[Any, Any], Any] | None = None,
+) -> SceneOperation:
     hints = typing.get_type_hints(function, include_extras=True)
     params = list(inspect.signature(function).parameters.values())
     if not params:
@@ -144,9 +158,11 @@ def _describe(function: Callable[..., Any], name: str, mutates: bool) -> SceneOp
         arguments.append(
             Argument(p.name, hints[p.name], has_default, p.default, p.kind == p.KEYWORD_ONLY)
         )
+    if hand_over is not None:
+        hints = typing.get_type_hints(hand_over, include_extras=True)
     if "return" not in hints:
         raise TypeError(f"scene operation {name!r} has no result type hint")
-    return SceneOperation(name, function, tuple(arguments), hints["return"], mutates)
+    return SceneOperation(name, function, tuple(arguments), hints["return"], mutates, hand_over)
 
 
 def scene_operation(
@@ -168,20 +184,53 @@ def scene_change(
     return _register(function, mutates=True)
 
 
+def staged_operation(
+    hand_over: Callable[[_S, _T], _R],
+) -> Callable[
+    [Callable[Concatenate[_S, _P], _T]], Callable[Concatenate[_S | RemoteOperations, _P], _R]
+]:
+    """Register the decorated function ``prepare`` (``(scene, *args) -> prepared``,
+    type-hinted arguments) and ``hand_over`` (``(scene, prepared) -> result``,
+    type-hinted result) as one reading scene operation of ``prepare``'s name, in two
+    stages: the server runs ``prepare`` without its scene lock — the expensive part,
+    which must not read or change the scene's own state (it may look up and guard
+    state of its own) — and only ``hand_over`` under the lock, between queries, so a
+    slow operation never holds up the answers. In process the call is
+    ``hand_over(scene, prepare(scene, *args))``; with a remote scene it runs on that
+    scene's server, as :func:`scene_operation` does."""
+
+    def register(
+        prepare: Callable[Concatenate[_S, _P], _T],
+    ) -> Callable[Concatenate[_S | RemoteOperations, _P], _R]:
+        call = _register(prepare, mutates=False, hand_over=hand_over)
+        call.__annotations__ = {
+            **prepare.__annotations__,
+            "return": hand_over.__annotations__.get("return"),
+        }
+        return call  # type: ignore[return-value]
+
+    return register
+
+
 def _register(
-    function: Callable[Concatenate[_S, _P], _R], mutates: bool
+    function: Callable[Concatenate[_S, _P], Any],
+    mutates: bool,
+    hand_over: Callable[[_S, Any], _R] | None = None,
 ) -> Callable[Concatenate[_S | RemoteOperations, _P], _R]:
     name = function.__name__
     if name in OPERATIONS and OPERATIONS[name].function is not function:
         raise ValueError(f"a scene operation named {name!r} is registered already")
-    op = _describe(function, name, mutates)
+    op = _describe(function, name, mutates, hand_over)
 
     @functools.wraps(function)
     def call(scene: _S | RemoteOperations, /, *args: _P.args, **kwargs: _P.kwargs) -> _R:
         if isinstance(scene, RemoteOperations):
             result: _R = scene.run_operation(name, op.bind(tuple(args), dict(kwargs)))
             return result
-        return function(scene, *args, **kwargs)
+        if hand_over is not None:
+            return hand_over(scene, function(scene, *args, **kwargs))
+        out: _R = function(scene, *args, **kwargs)
+        return out
 
     OPERATIONS[name] = op
     return call

@@ -203,8 +203,15 @@ class SceneService(SceneAnswering, CloudHandover):
         """A registered scene operation (:mod:`reachwise.distance.scene_ops`) run on
         this server's scene, its result in the wire form its result type gives. One
         that changes the scene (the transport runs it on the writer thread) makes a
-        new layout and is persisted before the reply."""
+        new layout and is persisted before the reply. A staged one
+        (:func:`~reachwise.distance.scene_ops.staged_operation`) runs its first stage
+        without the scene lock and only its hand-over under it."""
         op = P.operation(req.operation, "body.operation")
+        if op.hand_over is not None:
+            prepared = op.function(self.scene, **req.arguments)
+            with self.lock:
+                result = op.hand_over(self.scene, prepared)
+                return P.OperationResult(P.encode_value(result, op.result))
         with self.lock:
             try:
                 result = op.function(self.scene, **req.arguments)

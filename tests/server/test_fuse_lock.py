@@ -1,0 +1,118 @@
+"""A depth frame fused on the collision server never holds up queries: the memory's
+fusing (the expensive part) runs without the service's scene lock, one frame at a time
+per memory, and only the swap of the ready cloud takes the lock.
+
+The test looks from another thread while the frame is being fused: the scene lock is
+free and another client's query of every watched pair is answered (with the cloud in
+use before the frame); after the fuse the new cloud answers. Two frames fused at once
+swap in their order whichever hands over first.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+
+import numpy as np
+import pytest
+
+from reachwise.distance.scene import Scene
+from reachwise.distance.scene_memories import add_memory, fuse_depth, watch_memory
+from reachwise.distance.scene_memory import MemoryConfig, SceneMemory
+from reachwise.distance.scene_ops import OPERATIONS
+from reachwise.server import protocol as P
+from reachwise.server.service import SceneService
+
+from ..distance.test_scene_memories import INTRINSICS, LOWER, MARGIN, POSE, PROBE, UPPER, frames
+
+CONFIG = MemoryConfig(voxel=0.03, shadow_depth=0.4)
+
+
+def _memory_service() -> SceneService:
+    svc = SceneService(clock=lambda: 1000.0)
+    svc.handle(P.OperationCall.of("add_memory", "memory", LOWER, UPPER, CONFIG))
+    svc.handle(P.AddObject("probe", PROBE, np.eye(4)))
+    svc.handle(P.OperationCall.of("watch_memory", "probe", "memory", MARGIN))
+    return svc
+
+
+def _distance(reply: P.Reply | None) -> float:
+    assert isinstance(reply, P.QueryReply)
+    (d,) = reply.rows[:, 0]
+    return float(d)
+
+
+def _from_another_thread(svc: SceneService) -> tuple[bool, P.Reply | None]:
+    """Whether another thread finds the scene lock free, and (if so) its answer to a
+    query of every watched pair."""
+    seen: list[tuple[bool, P.Reply | None]] = []
+
+    def look() -> None:
+        free = svc.lock.acquire(blocking=False)
+        if not free:
+            seen.append((False, None))
+            return
+        svc.lock.release()
+        seen.append((True, svc.handle(P.Query(2.0))))
+
+    t = threading.Thread(target=look)
+    t.start()
+    t.join()
+    return seen[0]
+
+
+def test_a_frame_is_fused_outside_the_scene_lock(monkeypatch: pytest.MonkeyPatch) -> None:
+    svc = _memory_service()
+    with_box, _ = frames()
+    assert _distance(svc.handle(P.Query(1.0))) == math.inf  # nothing seen yet
+    during: list[tuple[bool, P.Reply | None]] = []
+    integrate = SceneMemory.integrate
+
+    def observed(memory: SceneMemory, *args: object, **kwargs: object) -> None:
+        during.append(_from_another_thread(svc))
+        integrate(memory, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(SceneMemory, "integrate", observed)
+    reply = svc.handle(P.OperationCall.of("fuse_depth", "memory", with_box, POSE, INTRINSICS, 3.0))
+    assert isinstance(reply, P.OperationResult)
+
+    assert len(during) == 1
+    free, answer = during[0]
+    assert free
+    assert _distance(answer) == math.inf  # answered with the cloud in use before the frame
+    local = Scene()  # the same frame in process: the swap went on after the fuse
+    add_memory(local, "memory", LOWER, UPPER, CONFIG)
+    local.add_object("probe", PROBE)
+    watch_memory(local, "probe", "memory", MARGIN)
+    fuse_depth(local, "memory", with_box, POSE, INTRINSICS, 3.0)
+    (pair,) = local.query_all().pairs
+    assert math.isfinite(pair.result.distance)
+    assert _distance(svc.handle(P.Query(4.0))) == pytest.approx(pair.result.distance, abs=1e-12)
+
+
+def test_the_lock_check_sees_a_held_lock() -> None:
+    """The check above would catch a fuse under the lock: with the lock held by the
+    fusing thread, the other thread finds it taken."""
+    svc = _memory_service()
+    with svc.lock:
+        free, answer = _from_another_thread(svc)
+    assert not free and answer is None
+
+
+def test_frames_fused_at_once_swap_in_their_order() -> None:
+    """Two frames fused concurrently: the later frame's cloud stays in even when the
+    earlier one hands over last (its hand-over changes nothing)."""
+    scene = Scene()
+    add_memory(scene, "memory", LOWER, UPPER, CONFIG)
+    scene.add_object("probe", PROBE)
+    watch_memory(scene, "probe", "memory", MARGIN)
+    with_box, without = frames()
+    op = OPERATIONS["fuse_depth"]
+    assert op.hand_over is not None
+    first = op.function(scene, "memory", with_box, POSE, INTRINSICS, 3.0)
+    second = op.function(scene, "memory", without, POSE, INTRINSICS, 4.0)
+    version = op.hand_over(scene, second)
+    assert op.hand_over(scene, first) == version == scene.versions["memory"]
+    (pair,) = scene.query_all().pairs
+    assert pair.result.distance == math.inf  # the box gone (second frame): freed
+    assert scene.query_all().cloud_stamps["memory"] == 4.0
