@@ -205,12 +205,19 @@ def simulate(run: ScenarioRun, link: ServerLink, output: SimulationOutput) -> No
             _keep_interrupted(sc, logs, stopped, output.out, console, output.json_out)
             raise typer.Exit(130)
         data = _write(sc, logs, output.out, output.figures)
+        stop = interrupts.requested  # Ctrl-C while the results were written: they are
     if output.json_out:
         typer.echo(json.dumps(data, indent=2))
     else:
         _print(data, console)
     if live is not None:
-        live.replay(logs)  # until Ctrl-C
+        if stop:
+            live.stop()
+            return
+        try:
+            live.replay(logs)  # until Ctrl-C
+        except KeyboardInterrupt:  # while it switched to the playback: the runs are written
+            live.stop()
 
 
 @dataclass(frozen=True)
