@@ -108,7 +108,9 @@ def test_barrier_gradient_equals_central_differences(name: str, rng: np.random.G
 @pytest.fixture(scope="module")
 def hard_start() -> tuple[SynthesisProblem, np.ndarray]:
     hard = hard_instance()
-    res = reachwise.synthesize(hard.task, hard.template, runs=1, seed=0)
+    # seed 2: a reach-only design whose free size improvement lowers the KCI (0.038 to
+    # 0.029); seed 0's no longer does since the restoration damps its steps
+    res = reachwise.synthesize(hard.task, hard.template, runs=1, seed=2)
     assert res.reached.all()
     return hard, hard.pack(res.best.design, res.best.q)
 
