@@ -12,10 +12,13 @@ from contextlib import contextmanager
 
 @contextmanager
 def restored_sigint() -> Iterator[None]:
-    """Run the block, then restore SIGINT's handler and unblock it (a pending SIGINT
-    is dropped while the signal is ignored)."""
+    """Run the block with Python's own Ctrl-C handler (as in a terminal: a test runner's
+    worker, e.g. pytest-xdist's, may ignore SIGINT, and a command that finds SIGINT
+    ignored runs as a background job that no Ctrl-C reaches), then restore SIGINT's
+    handler and unblock it (a pending SIGINT is dropped while the signal is ignored)."""
     handler = signal.getsignal(signal.SIGINT)
     blocked = signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, [])
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         yield
     finally:
