@@ -11,7 +11,6 @@ swap in their order whichever hands over first.
 from __future__ import annotations
 
 import math
-import threading
 
 import numpy as np
 import pytest
@@ -24,6 +23,7 @@ from reachwise.server import protocol as P
 from reachwise.server.service import SceneService
 
 from ..distance.test_scene_memories import INTRINSICS, LOWER, MARGIN, POSE, PROBE, UPPER, frames
+from .lock_probe import from_another_thread
 
 CONFIG = MemoryConfig(voxel=0.03, shadow_depth=0.4)
 
@@ -42,25 +42,6 @@ def _distance(reply: P.Reply | None) -> float:
     return float(d)
 
 
-def _from_another_thread(svc: SceneService) -> tuple[bool, P.Reply | None]:
-    """Whether another thread finds the scene lock free, and (if so) its answer to a
-    query of every watched pair."""
-    seen: list[tuple[bool, P.Reply | None]] = []
-
-    def look() -> None:
-        free = svc.lock.acquire(blocking=False)
-        if not free:
-            seen.append((False, None))
-            return
-        svc.lock.release()
-        seen.append((True, svc.handle(P.Query(2.0))))
-
-    t = threading.Thread(target=look)
-    t.start()
-    t.join()
-    return seen[0]
-
-
 def test_a_frame_is_fused_outside_the_scene_lock(monkeypatch: pytest.MonkeyPatch) -> None:
     svc = _memory_service()
     with_box, _ = frames()
@@ -69,7 +50,7 @@ def test_a_frame_is_fused_outside_the_scene_lock(monkeypatch: pytest.MonkeyPatch
     integrate = SceneMemory.integrate
 
     def observed(memory: SceneMemory, *args: object, **kwargs: object) -> None:
-        during.append(_from_another_thread(svc))
+        during.append(from_another_thread(svc))
         integrate(memory, *args, **kwargs)  # type: ignore[arg-type]
 
     monkeypatch.setattr(SceneMemory, "integrate", observed)
@@ -95,7 +76,7 @@ def test_the_lock_check_sees_a_held_lock() -> None:
     fusing thread, the other thread finds it taken."""
     svc = _memory_service()
     with svc.lock:
-        free, answer = _from_another_thread(svc)
+        free, answer = from_another_thread(svc)
     assert not free and answer is None
 
 

@@ -8,8 +8,6 @@ while the build runs: the lock is free and a query of every watched pair is answ
 
 from __future__ import annotations
 
-import threading
-
 import numpy as np
 import pytest
 from numpy.typing import NDArray
@@ -22,6 +20,7 @@ from reachwise.server import protocol as P
 from reachwise.server.service import SceneService
 
 from .conftest import LINKS, box_points, crane_q
+from .lock_probe import from_another_thread
 
 
 def _watched_crane(crane: Robot, clouds: dict[str, NDArray[np.float64]]) -> SceneService:
@@ -36,25 +35,6 @@ def _watched_crane(crane: Robot, clouds: dict[str, NDArray[np.float64]]) -> Scen
     return svc
 
 
-def _from_another_thread(svc: SceneService) -> tuple[bool, P.Reply | None]:
-    """Whether another thread finds the scene lock free, and (if so) its answer to a
-    query of every watched pair."""
-    seen: list[tuple[bool, P.Reply | None]] = []
-
-    def look() -> None:
-        free = svc.lock.acquire(blocking=False)
-        if not free:
-            seen.append((False, None))
-            return
-        svc.lock.release()
-        seen.append((True, svc.handle(P.Query(2.0))))
-
-    t = threading.Thread(target=look)
-    t.start()
-    t.join()
-    return seen[0]
-
-
 def test_an_object_index_is_built_outside_the_scene_lock(
     crane: Robot, clouds: dict[str, NDArray[np.float64]], monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -65,7 +45,7 @@ def test_an_object_index_is_built_outside_the_scene_lock(
     build = core.cloud_index
 
     def observed(cloud: PointCloud) -> object:
-        during.append((cloud.name, *_from_another_thread(svc)))
+        during.append((cloud.name, *from_another_thread(svc)))
         return build(cloud)
 
     monkeypatch.setattr(core, "cloud_index", observed)
@@ -88,5 +68,5 @@ def test_the_lock_check_sees_a_held_lock(
     registering thread, the other thread finds it taken."""
     svc = _watched_crane(crane, clouds)
     with svc.lock:
-        free, answer = _from_another_thread(svc)
+        free, answer = from_another_thread(svc)
     assert not free and answer is None
