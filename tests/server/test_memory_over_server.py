@@ -29,7 +29,9 @@ from reachwise.server.service import SceneService
 from reachwise.server.state import StateStore
 
 from ..distance.test_scene_memories import (
+    AWAY,
     CAMERA,
+    IN_FRONT,
     INTRINSICS,
     LOWER,
     MARGIN,
@@ -37,6 +39,9 @@ from ..distance.test_scene_memories import (
     PROBE,
     UPPER,
     frames,
+    slider_frame,
+    slider_scene,
+    wall_distances,
 )
 from .conftest import HANG_GUARD
 
@@ -82,6 +87,27 @@ def test_frames_fused_on_the_server_answer_as_in_process(client: SceneClient) ->
     res = client.query_all()
     assert res.get("probe", "memory").result.distance > d + 1.0  # freed
     assert res.cloud_stamps["memory"] == 3.5
+    local.close()
+
+
+def test_the_robot_never_enters_the_servers_map(client: SceneClient) -> None:
+    """The wall seen with the robot away, then the robot's cube in front of it, at the
+    joint state the server last got: the cube's distance to the memory stays its
+    distance to the wall (brute force), the probe in the space the cube hides keeps
+    its distance to the wall, and both equal the in-process scene's."""
+    local = Scene()
+    for scene in (client, local):
+        slider_scene(scene)
+        fuse_depth(scene, "memory", slider_frame(AWAY), POSE, INTRINSICS, 1.0)
+        scene.set_joints("slider", IN_FRONT)
+        fuse_depth(scene, "memory", slider_frame(IN_FRONT), POSE, INTRINSICS, 1.1)  # type: ignore[arg-type]
+    res, ref = client.query_all(), local.query_all()
+    assert res.valid, res.reason
+    inflation = memory_inflation(client, "memory")
+    for probe, truth in zip(("cube", "hidden"), wall_distances(), strict=True):
+        d = res.get(probe, "memory").result.distance
+        assert d == pytest.approx(ref.get(probe, "memory").result.distance, abs=1e-12)
+        assert abs(d - truth) <= inflation + 1e-9, probe
     local.close()
 
 

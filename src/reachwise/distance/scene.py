@@ -201,8 +201,15 @@ class Scene:
         if not np.isfinite(arr).all():
             raise InputError(f"robot {robot!r}", "q", "contains NaN or inf")
         t = self._stamp(stamp, f"robot {robot!r}")
+        arr.setflags(write=False)
         self._q[robot] = arr
         self._q_stamp[robot] = t
+
+    def joint_state(self, robot: str) -> NDArray[np.float64] | None:
+        """The latest joint state of ``robot`` (:meth:`set_joints`; a read-only array,
+        replaced, never changed, by the next one), or None before the first."""
+        self._robot(robot)
+        return self._q[robot]
 
     def add_object(
         self,

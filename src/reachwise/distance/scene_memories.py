@@ -20,6 +20,11 @@ the points it stands for, so a pair watched against a memory keeps its margin pl
 memory's inflation (:func:`memory_margin`, the rule the simulation's memories follow
 too); :func:`watch_memory` watches a pair so.
 
+The scene's robots never enter a memory: :func:`fuse_depth` leaves the pixels that see
+a robot's link clouds (bounded by their 26-DOP, :mod:`reachwise.geometry.body_pieces`,
+as the simulation bounds its link meshes) out of the map and their voxels out of the
+obstacles, at the joint state given with the frame or the scene's latest.
+
 The functions are registered scene operations (:mod:`reachwise.distance.scene_ops`):
 called with a ``reachwise.server.client.SceneClient`` they run on the collision
 server's scene, the depth image travelling as a float64 array (NaN: no return). Adding
@@ -49,11 +54,20 @@ from reachwise.distance.scene_ops import (
     scene_operation,
     staged_operation,
 )
+from reachwise.distance.scene_types import OnLink
 from reachwise.errors import InputError, UnknownName
+from reachwise.geometry.body_pieces import (
+    DOP26,
+    body_pixels,
+    dop_bounds,
+    dop_offsets,
+    place_halfspaces,
+)
 from reachwise.geometry.cloud import PointCloud
 
 __all__ = [
     "DepthImage",
+    "JointStates",
     "add_memory",
     "fuse_depth",
     "memories_of",
@@ -72,20 +86,33 @@ DepthImage = Annotated[NDArray[np.float64], ArrayShape((None, None), finite=Fals
 #: (:class:`~reachwise.distance.scene_memory.ViewIntrinsics`).
 Intrinsics = tuple[float, float, float, float, float, float]
 
+#: Joint states by robot name (one value per joint), given with a frame.
+JointStates = dict[str, Annotated[NDArray[np.float64], ArrayShape((None,))]]
+
 #: How far above its box the point of an empty memory lies (m).
 _EMPTY_LIFT = 1.0e3
+
+
+@dataclass(frozen=True)
+class _Piece:
+    """A link object's 26-DOP offsets in its own frame, for the ``cloud`` it holds."""
+
+    cloud: PointCloud
+    offsets: NDArray[np.float64]
 
 
 @dataclass(eq=False)
 class _Held:
     """A scene's memory with its guards: ``fusing`` lets one frame at a time into it,
-    ``swap`` orders the hand-overs; ``frames`` fused so far, the latest ``swapped`` in."""
+    ``swap`` orders the hand-overs; ``frames`` fused so far, the latest ``swapped`` in;
+    the robots' link ``pieces`` by object name."""
 
     memory: SceneMemory
     fusing: threading.Lock = field(default_factory=threading.Lock)
     swap: threading.Lock = field(default_factory=threading.Lock)
     frames: int = 0
     swapped: int = 0
+    pieces: dict[str, _Piece] = field(default_factory=dict)
 
 
 _MEMORIES: weakref.WeakKeyDictionary[Scene, dict[str, _Held]] = weakref.WeakKeyDictionary()
@@ -174,24 +201,39 @@ def fuse_depth(
     intrinsics: Intrinsics,
     t: float,
     body: DepthImage | None = None,
+    q: JointStates | None = None,
 ) -> _Fused:
     """Fuse one ``depth`` image taken at time ``t`` (s) by a camera at ``pose`` (4 × 4,
     optical frame → world) with ``intrinsics`` into the memory ``name``
     (:meth:`SceneMemory.integrate
-    <reachwise.distance.scene_memory.SceneMemory.integrate>`; ``body``: nonzero where
-    the pixel saw the robot) and swap the memory's obstacles in as the object's cloud,
-    stamped with the newest frame's time; returns the cloud's version.
+    <reachwise.distance.scene_memory.SceneMemory.integrate>`) and swap the memory's
+    obstacles in as the object's cloud, stamped with the newest frame's time; returns
+    the cloud's version.
+
+    The robots of the scene never enter the map: each link object is bounded by the
+    26-DOP of its cloud (:func:`~reachwise.geometry.body_pieces.cloud_piece`), placed
+    at the robot's joint state ``q[robot]`` when given (the state at the frame's
+    capture: exact), else at the scene's latest (:meth:`Scene.joint_state
+    <reachwise.distance.scene.Scene.joint_state>`: the last tick's, as many
+    milliseconds old as the frame); a robot with neither is not left out. The pixels
+    within the memory's inflation of a piece are the robot's
+    (:func:`~reachwise.geometry.body_pieces.body_pixels`, or the caller's ``body`` mask: nonzero
+    where the pixel saw the robot): they only free the space in front of it, so what
+    the robot hides keeps its state; and the voxels the pieces reach into are left out
+    of the obstacles (:meth:`SceneMemory.obstacles
+    <reachwise.distance.scene_memory.SceneMemory.obstacles>`).
 
     On the collision server the fusing runs without the scene lock (one frame at a
     time per memory), so queries are answered meanwhile; only the swap of the ready
     cloud holds it."""
     held = _held(scene, name)
-    mask = None if body is None else np.asarray(body) != 0
     view = ViewIntrinsics(*_intrinsics(intrinsics))
     with held.fusing:
         memory = held.memory
+        pieces, bounds = _robot_body(scene, held, q)
+        mask = _self_filter(depth, pose, view, body, pieces, bounds, memory.inflation)
         memory.integrate(depth, pose, view, t, mask)
-        cloud = memory.obstacle_cloud(name=name)
+        cloud = memory.obstacle_cloud(body=pieces, name=name)
         held.frames += 1
         return _Fused(
             name,
@@ -200,6 +242,64 @@ def fuse_depth(
             cloud if cloud is not None else _empty(memory, name),
             memory.stamp,
         )
+
+
+def _robot_body(
+    scene: Scene, held: _Held, q: JointStates | None
+) -> tuple[list[NDArray[np.float64]], tuple[NDArray[np.float64], NDArray[np.float64]]]:
+    """The placed 26-DOP (world half-space rows) of every link object of the scene's
+    robots at their joint states (``q`` first, else the scene's latest), and a world
+    box holding them all."""
+    robots = scene.robots
+    given = dict(q or {})
+    for robot in given:
+        if robot not in robots:
+            raise UnknownName("scene memory", "q: robot", robot, robots)
+    frames = {}
+    for robot, model in robots.items():
+        state = given.get(robot, scene.joint_state(robot))
+        if state is not None:
+            frames[robot] = np.asarray(model.fk_all(state), dtype=np.float64)
+    pieces = []
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for obj in scene.objects.values():
+        source = obj.source
+        if not isinstance(source, OnLink) or source.robot not in frames:
+            continue
+        link = robots[source.robot].link_names.index(source.link)
+        T = frames[source.robot][link] @ source.offset
+        piece = held.pieces.get(obj.name)
+        if piece is None or piece.cloud is not obj.cloud:
+            piece = held.pieces[obj.name] = _Piece(obj.cloud, dop_offsets(obj.cloud.points))
+        pieces.append(place_halfspaces(DOP26, piece.offsets, T))
+        a, b = dop_bounds(piece.offsets, T)
+        lo, hi = np.minimum(lo, a), np.maximum(hi, b)
+    return pieces, (lo, hi)
+
+
+def _self_filter(
+    depth: object,
+    pose: object,
+    view: ViewIntrinsics,
+    body: object,
+    pieces: list[NDArray[np.float64]],
+    bounds: tuple[NDArray[np.float64], NDArray[np.float64]],
+    reach: float,
+) -> NDArray[np.bool_] | None:
+    """The robot's pixels of a frame: those that see a point within ``reach`` of one
+    of the ``pieces``, and those nonzero in the caller's ``body``. A frame whose depth
+    or pose is malformed gets the caller's mask as it is, for
+    :meth:`SceneMemory.integrate
+    <reachwise.distance.scene_memory.SceneMemory.integrate>` to name the bad field."""
+    given = None if body is None else np.asarray(body) != 0
+    z = np.asarray(depth, dtype=np.float64)
+    T = np.asarray(pose, dtype=np.float64)
+    if not pieces or z.ndim != 2 or T.shape != (4, 4) or not np.isfinite(T).all():
+        return given
+    own = body_pixels(z, (view.fx, view.fy, view.cx, view.cy), T, pieces, reach, bounds)
+    if given is None:
+        return own
+    return own | given if given.shape == own.shape else given
 
 
 def _held(scene: Scene, name: str) -> _Held:

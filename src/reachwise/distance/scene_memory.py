@@ -80,6 +80,7 @@ from reachwise.distance._memory_kernel import (
 )
 from reachwise.distance.index import INDICES, index_of_ordered
 from reachwise.errors import InputError
+from reachwise.geometry.body_pieces import near_pieces
 from reachwise.geometry.cloud import PointCloud
 
 __all__ = [
@@ -399,22 +400,11 @@ class SceneMemory:
     def _in_body(
         self, centres: NDArray[np.float64], pieces: list[NDArray[np.float64]]
     ) -> NDArray[np.bool_]:
-        """Which ``centres`` lie within :attr:`inflation` of a convex piece: their
-        largest signed distance to its planes is at most the inflation (a lower bound
-        of the distance to the piece, so every voxel that the piece reaches into is
-        among them)."""
-        r = self.inflation
-        inside = np.zeros(len(centres), dtype=np.bool_)
-        for h in pieces:
-            rows = np.flatnonzero(~inside)
-            for start in range(0, len(h), 6):  # six planes at a time rule rows out
-                block = h[start : start + 6]
-                gap = centres[rows] @ block[:, :3].T - block[None, :, 3]
-                rows = rows[gap.max(axis=1) <= r]
-                if rows.size == 0:
-                    break
-            inside[rows] = True
-        return inside
+        """Which ``centres`` lie within :attr:`inflation` of a convex piece
+        (:func:`~reachwise.geometry.body_pieces.near_pieces`: a lower bound of the
+        distance to the piece, so every voxel that the piece reaches into is among
+        them)."""
+        return near_pieces(centres, pieces, self.inflation)
 
     def counts(self) -> MemoryCounts:
         """How many voxels hold each state now."""

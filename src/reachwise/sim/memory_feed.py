@@ -12,11 +12,10 @@ pixels are the cameras' self-filter: the robot never enters its own map.
 The robots never collide with the map either: at each hand-over the voxels their bodies
 occupy at the joint state of that tick are left out (``body`` of
 :meth:`~reachwise.distance.scene_memory.SceneMemory.obstacles`). Each connected piece of
-a link's collision surface is bounded by its 26-DOP (:func:`body_pieces`: the planes
-normal to the 26 directions of the cube's faces, edges and corners, pushed out to its
-farthest vertex), a convex superset of the piece at most a few millimetres wider than a
-round link. Robot–robot pairs are watched on the robots' own link clouds, so every
-robot's body is left out of the one map.
+a link's collision surface is bounded by its 26-DOP
+(:func:`~reachwise.geometry.body_pieces.body_pieces`), a convex superset of the piece at
+most a few millimetres wider than a round link. Robot–robot pairs are watched on the
+robots' own link clouds, so every robot's body is left out of the one map.
 
 Pairs watched against a memory keep their margin plus the memory's inflation (half a
 voxel's diagonal): an observed point lies that close to its voxel's centre, so the
@@ -26,15 +25,13 @@ controller keeps the scenario's margin from what the cameras saw.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from itertools import product
-from typing import TYPE_CHECKING, NamedTuple, Protocol
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from reachwise.distance.scene_memory import MemoryConfig, SceneMemory, ViewIntrinsics
+from reachwise.geometry.body_pieces import BodyPiece, body_pieces
 from reachwise.geometry.cloud import PointCloud
 
 if TYPE_CHECKING:
@@ -45,64 +42,6 @@ if TYPE_CHECKING:
 __all__ = ["BodyPiece", "MemoryFeed", "body_pieces"]
 
 F64 = NDArray[np.float64]
-
-
-class LinkSurface(Protocol):
-    """A robot link's collision surface as :func:`body_pieces` reads it (the
-    simulation's ``BodySurface``): its ``mesh`` ``(vertices, faces)`` in the frame
-    ``index`` of scenario robot ``robot``."""
-
-    @property
-    def robot(self) -> str: ...
-
-    @property
-    def index(self) -> int: ...
-
-    @property
-    def mesh(self) -> tuple[F64, NDArray[np.int64]]: ...
-
-
-def _dop_directions() -> F64:
-    """The 26 unit directions of a 26-DOP, the three axes' six first."""
-    dirs = [np.array(v, dtype=np.float64) for v in product((-1, 0, 1), repeat=3) if any(v)]
-    dirs.sort(key=lambda v: int(np.count_nonzero(v)))
-    return np.array([v / np.linalg.norm(v) for v in dirs])
-
-
-_DOP = _dop_directions()
-
-
-class BodyPiece(NamedTuple):
-    """One convex piece around a part of a robot link: the half-spaces ``n · x ≤ d``
-    (``normals`` ``(m, 3)``, ``offsets`` ``(m,)``) in the frame ``frame`` of robot
-    ``robot``'s ``fk_all``."""
-
-    robot: str
-    frame: int
-    normals: F64
-    offsets: F64
-
-    def placed(self, pose: F64) -> F64:
-        """The half-spaces in the world (rows ``nx, ny, nz, d``) at the frame's ``pose``."""
-        n = self.normals @ pose[:3, :3].T
-        return np.column_stack([n, self.offsets + n @ pose[:3, 3]])
-
-
-def body_pieces(bodies: Iterable[LinkSurface]) -> tuple[BodyPiece, ...]:
-    """The 26-DOP of each connected piece of each link surface in ``bodies``."""
-    out = []
-    for b in bodies:
-        v, f = b.mesh
-        if len(f) == 0:
-            continue
-        edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]]])
-        graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), (len(v), len(v)))
-        _, label = connected_components(graph, directed=False)
-        used = np.unique(f)
-        for c in np.unique(label[used]):
-            pts = v[used[label[used] == c]]
-            out.append(BodyPiece(b.robot, b.index, _DOP, (pts @ _DOP.T).max(axis=0)))
-    return tuple(out)
 
 
 class MemoryFeed:
