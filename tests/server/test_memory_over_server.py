@@ -18,7 +18,9 @@ from reachwise.distance.scene import Scene
 from reachwise.distance.scene_memories import (
     add_memory,
     fuse_depth,
+    memories_of,
     memory_inflation,
+    memory_setups,
     watch_memory,
 )
 from reachwise.distance.scene_memory import MemoryConfig
@@ -135,26 +137,47 @@ def test_bad_frames_through_the_server_are_typed_errors_naming_the_field(
     assert res.valid and res.get("probe", "memory").result.distance == math.inf
 
 
-def test_a_state_directory_keeps_the_scene_without_its_memory(tmp_path: Path) -> None:
+def test_a_state_directory_keeps_the_memory_watched_and_unknown(tmp_path: Path) -> None:
+    """Restarted from its state directory, the server has the memory with its box and
+    configuration, watched as before (same margin), every voxel unknown: the pair
+    sees nothing (unknown is never an obstacle of the query, nor free: a frame of the
+    box brings it back as before the restart)."""
     svc = SceneService(store=StateStore(tmp_path))
     svc.load()
     svc.handle(P.AddObject("probe", PROBE, None))
-    for name, *args in [
+    calls: list[tuple[object, ...]] = [
         ("add_memory", "memory", LOWER, UPPER, CONFIG),
         ("watch_memory", "probe", "memory", MARGIN),
         ("fuse_depth", "memory", frames()[0], POSE, INTRINSICS, 3.0),
-    ]:
-        assert isinstance(svc.handle(P.OperationCall.of(name, *args)), P.OperationResult)
+    ]
+    for name, *args in calls:
+        assert isinstance(svc.handle(P.OperationCall.of(str(name), *args)), P.OperationResult)
     rows = svc.handle(P.Query(stamp=4.0))
     assert isinstance(rows, P.QueryReply) and rows.rows[0, 0] < MARGIN  # answered
+    before = svc.handle(P.Describe())
+    first = memories_of(svc.scene)["memory"]
 
     again = SceneService(store=StateStore(tmp_path))
-    again.load()  # the memory is not saved: the rest comes back, ready
+    again.load()
     assert again.ready, again.reason
     after = again.handle(P.Describe())
-    assert isinstance(after, P.DescribeReply)
-    assert [o.name for o in after.objects] == ["probe"] and after.pairs == ()
-    assert isinstance(
-        again.handle(P.OperationCall.of("add_memory", "memory", LOWER, UPPER, CONFIG)),
-        P.OperationResult,
+    assert isinstance(after, P.DescribeReply) and isinstance(before, P.DescribeReply)
+    assert sorted(o.name for o in after.objects) == ["memory", "probe"]
+    assert after.pairs == before.pairs  # watched as before, margin + inflation
+    (setup,) = memory_setups(again.scene)
+    assert setup.config == CONFIG
+    assert np.array_equal(setup.lower, LOWER) and np.array_equal(setup.upper, UPPER)
+    memory = memories_of(again.scene)["memory"]
+    assert memory.shape == first.shape and np.array_equal(memory.origin, first.origin)
+    counts = memory.counts()
+    assert counts.unknown == memory.state.size  # the map restarts unknown
+    rows = again.handle(P.Query(stamp=5.0))
+    assert isinstance(rows, P.QueryReply) and rows.rows[0, 0] > MARGIN  # nothing seen
+    fused = again.handle(
+        P.OperationCall.of("fuse_depth", "memory", frames()[0], POSE, INTRINSICS, 6.0)
     )
+    assert isinstance(fused, P.OperationResult)
+    rows = again.handle(P.Query(stamp=6.0))
+    ref = svc.handle(P.Query(stamp=6.0))
+    assert isinstance(rows, P.QueryReply) and isinstance(ref, P.QueryReply)
+    assert rows.rows[0, 0] == pytest.approx(ref.rows[0, 0], abs=1e-12)

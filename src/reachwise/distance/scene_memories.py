@@ -31,7 +31,8 @@ server's scene, the depth image travelling as a float64 array (NaN: no return). 
 a memory and watching against it change the scene's rules (``scene_change``); a frame
 only replaces the memory object's cloud, as a streamed cloud does, so the server neither
 persists nor re-sends its layout per frame. A server's state directory does not keep a
-memory: after a restart, add it again.
+memory's map: after a restart the memory is there with its setup and its watched pairs
+(:func:`memory_setups`), every voxel unknown (never free) until frames come.
 """
 
 from __future__ import annotations
@@ -68,11 +69,13 @@ from reachwise.geometry.cloud import PointCloud
 __all__ = [
     "DepthImage",
     "JointStates",
+    "MemorySetup",
     "add_memory",
     "fuse_depth",
     "memories_of",
     "memory_inflation",
     "memory_margin",
+    "memory_setups",
     "watch_memory",
 ]
 
@@ -108,6 +111,8 @@ class _Held:
     the robots' link ``pieces`` by object name."""
 
     memory: SceneMemory
+    lower: NDArray[np.float64]
+    upper: NDArray[np.float64]
     fusing: threading.Lock = field(default_factory=threading.Lock)
     swap: threading.Lock = field(default_factory=threading.Lock)
     frames: int = 0
@@ -122,6 +127,26 @@ def memories_of(scene: Scene) -> Mapping[str, SceneMemory]:
     """The memories of ``scene`` by name (read them; change them through
     :func:`fuse_depth`)."""
     return {name: held.memory for name, held in _MEMORIES.get(scene, {}).items()}
+
+
+@dataclass(frozen=True)
+class MemorySetup:
+    """What :func:`add_memory` was given for the memory ``name``: its world box
+    ``lower`` … ``upper`` (m) and its ``config``; enough to add it again (its map
+    starts unknown)."""
+
+    name: str
+    lower: NDArray[np.float64]
+    upper: NDArray[np.float64]
+    config: MemoryConfig
+
+
+def memory_setups(scene: Scene) -> tuple[MemorySetup, ...]:
+    """The setup of every memory of ``scene``, in the order they were added."""
+    return tuple(
+        MemorySetup(name, held.lower.copy(), held.upper.copy(), held.memory.config)
+        for name, held in _MEMORIES.get(scene, {}).items()
+    )
 
 
 def memory_margin(inflation: Mapping[str, float], a: str, b: str, margin: float) -> float:
@@ -144,7 +169,8 @@ def add_memory(
         raise InputError("scene", f"object {name!r}", "already exists")
     memory = SceneMemory(lower, upper, config)
     scene.add_object(name, _empty(memory, name))
-    _MEMORIES.setdefault(scene, {})[name] = _Held(memory)
+    box = (np.array(lower, dtype=np.float64), np.array(upper, dtype=np.float64))
+    _MEMORIES.setdefault(scene, {})[name] = _Held(memory, *box)
     return memory.inflation
 
 

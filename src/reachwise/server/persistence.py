@@ -4,7 +4,8 @@ With a state directory (:class:`reachwise.server.state.StateStore`) every change
 the initialization phase (robots, objects, pair rules) is written as a manifest before
 it is acknowledged, the latest joint states and run-time poses every
 :data:`LIVE_INTERVAL` seconds, and at start the directory is restored into a fresh
-scene before the server becomes ready (a bad state leaves it ``failed``).
+scene before the server becomes ready (a bad state leaves it ``failed``). A scene
+memory's setup and watched pairs are kept, not its map: it restarts unknown.
 """
 
 from __future__ import annotations
@@ -18,6 +19,8 @@ from numpy.typing import NDArray
 import reachwise.server.protocol as P
 from reachwise.distance._common import check_pose
 from reachwise.distance.scene import Fixed, OnLink, Scene, SceneObject
+from reachwise.distance.scene_memories import add_memory, memory_setups
+from reachwise.distance.scene_memory import MemoryConfig
 from reachwise.io.robot_file import robot_from_dict
 from reachwise.kinematics.robot import Robot
 from reachwise.server.service_core import (
@@ -31,6 +34,7 @@ from reachwise.server.state import (
     JointState,
     LiveState,
     Manifest,
+    MemoryState,
     ObjectState,
     PairState,
     PoseState,
@@ -76,10 +80,25 @@ class ScenePersistence(ServiceCore):
                     stamp=meta.stamp,
                 )
             )
+        memories = tuple(
+            MemoryState(
+                name=m.name,
+                lower=(float(m.lower[0]), float(m.lower[1]), float(m.lower[2])),
+                upper=(float(m.upper[0]), float(m.upper[1]), float(m.upper[2])),
+                voxel=m.config.voxel,
+                shadow_depth=m.config.shadow_depth,
+                memory_s=m.config.memory_s,
+                free_hold_s=m.config.free_hold_s,
+                band=m.config.band,
+            )
+            for m in memory_setups(self.scene)
+        )
+        kept.update(m.name for m in memories)  # their setup is kept, their map is not
         return Manifest(
             strategy=self.strategy,
             robots=tuple(RobotState(name=k, model=v) for k, v in self._models.items()),
             objects=tuple(objects),
+            memories=memories,
             pairs=tuple(
                 PairState(a=p.a, b=p.b, margin=p.margin, kind=p.kind)
                 for p in self.scene.pairs
@@ -195,6 +214,10 @@ class ScenePersistence(ServiceCore):
                 base[o.name] = o.version - scene.replace_cloud(
                     o.name, cloud, block=True, stamp=cloud_stamp
                 )
+        for ms in m.memories:  # the setup of each scene memory; its map starts unknown
+            config = MemoryConfig(ms.voxel, ms.shadow_depth, ms.memory_s, ms.free_hold_s, ms.band)
+            add_memory(scene, ms.name, np.array(ms.lower), np.array(ms.upper), config)
+            meta[ms.name] = ObjectMeta(None, None, len(scene.objects[ms.name].cloud))
         for p in m.pairs:
             scene.watch(p.a, p.b, p.margin, kind=p.kind)
         removed = store.remove_unreferenced(m)

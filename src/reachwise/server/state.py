@@ -117,6 +117,22 @@ class PairState(BaseModel):
         return v
 
 
+class MemoryState(BaseModel):
+    """A scene memory (``reachwise.distance.scene_memories.add_memory``): its object's
+    name, world box (m) and configuration (``MemoryConfig``). Its map is not saved: it
+    restarts unknown, never free."""
+
+    model_config = _STRICT
+    name: str = Field(min_length=1)
+    lower: tuple[float, float, float]
+    upper: tuple[float, float, float]
+    voxel: float = Field(gt=0.0)
+    shadow_depth: float = Field(ge=0.0)
+    memory_s: float = Field(ge=0.0)
+    free_hold_s: float = Field(ge=0.0)
+    band: float | None = Field(default=None, ge=0.0)
+
+
 class Manifest(BaseModel):
     """``scene.json``: everything of the initialization phase, in registration order
     (pairs in query order)."""
@@ -126,6 +142,7 @@ class Manifest(BaseModel):
     strategy: StrategyName
     robots: tuple[RobotState, ...] = ()
     objects: tuple[ObjectState, ...] = ()
+    memories: tuple[MemoryState, ...] = ()
     pairs: tuple[PairState, ...] = ()
 
 
