@@ -12,7 +12,8 @@ from reachwise.sim.log import SimulationLog
 from reachwise.sim.simulate import run_world
 from reachwise.sim.world import SimClock, World, build_world
 from reachwise.viz.memory_replay import MAX_SNAPSHOTS, MemoryReplay
-from reachwise.viz.playback import MAX_VOXELS_SHOWN, Playback
+from reachwise.viz.memory_voxels import MAX_VOXELS_SHOWN
+from reachwise.viz.playback import Playback
 from reachwise.viz.scene_data import voxel_centres
 from reachwise.viz.viewer import Viewer
 

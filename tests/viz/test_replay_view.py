@@ -1,7 +1,8 @@
 """A replayed recording in the viewer: scrubbing to a frame puts the robot at the joint
 positions that frame queried, shows the cloud whose stamp the frame reports and the
 closest-point lines of the replay's answers; and the clouds kept for display are the
-handed-over ones, thinned."""
+handed-over ones, thinned. With a scene memory, each frame shows the memory's occupied,
+shadow and free voxels as the memory held them after the depth frame it used."""
 
 from __future__ import annotations
 
@@ -12,7 +13,9 @@ import pytest
 
 from reachwise.errors import InputError
 from reachwise.io.ros.replay import ReplaySpec, replay_recording
-from reachwise.viz.replay_view import ROBOT, ReplayClouds, ReplayPlayback
+from reachwise.viz.memory_voxels import memory_node
+from reachwise.viz.replay_view import ROBOT, ReplayClouds, ReplayMemory, ReplayPlayback
+from reachwise.viz.scene_data import voxel_centres
 from reachwise.viz.viewer import Viewer
 from tests._real_arms import arm_path, needs_erd
 from tests.io.ros import _cell
@@ -85,8 +88,9 @@ def test_a_replay_without_frames_or_of_another_robot_is_refused(viewer: Viewer, 
 
 @needs_erd
 def test_reachwise_replay_view_serves_until_ctrl_c(tmp_path: Path) -> None:
-    """``reachwise replay … --view`` writes its files, prints the viewer's URL, serves
-    the page, and Ctrl-C ends it cleanly with the port freed."""
+    """``reachwise replay … --view`` (here with a scene memory) writes its files,
+    prints the viewer's URL, serves the page, and Ctrl-C ends it cleanly with the port
+    freed."""
     import os
     import signal
     import subprocess
@@ -100,7 +104,8 @@ def test_reachwise_replay_view_serves_until_ctrl_c(tmp_path: Path) -> None:
 
     bag = _cell.write_cell(tmp_path / "cell.mcap", seconds=0.3, joints=UR5)
     args = ["replay", str(bag), "--robot", str(arm_path("ur5")), "--tip", "tool0",
-            "--clouds", "/points", "--points", "100", "--out", str(tmp_path / "out"),
+            "--clouds", "/points", "--clouds", "/depth/image", "--memory", "0.05",
+            "--memory-box=-1,-1.5,-1,2,1.5,2", "--points", "100", "--out", str(tmp_path / "out"),
             "--view", "--port", "0"]  # fmt: skip
     env = dict(os.environ, PYTHONUNBUFFERED="1", COLUMNS="200")
     proc = subprocess.Popen(
@@ -135,3 +140,71 @@ def test_reachwise_replay_view_serves_until_ctrl_c(tmp_path: Path) -> None:
         if proc.poll() is None:
             proc.kill()
             proc.wait(timeout=10)
+
+
+def test_a_replayed_scene_memory_is_shown_by_its_voxels(viewer: Viewer, cell: Path) -> None:
+    """The memory's voxels shown at a frame are those the memory held after the depth
+    frame that frame's answers used (their counts those it reported), whichever way the
+    playback seeks (copies every 3 frames: the grid is rebuilt from its changes)."""
+    from reachwise.distance.scene_memory import STATES, MemoryConfig, SceneMemory
+
+    robot = _cell.panda()
+    link_clouds = _cell.link_clouds(robot)
+    spec = ReplaySpec(
+        joints="/joint_states",
+        clouds=("/points", "/depth/image"),
+        memory=MemoryConfig(voxel=0.05),
+        memory_box=((-1.0, -1.5, -1.0), (2.0, 1.5, 2.0)),
+    )
+    kept, tape = ReplayClouds(max_points=50), ReplayMemory(every=3)
+    truth: dict[float, tuple[np.ndarray, tuple[int, ...]]] = {}
+
+    def on_memory(stamp: float, memory: SceneMemory) -> None:
+        truth[stamp] = (memory.state.copy(), tuple(memory.counts()))
+        tape(stamp, memory)
+
+    res = replay_recording(
+        cell, robot, spec, link_clouds=link_clouds, on_cloud=kept, on_memory=on_memory
+    )
+    assert len(truth) == res.clouds["/depth/image"] == 10
+    pb = ReplayPlayback(viewer, res, robot, link_clouds, kept, memory=tape)
+    column = res.pairs.index("link_3|memory")
+    frames = np.flatnonzero(~np.isnan(res.cloud_stamp[:, column]))
+    assert len({float(res.cloud_stamp[k, column]) for k in frames}) == 10
+    codes = dict(zip(("unknown", "free", "occupied", "shadow"), range(4), strict=True))
+    for k in (frames[-1], frames[0], frames[len(frames) // 2], frames[-1], frames[5]):
+        pb.slider.value = float(res.t[k])
+        assert pb.index == k
+        state, counts = truth[float(res.cloud_stamp[k, column])]
+        for name in ("occupied", "shadow", "free"):
+            shown = np.asarray(viewer.nodes[memory_node("memory", name)].points)
+            n = counts[codes[name]]
+            assert len(shown) == n if n else not viewer.nodes[memory_node("memory", name)].visible
+            if n:
+                want = voxel_centres(state, (-1.0, -1.5, -1.0), 0.05, STATES[name], n)
+                np.testing.assert_allclose(shown, want, atol=1e-6)
+    last = truth[float(res.cloud_stamp[frames[-1], column])][1]
+    assert last[codes["occupied"]] > 0 and last[codes["free"]] > 0  # something to see
+    assert pb.cloud_node("memory") not in viewer.nodes  # not also as a plain cloud
+    pb.stop()
+
+
+def test_replay_memory_rebuilds_every_grid_in_any_order() -> None:
+    """:class:`ReplayMemory` gives, for each stamp, the grid the memory held after that
+    frame, read in any order (random grids, copies every 4 frames)."""
+    from reachwise.distance.scene_memory import SceneMemory
+
+    rng = np.random.default_rng(3)
+    memory = SceneMemory((0.0, 0.0, 0.0), (0.3, 0.2, 0.1))
+    tape = ReplayMemory(every=4)
+    grids = []
+    for k in range(13):
+        flip = np.asarray(rng.random(memory.state.shape) < 0.2)
+        memory.state[flip] = rng.integers(0, 4, int(np.count_nonzero(flip))).astype(np.uint8)
+        grids.append(memory.state.copy())
+        tape(0.1 * k, memory)
+    for k in [12, 0, 5, 6, 7, 3, 11, 8, 8, 1, 12]:
+        np.testing.assert_array_equal(tape.state_at(0.1 * k), grids[k])
+    assert tape.state_at(5.0) is None
+    with pytest.raises(InputError, match="every"):
+        ReplayMemory(every=0)

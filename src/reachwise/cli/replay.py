@@ -20,7 +20,7 @@ if TYPE_CHECKING:
     from reachwise.geometry.cloud import PointCloud
     from reachwise.io.ros.replay import ReplayResult, ReplaySpec
     from reachwise.kinematics.robot import Robot
-    from reachwise.viz.replay_view import ReplayClouds
+    from reachwise.viz.replay_view import ReplayClouds, ReplayMemory
 
 
 @dataclass(frozen=True)
@@ -206,7 +206,7 @@ class ReplayOutput:
             False,
             "--view",
             help="Then play the replay back in the browser viewer (robot, clouds, closest-point "
-            "lines) until Ctrl-C.",
+            "lines; with --memory its occupied, shadow and free voxels) until Ctrl-C.",
         )
     )
     #: The viewer's port.
@@ -278,12 +278,15 @@ def replay(
         raise InputError("reachwise replay", "--robot", "give --robot or --scenario")
     console = Console(stderr=True)
     console.print(f"replaying {bag} with {model.name} …")
-    kept = None
+    kept, kept_memory = None, None
     if view:
-        from reachwise.viz.replay_view import ReplayClouds
+        from reachwise.viz.replay_view import ReplayClouds, ReplayMemory
 
         kept = ReplayClouds()
-    result = replay_recording(bag, model, spec, link_clouds=carried, on_cloud=kept)
+        kept_memory = ReplayMemory() if spec.memory is not None else None
+    result = replay_recording(
+        bag, model, spec, link_clouds=carried, on_cloud=kept, on_memory=kept_memory
+    )
     inputs = {
         "joints": topics.joints,
         "clouds": list(topics.clouds),
@@ -306,7 +309,7 @@ def replay(
             f"{summary['near_frames']} frames closer than {topics.margin:g} m; results in {out}/"
         )
     if view and kept is not None:
-        _view(result, model, carried, kept, output.port, console)
+        _view(result, model, carried, (kept, kept_memory), output.port, console)
 
 
 def _spec(topics: ReplayTopics) -> ReplaySpec:
@@ -353,17 +356,18 @@ def _view(
     result: ReplayResult,
     robot: Robot,
     link_clouds: Mapping[str, PointCloud],
-    kept: ReplayClouds,
+    kept: tuple[ReplayClouds, ReplayMemory | None],
     port: int,
     console: Console,
 ) -> None:
-    """Play ``result`` back in the viewer until Ctrl-C."""
+    """Play ``result`` back in the viewer until Ctrl-C, with the clouds and the scene
+    memory (its voxels; ``None``: no memory) ``kept`` while replaying."""
     from reachwise.viz.replay_view import ReplayPlayback
     from reachwise.viz.viewer import Viewer
 
     viewer = Viewer(port=port)
     try:
-        ReplayPlayback(viewer, result, robot, link_clouds, kept)
+        ReplayPlayback(viewer, result, robot, link_clouds, kept[0], memory=kept[1])
     except BaseException:
         viewer.stop()
         raise

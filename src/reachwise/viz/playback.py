@@ -30,18 +30,16 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from reachwise.distance.scene_memory import STATES
 from reachwise.errors import InputError
 from reachwise.viz.memory_replay import MemoryReplay
+from reachwise.viz.memory_voxels import show_memory_voxels
 from reachwise.viz.scene_data import (
-    MEMORY_RGB,
     distance_colours,
     height_colours,
     legend,
     node_name,
     pair_segments,
     polyline_segments,
-    voxel_centres,
     wxyz_position,
 )
 from reachwise.viz.timeline import Timeline
@@ -56,8 +54,6 @@ __all__ = ["GoalEntry", "Playback", "SimScene", "goal_reached_at", "goal_table"]
 
 PATH_RGB = (200, 60, 160)
 HIDDEN_RGB = (150, 150, 150)  # the true surface of an object only the sensors see
-#: Most voxels drawn per memory and state (every n-th beyond).
-MAX_VOXELS_SHOWN = {"occupied": 150_000, "shadow": 150_000, "free": 60_000}
 
 
 @dataclass(frozen=True)
@@ -276,21 +272,9 @@ class SimScene:
     def _show_memory(self, replay: MemoryReplay) -> None:
         """The occupied, shadow and free voxels of a memory now."""
         memory = replay.feed.memory
-        for state in ("occupied", "shadow", "free"):
-            pts = voxel_centres(
-                memory.state,
-                memory.origin,
-                memory.config.voxel,
-                STATES[state],
-                MAX_VOXELS_SHOWN[state],
-            )
-            self.viewer.set_points(
-                f"/memory/{node_name(replay.feed.name)}/{state}",
-                pts,
-                np.broadcast_to(np.array(MEMORY_RGB[state], np.uint8), pts.shape),
-                "free voxels" if state == "free" else "memory voxels",
-                (0.35 if state == "free" else 0.8) * memory.config.voxel,
-            )
+        show_memory_voxels(
+            self.viewer, replay.feed.name, memory.state, memory.origin, memory.config.voxel
+        )
 
     def memory_needs(self) -> int | None:
         """The earliest tick whose joints the memories' replays may still ask for."""

@@ -51,7 +51,7 @@ from reachwise.io.ros.stamps import header_stamp
 from reachwise.io.ros.transform_tree import TransformTree
 from reachwise.kinematics.robot import Robot
 
-__all__ = ["CloudHook", "ReplayResult", "ReplaySpec", "replay_recording"]
+__all__ = ["CloudHook", "MemoryHook", "ReplayResult", "ReplaySpec", "replay_recording"]
 
 F64 = NDArray[np.float64]
 CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
@@ -64,6 +64,8 @@ _NOWHERE = NOWHERE
 MEMORY = "memory"
 #: ``on_cloud(object, stamp, points)``: told of each cloud handed to the scene.
 CloudHook = Callable[[str, float, NDArray[np.float64]], None]
+#: ``on_memory(stamp, memory)``: told after each depth frame fused into the scene memory.
+MemoryHook = Callable[[float, SceneMemory], None]
 
 
 @dataclass(frozen=True)
@@ -216,12 +218,15 @@ def replay_recording(
     *,
     link_clouds: Mapping[str, PointCloud],
     on_cloud: CloudHook | None = None,
+    on_memory: MemoryHook | None = None,
 ) -> ReplayResult:
     """Replay recording ``bag`` (see the module docstring) with ``robot``, whose links
     carry ``link_clouds`` (link name → cloud in the link frame). ``on_cloud(object,
     stamp, points)`` is called with each cloud handed to the scene (its object: the
     topic, or ``memory``; its stamp, s; its points in the fixed frame, read-only), e.g.
-    to keep them for a viewer."""
+    to keep them for a viewer; ``on_memory(stamp, memory)`` after each depth frame
+    fused into the scene memory (the :class:`~reachwise.distance.scene_memory.SceneMemory`
+    itself, to read, not to change)."""
     matcher = JointMatcher(robot_joint_names(robot))
     with Recording(bag) as rec:
         ros1 = rec.ros1
@@ -235,7 +240,8 @@ def replay_recording(
                 objects.append(MEMORY)
             scene, pairs = _scene(robot, link_clouds, spec, objects)
             try:
-                rows = _drive(rec, spec, sources, tree, scene, pairs, matcher, robot.name, on_cloud)
+                hooks = (on_cloud, on_memory)
+                rows = _drive(rec, spec, sources, tree, scene, pairs, matcher, robot.name, hooks)
             finally:
                 scene.close()
         except RecordingError as exc:
@@ -268,10 +274,10 @@ def _drive(
     pairs: list[tuple[str, str]],
     matcher: JointMatcher,
     robot: str,
-    on_cloud: CloudHook | None,
+    hooks: tuple[CloudHook | None, MemoryHook | None],
 ) -> tuple[F64, F64, F64, F64, F64, F64, dict[str, int]]:
     """The replay loop: joint states and clouds in recording order, a frame per joint
-    state (at most every ``spec.every`` s)."""
+    state (at most every ``spec.every`` s); ``hooks``: ``on_cloud`` and ``on_memory``."""
     infos = {s.info_topic: s for s in sources.values() if s.info_topic is not None}
     topics: list[str] = [spec.joints, *sources, *infos]
     cloud_of = [b for _, b in pairs]
@@ -296,7 +302,7 @@ def _drive(
         if m.topic in infos:
             infos[m.topic].set_info(m.msg)
         elif m.topic in sources:
-            _take_cloud(sources[m.topic], m, memory, tree, spec, scene, on_cloud)
+            _take_cloud(sources[m.topic], m, memory, tree, spec, scene, hooks)
         else:
             q = matcher.positions(m.msg, topic=m.topic)
             t = _joint_time(m.msg, m.t)
@@ -340,15 +346,18 @@ def _take_cloud(
     tree: TransformTree,
     spec: ReplaySpec,
     scene: Scene,
-    on_cloud: CloudHook | None,
+    hooks: tuple[CloudHook | None, MemoryHook | None],
 ) -> None:
     """A cloud topic's message into the scene: a depth image fused into the scene
-    memory (which replaces the memory's cloud) when there is one, else its points
-    replace the topic's cloud; ``on_cloud`` is told either way."""
+    memory (which replaces the memory's cloud; ``on_memory`` is told) when there is
+    one, else its points replace the topic's cloud; ``on_cloud`` is told either way."""
     src.count += 1
+    on_cloud, on_memory = hooks
     if memory is not None and src.msgtype == IMAGE:
         voxels, stamp = src.fuse(memory, m.msg, m.t, tree, spec.frame)
         scene.replace_cloud(MEMORY, voxels, block=spec.block, stamp=stamp)
+        if on_memory is not None:
+            on_memory(stamp, memory)
         if on_cloud is not None:
             points = voxels.points if isinstance(voxels, PointCloud) else voxels
             on_cloud(MEMORY, stamp, points)
