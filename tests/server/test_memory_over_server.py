@@ -113,6 +113,32 @@ def test_the_robot_never_enters_the_servers_map(client: SceneClient) -> None:
     local.close()
 
 
+def test_a_mirroring_client_fuses_its_frames_into_its_copy_too(server: ServerProcess) -> None:
+    """A client with ``mirror=True`` that fuses frames has the server's memory on its
+    copy: the local cloud of the memory object gives the server's distance (1e-12) by
+    brute force, frame after frame, the robot left out as on the server."""
+    with SceneClient(
+        server.endpoint, deadline=HANG_GUARD, setup_deadline=HANG_GUARD, mirror=True
+    ) as client:
+        client.clear()
+        slider_scene(client)
+        steps = [(AWAY, AWAY, 1.0), (IN_FRONT, IN_FRONT, 1.1), (IN_FRONT, AWAY, 1.2)]
+        for q, seen, t in steps:
+            client.set_joints("slider", q)
+            fuse_depth(client, "memory", slider_frame(seen), POSE, INTRINSICS, t)
+            res = client.query_all()
+            assert res.valid, res.reason
+            local = client.objects["memory"].cloud.points  # the mirror's, no round trip
+            for probe in ("cube", "hidden"):
+                obj = client.objects[probe]
+                pts = obj.cloud.points @ client.poses()[probe][:3, :3].T
+                pts = pts + client.poses()[probe][:3, 3]
+                brute = float(np.min(np.linalg.norm(pts[:, None] - local[None], axis=2)))
+                d = res.get(probe, "memory").result.distance
+                assert brute == pytest.approx(d, abs=1e-12), (probe, t)
+            assert res.cloud_stamps["memory"] == t
+
+
 def test_bad_frames_through_the_server_are_typed_errors_naming_the_field(
     client: SceneClient,
 ) -> None:

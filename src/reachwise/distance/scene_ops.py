@@ -27,7 +27,9 @@ A method of :class:`~reachwise.distance.scene.Scene` can be registered as it is
 (``self`` is the scene), so the remote scene takes it over by assignment.
 An operation too slow to hold the lock (fusing a depth frame) is registered with
 :func:`staged_operation`: its expensive stage runs without the lock and only a cheap
-hand-over under it.
+hand-over under it; a mirroring client applies it to its copy too (it hands a
+result over into the scene, as a streamed cloud does), but the server neither
+persists nor re-sends its layout for it.
 
 Argument and result types the wire carries: ``bool``, ``int``, ``float``, ``str``,
 ``None``, ``Literal`` names, float64 arrays (``NDArray[np.float64]``, their shape

@@ -54,7 +54,11 @@ sends them with it, atomically: one round trip per control tick.
 everything it registers and sends, so ``objects``, ``robots``, ``pairs``,
 ``robot_objects`` and ``poses()`` are answered without a round trip (and without
 waiting on a server that may be gone); the distance queries still go to the server,
-and a reply whose pair list differs from the local copy is reported as invalid.
+and a reply whose pair list differs from the local copy is reported as invalid. The
+registered scene operations that change the scene, and the staged ones that hand a
+result over into it (a depth frame fused into a scene memory), run on the local copy
+too, after the server's reply: they are deterministic, so the copy's clouds are the
+server's (a mirroring client pays for fusing each frame locally as well).
 
 A client belongs to one thread (one REQ socket); give each thread its own.
 """
@@ -144,8 +148,12 @@ class SceneClient(RemoteQueries):
             result = P.decode_value(rep.result, op.result, "body.result")
         except P.ProtocolError as exc:
             raise ServerError(f"invalid reply to {name}: {exc}", exc.code, exc.field) from None
-        if op.mutates and self._mirror is not None:  # the same change on the local copy
-            op.function(self._mirror, **arguments)
+        if self._mirror is not None and (op.mutates or op.hand_over is not None):
+            # the same change on the local copy; a staged operation hands its result
+            # over into the scene (a fused frame's cloud), so it is applied too
+            prepared = op.function(self._mirror, **arguments)
+            if op.hand_over is not None:
+                op.hand_over(self._mirror, prepared)
         return result
 
     # ------------------------------------------------------------------ service calls
