@@ -58,22 +58,29 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
-from typing import Literal, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from reachwise.distance.engine import PairQuery
+from reachwise.distance.link_capsules import (
+    Capsule,
+    LinkCapsules,
+    bounding_capsule,
+    capsule_distances,
+)
+from reachwise.distance.self_pairs_search import SEEDS, LocalSearch
+from reachwise.distance.self_pairs_types import ChainLike, PairRule, Rule, SelfPairs
 from reachwise.errors import InputError
 from reachwise.geometry.cloud import PointCloud
-from reachwise.geometry.mesh_distance import segment_closest_parameters
-from reachwise.kinematics.bodies import Body, adjacent_bodies
+from reachwise.kinematics.bodies import adjacent_bodies
 
 __all__ = [
     "ALWAYS_FRACTION",
     "Capsule",
+    "ChainLike",
     "PairRule",
+    "Rule",
     "SelfPairs",
     "adjacent_reason",
     "always_within",
@@ -83,142 +90,6 @@ __all__ = [
     "random_configurations",
     "self_collision_pairs",
 ]
-
-Rule = Literal["adjacent", "always", "never", "watched"]
-
-
-class ChainLike(Protocol):
-    """What the computation needs of a robot (``reachwise.kinematics.Robot`` has it)."""
-
-    @property
-    def name(self) -> str: ...
-
-    @property
-    def n(self) -> int: ...
-
-    @property
-    def link_names(self) -> tuple[str, ...]: ...
-
-    @property
-    def movable_joints(self) -> tuple[int, ...]: ...
-
-    @property
-    def lower(self) -> NDArray[np.float64]: ...
-
-    @property
-    def upper(self) -> NDArray[np.float64]: ...
-
-    @property
-    def body_tree(self) -> Mapping[str, Body]: ...
-
-    @property
-    def body_names(self) -> tuple[str, ...]: ...
-
-    def link_index(self, link: str) -> int: ...
-
-    def fk_all(self, q: ArrayLike) -> NDArray[np.float64]: ...
-
-
-@dataclass(frozen=True)
-class PairRule:
-    """One link pair: ``rule`` is ``adjacent``, ``always`` or ``never`` (excluded) or
-    ``watched``;
-    ``detail`` says why in words; ``home_distance`` (m) is the exact distance at the
-    home configuration (``inf`` for adjacent pairs, which are not measured);
-    ``review`` marks a watched pair within the margin at home; ``margin`` (m) is a
-    watched pair's own margin between the surfaces when it has one (a structurally
-    close pair, module docstring), else ``None`` (the pairs' common margin)."""
-
-    a: str
-    b: str
-    rule: Rule
-    detail: str
-    home_distance: float = math.inf
-    review: bool = False
-    margin: float | None = None
-
-
-@dataclass(frozen=True, eq=False)
-class SelfPairs:
-    """The self-collision pairs of ``robot`` (see the module docstring)."""
-
-    robot: str
-    margin: float
-    samples: int
-    seed: int
-    home: NDArray[np.float64]
-    pairs: tuple[PairRule, ...]
-
-    @property
-    def watched(self) -> tuple[tuple[str, str], ...]:
-        return tuple((p.a, p.b) for p in self.pairs if p.rule == "watched")
-
-    @property
-    def excluded(self) -> tuple[PairRule, ...]:
-        return tuple(p for p in self.pairs if p.rule != "watched")
-
-    @property
-    def review(self) -> tuple[PairRule, ...]:
-        return tuple(p for p in self.pairs if p.review)
-
-    @property
-    def margins(self) -> dict[tuple[str, str], float]:
-        """Each watched pair's margin (m, between the surfaces): its own, else
-        :attr:`margin`."""
-        return {
-            (p.a, p.b): self.margin if p.margin is None else p.margin
-            for p in self.pairs
-            if p.rule == "watched"
-        }
-
-    @property
-    def always(self) -> tuple[PairRule, ...]:
-        """The pairs excluded as always within the margin (module docstring)."""
-        return tuple(p for p in self.pairs if p.rule == "always")
-
-
-@dataclass(frozen=True)
-class Capsule:
-    """A capsule bounding a cloud, in the cloud's frame: the segment ``p0``–``p1`` and
-    ``radius`` (every point is within ``radius`` of the segment)."""
-
-    p0: NDArray[np.float64]
-    p1: NDArray[np.float64]
-    radius: float
-
-
-def bounding_capsule(points: ArrayLike) -> Capsule:
-    """A capsule around ``points``: the segment spans their extent along the principal
-    axis (through their mean), the radius is the largest distance to it."""
-    P = np.asarray(points, dtype=float).reshape(-1, 3)
-    c = P.mean(axis=0)
-    X = P - c
-    if len(P) > 1:
-        _, _, vt = np.linalg.svd(X, full_matrices=False)
-        axis = vt[0]
-    else:
-        axis = np.array([0.0, 0.0, 1.0])
-    t = X @ axis
-    lo, hi = float(t.min()), float(t.max())
-    tc = np.clip(t, lo, hi)
-    r = float(np.linalg.norm(X - tc[:, None] * axis[None, :], axis=1).max())
-    return Capsule(c + lo * axis, c + hi * axis, r)
-
-
-def capsule_distances(
-    a0: NDArray[np.float64],
-    a1: NDArray[np.float64],
-    b0: NDArray[np.float64],
-    b1: NDArray[np.float64],
-) -> NDArray[np.float64]:
-    """Distances between segments ``a0``–``a1`` and ``b0``–``b1``, row by row (``(m, 3)``
-    each), at their closest points
-    (:func:`reachwise.geometry.mesh_distance.segment_closest_parameters`, Ericson's
-    *Real-Time Collision Detection*, §5.1.9)."""
-    s, t = segment_closest_parameters(a0, a1, b0, b1)
-    pa = a0 + s[:, None] * (a1 - a0)
-    pb = b0 + t[:, None] * (b1 - b0)
-    return np.asarray(np.linalg.norm(pa - pb, axis=1), dtype=float)
 
 
 def adjacent_reason(robot: ChainLike, links: list[str], la: str, lb: str) -> str | None:
@@ -249,30 +120,6 @@ def random_configurations(robot: ChainLike, samples: int, seed: int) -> NDArray[
     return np.asarray(rng.uniform(lo, hi, (int(samples), robot.n)), dtype=float)
 
 
-class _Placer:
-    """World poses of the link clouds for a batch of configurations, and their capsules."""
-
-    def __init__(self, robot: ChainLike, clouds: Mapping[str, PointCloud]) -> None:
-        self.robot = robot
-        self.clouds = dict(clouds)
-        self.index = {n: robot.link_index(n) for n in self.clouds}
-        self.caps = {n: bounding_capsule(c.points) for n, c in self.clouds.items()}
-
-    def segments(
-        self, F: NDArray[np.float64], link: str
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        T = F[:, self.index[link]]
-        cap = self.caps[link]
-        R, p = T[:, :3, :3], T[:, :3, 3]
-        return R @ cap.p0 + p, R @ cap.p1 + p
-
-    def bounds(self, F: NDArray[np.float64], la: str, lb: str) -> NDArray[np.float64]:
-        """Lower bounds of the cloud distance of (la, lb) for every configuration."""
-        a0, a1 = self.segments(F, la)
-        b0, b1 = self.segments(F, lb)
-        return capsule_distances(a0, a1, b0, b1) - self.caps[la].radius - self.caps[lb].radius
-
-
 def pair_hits(
     robot: ChainLike,
     clouds: Mapping[str, PointCloud],
@@ -284,7 +131,7 @@ def pair_hits(
     ``margin`` at each configuration of ``Q`` (capsule bounds skip the far ones)."""
     Qa = np.asarray(Q, dtype=float).reshape(-1, robot.n)
     F = np.asarray(robot.fk_all(Qa), dtype=float)
-    placer = _Placer(robot, clouds)
+    placer = LinkCapsules(clouds, {n: robot.link_index(n) for n in clouds})
     out = np.zeros((len(Qa), len(pairs)), dtype=bool)
     for k, (la, lb) in enumerate(pairs):
         query = PairQuery(clouds[la], clouds[lb], margin=margin)
@@ -385,74 +232,95 @@ def _always_rule(
     return PairRule(a, b, "watched", detail, home, home <= low, margin=own)
 
 
-#: Local search: how many closest samples it starts from, perturbations per step, and its
-#: step sizes (fraction of each joint's range).
-_SEEDS = 5
-_BATCH = 16
-_STEP0, _STEP_MIN = 0.05, 1e-3
-
-
-class _LocalSearch:
-    """Descends the exact distance of one pair from its closest random samples: a few
-    random perturbations per step inside the limits, the best kept, the step halved
-    when none is better; stops as soon as the pair comes within the margin."""
+class _Judge:
+    """The rules of one robot's non-adjacent pairs, from its link frames at home and at
+    the random configurations (module docstring, rules 2–5)."""
 
     def __init__(
         self,
         robot: ChainLike,
-        a: PointCloud,
-        b: PointCloud,
-        ia: int,
-        ib: int,
+        clouds: Mapping[str, PointCloud],
         margin: float,
+        q_home: NDArray[np.float64],
+        Q: NDArray[np.float64],
     ) -> None:
-        self.robot, self.ia, self.ib, self.margin = robot, ia, ib, margin
-        self.query = PairQuery(a, b, margin=max(4.0 * margin, 0.5))
-        self.lo = np.asarray(robot.lower, float)
-        self.hi = np.asarray(robot.upper, float)
+        self.robot, self.clouds, self.margin, self.Q = robot, clouds, margin, Q
+        self.idx = {n: robot.link_index(n) for n in clouds}
+        self.F_home = np.asarray(robot.fk_all(q_home), dtype=float)
+        self.F = np.asarray(robot.fk_all(Q), dtype=float)
+        self.capsules = LinkCapsules(clouds, self.idx)
 
-    def run(
-        self, Q: NDArray[np.float64], F: NDArray[np.float64], bounds: NDArray[np.float64], seed: int
-    ) -> float:
-        """The smallest distance found (``inf`` when every sample is far beyond)."""
-        # the closest samples by exact distance: in order of their lower bound, until the
-        # bound exceeds the k-th best distance (no later sample can be closer); each
-        # query is bounded by that k-th best, so a farther sample costs little
-        found: list[tuple[float, int]] = []
-        cap = self.query.margin
-        for s in np.argsort(bounds, kind="stable"):
-            kth = found[_SEEDS - 1][0] if len(found) >= _SEEDS else cap
-            if bounds[s] > kth:
-                break
-            r = self.query(F[s, self.ia], F[s, self.ib], margin=kth)
-            if not r.no_risk:
-                found.append((r.distance, int(s)))
-                found.sort()
-                del found[_SEEDS:]
-        best_d = found[0][0] if found else math.inf
-        if not math.isfinite(best_d):
-            return best_d
-        rng = np.random.default_rng([int(seed), self.ia, self.ib])
-        span = self.hi - self.lo
-        for dq, s in found:
-            q = Q[s].copy()
-            step = _STEP0
-            while step >= _STEP_MIN and dq > self.margin:
-                trial = np.clip(q + rng.normal(0.0, 1.0, (_BATCH, len(q))) * step * span,
-                                self.lo, self.hi)  # fmt: skip
-                Ft = np.asarray(self.robot.fk_all(trial), dtype=float)
-                dt = np.array(  # only a closer trial matters: bound each query by dq
-                    [self.query(f[self.ia], f[self.ib], margin=dq).distance for f in Ft]
-                )
-                k = int(np.argmin(dt))
-                if dt[k] < dq:
-                    q, dq = trial[k], float(dt[k])
-                else:
-                    step *= 0.5
-            best_d = min(best_d, dq)
-            if best_d <= self.margin:
-                break
-        return best_d
+    def rule(self, la: str, lb: str, seed: int, local_search: bool) -> PairRule:
+        """The rule of the pair (``la``, ``lb``), not adjacent."""
+        clouds, idx, F, margin = self.clouds, self.idx, self.F, self.margin
+        # a cloud distance overstates the surfaces' by up to both clouds' resolutions
+        coverage = clouds[la].resolution + clouds[lb].resolution
+        m = margin + coverage
+        query = PairQuery(clouds[la], clouds[lb])
+        d_home = query(self.F_home[idx[la]], self.F_home[idx[lb]]).distance
+        query = PairQuery(clouds[la], clouds[lb], margin=m)
+        bounds = self.capsules.bounds(F, la, lb)
+        band = always_within(query, F, idx[la], idx[lb], bounds)
+        if band is not None:
+            return _always_rule(la, lb, band, margin, coverage, len(self.Q), d_home)
+        hit = self._first_hit(query, la, lb, bounds)
+        review = d_home <= m
+        if hit >= 0 or review:
+            detail = (
+                f"within the margin at the home configuration ({d_home:.3f} m): review"
+                if review
+                else f"within the margin in random configuration {hit}"
+            )
+            return PairRule(la, lb, "watched", detail, d_home, review)
+        within = f"{margin:g} m" + (f" ({m:g} m between the clouds)" if coverage else "")
+        if not local_search:
+            detail = f"never within {within} in {len(self.Q)} random configurations"
+            return PairRule(la, lb, "never", detail, d_home)
+        search = LocalSearch(self.robot, clouds[la], clouds[lb], idx[la], idx[lb], m)
+        closest = search.run(self.Q, F, bounds, seed)
+        if closest > m:
+            detail = (
+                f"never within {within}: {len(self.Q)} random configurations and a local "
+                f"search from the {SEEDS} closest (closest found {closest:.3f} m)"
+            )
+            return PairRule(la, lb, "never", detail, d_home)
+        detail = f"within the margin after a local search ({closest:.3f} m)"
+        return PairRule(la, lb, "watched", detail, d_home, review)
+
+    def _first_hit(self, query: PairQuery, la: str, lb: str, bounds: NDArray[np.float64]) -> int:
+        """The first random configuration, nearest capsule bound first, in which the pair
+        is within ``query.margin``, or -1."""
+        order = np.argsort(bounds, kind="stable")
+        order = order[bounds[order] <= query.margin]
+        ia, ib = self.idx[la], self.idx[lb]
+        for s in order:
+            if not query(self.F[s, ia], self.F[s, ib]).no_risk:
+                return int(s)
+        return -1
+
+
+def _home_configuration(robot: ChainLike, home: ArrayLike | None) -> NDArray[np.float64]:
+    """``home`` checked, or 0 moved into the limits when it is ``None``."""
+    lo, hi = np.asarray(robot.lower, float), np.asarray(robot.upper, float)
+    q_home = np.clip(np.zeros(robot.n), lo, hi) if home is None else np.asarray(home, float)
+    if q_home.shape != (robot.n,) or not np.isfinite(q_home).all():
+        raise InputError(robot.name, "home", f"expected {robot.n} finite joint values")
+    return q_home
+
+
+def _linked_clouds(
+    robot: ChainLike, clouds: Mapping[str, PointCloud], margin: float, samples: int
+) -> list[str]:
+    """The links of ``clouds`` in the robot's body order, after checking the inputs."""
+    if not (isinstance(margin, int | float) and math.isfinite(margin) and margin > 0):
+        raise InputError(robot.name, "margin", f"must be finite and > 0, got {margin!r}")
+    if int(samples) < 1:
+        raise InputError(robot.name, "samples", f"must be ≥ 1, got {samples!r}")
+    rank = {n: i for i, n in enumerate(robot.body_names)}
+    for link in clouds:
+        if link not in rank:
+            raise InputError(robot.name, "clouds", f"no link {link!r}")
+    return sorted(clouds, key=rank.__getitem__)
 
 
 def self_collision_pairs(
@@ -474,71 +342,16 @@ def self_collision_pairs(
     configuration
     (default: 0 moved into the limits); ``local_search=False`` excludes on the samples
     alone (MoveIt's rule; for comparison)."""
-    if not (isinstance(margin, int | float) and math.isfinite(margin) and margin > 0):
-        raise InputError(robot.name, "margin", f"must be finite and > 0, got {margin!r}")
-    if int(samples) < 1:
-        raise InputError(robot.name, "samples", f"must be ≥ 1, got {samples!r}")
-    rank = {n: i for i, n in enumerate(robot.body_names)}
-    for link in clouds:
-        if link not in rank:
-            raise InputError(robot.name, "clouds", f"no link {link!r}")
-    idx = {n: robot.link_index(n) for n in clouds}
-    links = sorted(clouds, key=rank.__getitem__)
-    lo, hi = np.asarray(robot.lower, float), np.asarray(robot.upper, float)
-    q_home = np.clip(np.zeros(robot.n), lo, hi) if home is None else np.asarray(home, float)
-    if q_home.shape != (robot.n,) or not np.isfinite(q_home).all():
-        raise InputError(robot.name, "home", f"expected {robot.n} finite joint values")
-    F_home = np.asarray(robot.fk_all(q_home), dtype=float)
+    links = _linked_clouds(robot, clouds, margin, samples)
+    q_home = _home_configuration(robot, home)
     Q = random_configurations(robot, samples, seed)
-    F = np.asarray(robot.fk_all(Q), dtype=float)
-    placer = _Placer(robot, clouds)
+    judge = _Judge(robot, clouds, margin, q_home, Q)
     out: list[PairRule] = []
     for i, la in enumerate(links):
         for lb in links[i + 1 :]:
             why = adjacent_reason(robot, links, la, lb)
             if why is not None:
                 out.append(PairRule(la, lb, "adjacent", why))
-                continue
-            # a cloud distance overstates the surfaces' by up to both clouds' resolutions
-            coverage = clouds[la].resolution + clouds[lb].resolution
-            m = margin + coverage
-            within = f"{margin:g} m" + (f" ({m:g} m between the clouds)" if coverage else "")
-            query = PairQuery(clouds[la], clouds[lb])
-            d_home = query(F_home[idx[la]], F_home[idx[lb]]).distance
-            query = PairQuery(clouds[la], clouds[lb], margin=m)
-            bounds = placer.bounds(F, la, lb)
-            band = always_within(query, F, idx[la], idx[lb], bounds)
-            if band is not None:
-                out.append(_always_rule(la, lb, band, margin, coverage, len(Q), d_home))
-                continue
-            order = np.argsort(bounds, kind="stable")
-            order = order[bounds[order] <= m]
-            hit = -1
-            for s in order:
-                if not query(F[s, idx[la]], F[s, idx[lb]]).no_risk:
-                    hit = int(s)
-                    break
-            review = d_home <= m
-            closest = math.inf
-            if hit < 0 and not review and local_search:
-                search = _LocalSearch(robot, clouds[la], clouds[lb], idx[la], idx[lb], m)
-                closest = search.run(Q, F, placer.bounds(F, la, lb), seed)
-                if closest > m:
-                    detail = (
-                        f"never within {within}: {len(Q)} random configurations and a local "
-                        f"search from the {_SEEDS} closest (closest found {closest:.3f} m)"
-                    )
-                    out.append(PairRule(la, lb, "never", detail, d_home))
-                    continue
-            elif hit < 0 and not review:
-                detail = f"never within {within} in {len(Q)} random configurations"
-                out.append(PairRule(la, lb, "never", detail, d_home))
-                continue
-            if review:
-                detail = f"within the margin at the home configuration ({d_home:.3f} m): review"
-            elif hit >= 0:
-                detail = f"within the margin in random configuration {hit}"
             else:
-                detail = f"within the margin after a local search ({closest:.3f} m)"
-            out.append(PairRule(la, lb, "watched", detail, d_home, review))
+                out.append(judge.rule(la, lb, seed, local_search))
     return SelfPairs(robot.name, float(margin), len(Q), int(seed), q_home, tuple(out))
