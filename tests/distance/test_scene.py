@@ -293,3 +293,37 @@ def test_pair_query_used_by_the_scene_is_warm_started(larger: str) -> None:
     # do that; a cold query gives one of them every time
     pq.reset()
     assert query(pq, 0.0) == (cold, tie)
+
+
+def test_clear_empties_the_scene_and_drops_clouds_handed_over_before() -> None:
+    """After ``clear`` the scene answers as a new one built the same way; a cloud
+    handed over before the clear is never swapped in, and the scene's memories go."""
+    from reachwise.distance.scene_memories import add_memory, memories_of
+
+    scene, robot = _robot_scene([0.3, 0.2, 0.1, 0.0])
+    scene.add_object("env", np.array([[0.0, 0.0, 1.0]]))
+    scene.watch_environment("arm", 5.0, ["env"])
+    add_memory(scene, "seen", np.array([-1.0, -1.0, 0.0]), np.ones(3))
+    scene.replace_cloud("env", np.array([[0.0, 0.0, 0.05]]))  # not swapped in yet
+    old = scene.clear()
+    old.close()
+    assert scene.generation == 1
+    assert (scene.objects, scene.robots, scene.pairs, dict(memories_of(scene))) == ({}, {}, (), {})
+    q = np.array([0.5, -0.4, 0.2, 0.1])
+    fresh, _ = _robot_scene(q)
+    for s in (scene, fresh):
+        if s is scene:
+            s.add_robot(robot, q)
+            for i, L in enumerate(robot.lengths, start=1):
+                s.add_object(f"arm/link_{i}", _rod(L), robot="arm", link=f"link_{i}")
+            s.add_object("arm/base", _rod(0.1), robot="arm", link="link_0")
+            s.add_object("arm/tool", _rod(0.05), robot="arm", link="tool")
+        s.add_object("env", np.array([[0.0, 0.0, 1.0]]))
+        s.watch_environment("arm", 5.0, ["env"])
+    got, want = scene.query_all(), fresh.query_all()
+    assert got.versions == {name: 0 for name in scene.objects}
+    assert [p.result.distance for p in got.pairs] == [p.result.distance for p in want.pairs]
+    add_memory(scene, "seen", np.array([-1.0, -1.0, 0.0]), np.ones(3))  # its name is free again
+    assert set(memories_of(scene)) == {"seen"}
+    scene.close()
+    fresh.close()

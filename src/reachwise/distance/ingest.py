@@ -263,13 +263,18 @@ class CloudIngest:
         """Hand-overs waiting to be built."""
         return len(self._jobs)
 
-    def close(self) -> None:
-        """Stop the worker (waiting hand-overs are dropped; the one in progress ends)."""
+    def stop(self) -> None:
+        """Tell the worker to stop without waiting for it: waiting hand-overs are
+        dropped, the one in progress ends on the worker (:meth:`close` waits for it)."""
         with self._cond:
             self._closed = True
             self._jobs.clear()
             self._cond.notify_all()
-            thread = self._thread
+
+    def close(self) -> None:
+        """Stop the worker (waiting hand-overs are dropped; the one in progress ends)."""
+        self.stop()
+        thread = self._thread
         if thread is not None and thread is not threading.current_thread():
             thread.join()
         self._retired.clear()

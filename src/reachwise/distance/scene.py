@@ -95,6 +95,12 @@ class Scene:
     ) -> None:
         self.strategy = check_choice(strategy, STRATEGIES, source="scene", kind="strategy")
         self.clock = clock
+        self._voxel = None if voxel is None else _positive(voxel, "voxel")
+        self._generation = 0
+        self._empty()
+
+    def _empty(self) -> None:
+        """The state of a scene without robots, objects or pairs."""
         self._objects: dict[str, SceneObject] = {}
         self._robots: dict[str, RobotLike] = {}
         self._q: dict[str, NDArray[np.float64] | None] = {}
@@ -110,9 +116,7 @@ class Scene:
         self._versions: Mapping[str, int] = MappingProxyType({})
         self._cloud_stamps: Mapping[str, float] = MappingProxyType({})
         self._issued: dict[str, int] = {}
-        if voxel is not None:
-            voxel = _positive(voxel, "voxel")
-        self._ingest = CloudIngest(voxel=voxel)
+        self._ingest = CloudIngest(voxel=self._voxel)
         # a scene dropped without close() still stops its worker thread
         self._stop_ingest = weakref.finalize(self, self._ingest.close)
         # the arrays the compiled query reads, and what a query needs of them
@@ -142,6 +146,12 @@ class Scene:
     def sequence(self) -> int:
         """How many times :meth:`query_all` has answered."""
         return self._sequence
+
+    @property
+    def generation(self) -> int:
+        """How many times :meth:`clear` has emptied the scene: what was handed over
+        before a clear belongs to an older generation."""
+        return self._generation
 
     @property
     def versions(self) -> Mapping[str, int]:
@@ -436,6 +446,19 @@ class Scene:
             versions=versions,
             cloud_stamps=self._cloud_stamps,
         )
+
+    def clear(self) -> CloudIngest:
+        """Remove every robot, object and pair, as a new scene of the same strategy,
+        clock and voxel has none, and count one more :attr:`generation`. Clouds handed
+        over and not swapped in yet are dropped: the worker that indexed them is told
+        to stop and returned (its build in progress ends on it; ``close()`` waits for
+        that), and a new one indexes the clouds handed over from now on."""
+        old = self._ingest
+        old.stop()
+        self._stop_ingest.detach()
+        self._empty()
+        self._generation += 1
+        return old
 
     def close(self) -> None:
         """Stop the cloud-ingestion worker (a remote scene disconnects here); a scene

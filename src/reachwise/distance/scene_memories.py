@@ -120,13 +120,25 @@ class _Held:
     pieces: dict[str, _Piece] = field(default_factory=dict)
 
 
-_MEMORIES: weakref.WeakKeyDictionary[Scene, dict[str, _Held]] = weakref.WeakKeyDictionary()
+# per scene: its generation when its memories were added, and the memories by name
+_MEMORIES: weakref.WeakKeyDictionary[Scene, tuple[int, dict[str, _Held]]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def _memories(scene: Scene) -> dict[str, _Held]:
+    """The memories of ``scene`` (kept in it): none after :meth:`Scene.clear`."""
+    generation, held = _MEMORIES.get(scene, (-1, {}))
+    if generation != scene.generation:
+        held = {}
+        _MEMORIES[scene] = (scene.generation, held)
+    return held
 
 
 def memories_of(scene: Scene) -> Mapping[str, SceneMemory]:
     """The memories of ``scene`` by name (read them; change them through
     :func:`fuse_depth`)."""
-    return {name: held.memory for name, held in _MEMORIES.get(scene, {}).items()}
+    return {name: held.memory for name, held in _memories(scene).items()}
 
 
 @dataclass(frozen=True)
@@ -145,7 +157,7 @@ def memory_setups(scene: Scene) -> tuple[MemorySetup, ...]:
     """The setup of every memory of ``scene``, in the order they were added."""
     return tuple(
         MemorySetup(name, held.lower.copy(), held.upper.copy(), held.memory.config)
-        for name, held in _MEMORIES.get(scene, {}).items()
+        for name, held in _memories(scene).items()
     )
 
 
@@ -170,7 +182,7 @@ def add_memory(
     memory = SceneMemory(lower, upper, config)
     scene.add_object(name, _empty(memory, name))
     box = (np.array(lower, dtype=np.float64), np.array(upper, dtype=np.float64))
-    _MEMORIES.setdefault(scene, {})[name] = _Held(memory, *box)
+    _memories(scene)[name] = _Held(memory, *box)
     return memory.inflation
 
 
@@ -210,7 +222,7 @@ def _swap_in(scene: Scene, fused: _Fused) -> int:
     once swap in their order); returns the cloud's version in use."""
     held = _held(scene, fused.name)
     if held is not fused.held:  # the memory was removed (and maybe added again)
-        raise UnknownName("scene", "memory", fused.name, _MEMORIES.get(scene, {}))
+        raise UnknownName("scene", "memory", fused.name, _memories(scene))
     with held.swap:
         if fused.frame <= held.swapped:
             return scene.versions[fused.name]
@@ -329,7 +341,7 @@ def _self_filter(
 
 
 def _held(scene: Scene, name: str) -> _Held:
-    memories = _MEMORIES.get(scene, {})
+    memories = _memories(scene)
     held = memories.get(name)
     if held is None:
         raise UnknownName("scene", "memory", name, memories)

@@ -36,7 +36,7 @@ class CloudHandover(ScenePersistence):
         wait = self.hand_over(req)
         if not req.block:
             return P.ObjectReply(wait.name, len(wait.points), wait.version)
-        wait.scene.ingest.wait(wait.name, wait.scene_version, BLOCK_LIMIT)
+        wait.ingest.wait(wait.name, wait.scene_version, BLOCK_LIMIT)
         reply = self.settle(wait)
         if reply is None:
             raise wire_error(
@@ -54,13 +54,13 @@ class CloudHandover(ScenePersistence):
         stamp = self.clock() if req.stamp is None else req.stamp
         with self.lock:
             self._object(req.name, "body.name")
-            scene = self.scene
-            v = scene.replace_cloud(req.name, req.cloud, block=False, stamp=stamp)
+            v = self.scene.replace_cloud(req.name, req.cloud, block=False, stamp=stamp)
             wait = CloudWait(
                 req.name,
                 v + self._version_base.get(req.name, 0),
                 v,
-                scene,
+                self.scene.ingest,
+                self.scene.generation,
                 req.cloud,
                 stamp,
                 time.monotonic() + BLOCK_LIMIT if req.block else math.inf,
@@ -73,14 +73,14 @@ class CloudHandover(ScenePersistence):
         """The reply to a ``block`` hand-over once its version (or a newer one) is
         indexed, None while it is not; raises ``invalid`` for a cloud whose points were
         refused, ``unknown_id`` when the scene was cleared meanwhile."""
-        if not wait.scene.ingest.wait(wait.name, wait.scene_version, 0.0):
+        if not wait.ingest.wait(wait.name, wait.scene_version, 0.0):
             return None
         with self.lock:
-            if wait.scene is not self.scene:
+            if wait.generation != self.scene.generation:
                 raise wire_error(
                     P.ErrorCode.UNKNOWN_ID, "body.name", "the scene was cleared meanwhile"
                 )
-            failed = wait.scene.ingest.errors().get(wait.name)
+            failed = wait.ingest.errors().get(wait.name)
             if failed is not None and failed[0] == wait.scene_version:
                 raise wire_error(P.ErrorCode.INVALID, "cloud", str(failed[1]))
             self.scene.swap_in()  # in use from now on, not only from the next query
@@ -99,9 +99,9 @@ class CloudHandover(ScenePersistence):
         with self.lock:
             pending = list(self._unsaved.values())
         for w in pending:
-            if not w.scene.ingest.wait(w.name, w.scene_version, timeout):
+            if not w.ingest.wait(w.name, w.scene_version, timeout):
                 continue  # still being indexed: the next round
-            failed = w.scene.ingest.errors().get(w.name)
+            failed = w.ingest.errors().get(w.name)
             refused = failed is not None and failed[0] == w.scene_version
             cloud_file = None if refused else self.store.write_cloud(w.points)
             with self.lock:
@@ -109,7 +109,7 @@ class CloudHandover(ScenePersistence):
                 if current:
                     del self._unsaved[w.name]
                 old = self._meta.get(w.name)
-                if cloud_file is None or w.scene is not self.scene or old is None:
+                if cloud_file is None or w.generation != self.scene.generation or old is None:
                     manifest = None
                 else:
                     self._meta[w.name] = ObjectMeta(

@@ -58,7 +58,6 @@ import reachwise.server.protocol as P
 from reachwise._version import __version__
 from reachwise.distance._common import check_pose
 from reachwise.distance.engine import StrategyName
-from reachwise.distance.scene import Scene
 from reachwise.errors import InputError
 from reachwise.io.robot_file import robot_from_dict
 from reachwise.server.answering import SceneAnswering
@@ -66,7 +65,6 @@ from reachwise.server.handover import BLOCK_LIMIT, CLOUD_INTERVAL, CloudHandover
 from reachwise.server.persistence import LIVE_INTERVAL
 from reachwise.server.service_core import (
     CloudWait,
-    ObjectMeta,
     indexed_cloud,
     protocol_error_of,
     wire_error,
@@ -217,8 +215,7 @@ class SceneService(SceneAnswering, CloudHandover):
                 result = op.function(self.scene, **req.arguments)
             finally:
                 if op.mutates:  # a failed call may have changed part of the scene
-                    self._adopt_objects()
-                    self._pairs_changed()
+                    self._adopt()
                     manifest = self._manifest()
             reply = P.OperationResult(P.encode_value(result, op.result))
         if op.mutates:
@@ -243,9 +240,7 @@ class SceneService(SceneAnswering, CloudHandover):
             if req.q is not None:
                 self._check_q(robot, req.q, "body.q")
             self.scene.add_robot(robot)
-            self._robots[robot.name] = robot
-            self._models[robot.name] = req.robot
-            self._pairs_changed()  # the robots of the layout
+            self._adopt()
             if req.q is not None:
                 self._store_joints(
                     robot.name, req.q, self.clock() if req.stamp is None else req.stamp
@@ -299,14 +294,9 @@ class SceneService(SceneAnswering, CloudHandover):
                     )
                 except InputError as exc:
                     raise wire_error(P.ErrorCode.INVALID, "body.pose", exc.reason) from None
-                stamp_of = None
-                if req.robot is not None:
-                    stamp_of = ("robot", req.robot)
-                elif req.dynamic:
-                    stamp_of = ("object", req.name)
+                if req.dynamic:
                     self._runtime[req.name] = (check_pose(req.pose, "body.pose"), self.clock())
-                self._meta[req.name] = ObjectMeta(cloud_file, stamp_of, len(cloud))
-                self._pairs_changed()  # the objects of the layout
+                self._adopt({req.name: cloud_file})
                 manifest = self._manifest()
         except BaseException:
             self._drop_file(cloud_file)
@@ -317,15 +307,11 @@ class SceneService(SceneAnswering, CloudHandover):
     def _clear(self, req: P.Clear) -> P.Reply:
         with self.lock:
             dropped = [m.cloud_file for m in self._meta.values()]
-            old_scene = self.scene
-            self.scene = Scene(strategy=self.strategy)
-            self._models, self._robots, self._meta = {}, {}, {}
-            self._joints, self._runtime = {}, {}
-            self._unsaved, self._version_base = {}, {}
-            self._pairs_changed()
+            ingest = self.scene.clear()
+            self._adopt()
             self._live_dirty = True
             manifest = self._manifest()
-        old_scene.close()  # its indexing worker
+        ingest.close()  # the worker of the clouds handed over before
         self._persist(manifest)
         for f in dropped:
             self._drop_file(f)

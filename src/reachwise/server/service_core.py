@@ -30,9 +30,11 @@ import reachwise.server.protocol as P
 from reachwise.distance._common import check_pose
 from reachwise.distance.engine import STRATEGIES, StrategyName
 from reachwise.distance.index import cloud_index
-from reachwise.distance.scene import Scene
+from reachwise.distance.ingest import CloudIngest
+from reachwise.distance.scene import OnLink, PoseSource, Runtime, Scene
 from reachwise.errors import InputError, UnknownName, check_choice
 from reachwise.geometry.cloud import PointCloud
+from reachwise.io.robot_file import robot_to_dict
 from reachwise.kinematics.robot import Robot
 from reachwise.server.counters import Metrics, SequenceCounter
 from reachwise.server.state import (
@@ -88,13 +90,15 @@ class ObjectMeta:
 @dataclass(frozen=True, eq=False)
 class CloudWait:
     """A handed-over cloud: object ``name``, its ``version`` on the wire and in the
-    ``scene`` (the scene it was handed to: a ``clear`` replaces it), its ``points``
-    and ``stamp``; ``deadline`` (monotonic s) for a ``block`` reply."""
+    scene, the scene's ``ingest`` worker that indexes it and the scene's
+    ``generation`` then (a ``clear`` makes a new one), its ``points`` and ``stamp``;
+    ``deadline`` (monotonic s) for a ``block`` reply."""
 
     name: str
     version: int
     scene_version: int
-    scene: Scene
+    ingest: CloudIngest
+    generation: int
     points: NDArray[Any]
     stamp: float
     deadline: float = math.inf
@@ -158,14 +162,29 @@ class ServiceCore:
         if name not in self._meta:
             raise unknown_error("object", name, self._meta, where)
 
-    def _adopt_objects(self) -> None:
-        """Know the objects a scene operation added to the scene (a scene memory's,
-        :func:`reachwise.distance.scene_memories.add_memory`): in the layout like any
-        object, fixed in world, without a saved cloud (the state directory leaves them
-        out). Call under the lock."""
-        for name, obj in self.scene.objects.items():
-            if name not in self._meta:
-                self._meta[name] = ObjectMeta(None, None, len(obj.cloud))
+    def _adopt(self, saved: dict[str, str | None] | None = None) -> None:
+        """Take over what a change did to the scene (call under the lock): its robots
+        (and their YAML models), its objects — the saved cloud file of each new one
+        from ``saved`` (an object without one, such as a scene memory's, is left out of
+        the state directory), whose time stamp its pose carries from its pose source —
+        and a new layout. What the scene no longer holds is forgotten."""
+        robots = self.scene.robots
+        self._robots = {k: r for k, r in robots.items() if isinstance(r, Robot)}
+        self._models = {k: self._models.get(k) or robot_to_dict(r) for k, r in self._robots.items()}
+        objects = self.scene.objects
+        meta = {}
+        for name, obj in objects.items():
+            old = self._meta.get(name)
+            if old is None:
+                points = len(obj.cloud)
+                cloud_file = (saved or {}).get(name)
+                old = ObjectMeta(cloud_file, stamp_source(name, obj.source), points)
+            meta[name] = old
+        self._meta = meta
+        for kept in (self._joints, self._runtime, self._unsaved, self._version_base):
+            for name in [k for k in kept if k not in robots and k not in objects]:
+                del kept[name]
+        self._pairs_changed()
 
     def _check_q(self, robot: Robot, q: NDArray[np.float64], where: str) -> None:
         if q.shape != (robot.n,):
@@ -215,6 +234,16 @@ class ServiceCore:
         self._layout_count += 1
         self._layout = None
         self._clouds = None
+
+
+def stamp_source(name: str, source: PoseSource) -> tuple[str, str] | None:
+    """Whose time stamp the pose of object ``name`` carries: its robot's joint state
+    (on a link), its own (set at run time) or none (fixed)."""
+    if isinstance(source, OnLink):
+        return ("robot", source.robot)
+    if isinstance(source, Runtime):
+        return ("object", name)
+    return None
 
 
 def indexed_cloud(points: NDArray[np.float64], name: str, frame: str) -> PointCloud:

@@ -390,8 +390,7 @@ class SceneClient(RemoteQueries):
         self._last_pairs = ()
         self._pending_joints, self._pending_poses = {}, {}
         if self._mirror is not None:
-            self._mirror.close()
-            self._mirror = Scene()
+            self._mirror.clear().close()
 
     # the pair rules are the scene's own operations, carried over the wire
     watch = Scene.watch
