@@ -33,7 +33,7 @@ from reachwise.distance._batch import ROW_COLUMNS
 from reachwise.distance._common import NO_RISK, DistanceResult
 from reachwise.distance.pairs import PairResult, WatchedPair
 
-__all__ = ["ROW_COLUMNS", "PairAnswers", "pair_row", "rows_of"]
+__all__ = ["ROW_COLUMNS", "PairAnswers", "pair_row", "rows_of", "write_row"]
 
 
 class PairAnswers(Sequence[PairResult]):
@@ -116,23 +116,28 @@ def pair_row(row: NDArray[np.float64]) -> DistanceResult:
     )
 
 
+def write_row(row: NDArray[np.float64], r: DistanceResult) -> None:
+    """Write the answer ``r`` into ``row``, one row of the layout in the module
+    docstring (the one place that layout is written from a result)."""
+    if r.no_risk:
+        row[0] = math.inf
+        row[1:10] = math.nan
+        row[10:12] = -1.0
+        row[12] = 1.0
+    else:
+        row[0] = r.distance
+        row[1:4] = r.point_a
+        row[4:7] = r.point_b
+        row[7:10] = r.direction
+        row[10] = r.index_a
+        row[11] = r.index_b
+        row[12] = 0.0
+
+
 def rows_of(pairs: Sequence[PairResult]) -> NDArray[np.float64]:
     """The (P, 13) rows of answers given as :class:`PairResult` values (read-only)."""
     out = np.empty((len(pairs), ROW_COLUMNS))
     for k, p in enumerate(pairs):
-        r = p.result
-        if r.no_risk:
-            out[k, 0] = math.inf
-            out[k, 1:10] = math.nan
-            out[k, 10:12] = -1.0
-            out[k, 12] = 1.0
-        else:
-            out[k, 0] = r.distance
-            out[k, 1:4] = r.point_a
-            out[k, 4:7] = r.point_b
-            out[k, 7:10] = r.direction
-            out[k, 10] = r.index_a
-            out[k, 11] = r.index_b
-            out[k, 12] = 0.0
+        write_row(out[k], p.result)
     out.setflags(write=False)
     return out

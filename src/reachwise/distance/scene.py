@@ -44,7 +44,7 @@ from reachwise.distance._common import (
     check_margin,
     check_pose,
 )
-from reachwise.distance.answers import ROW_COLUMNS, PairAnswers
+from reachwise.distance.answers import ROW_COLUMNS, PairAnswers, write_row
 from reachwise.distance.engine import STRATEGIES, PairQuery, StrategyName
 from reachwise.distance.index import INDICES, cloud_index
 from reachwise.distance.ingest import CloudIngest, Ready, ready_cloud
@@ -520,21 +520,7 @@ class Scene:
         poses = self._arrays.place()
         slot = self._slot
         for k, p in enumerate(plan.layout):
-            res = self._queries[(p.a, p.b)](poses[slot[p.a]], poses[slot[p.b]])
-            row = rows[k]
-            if res.no_risk:
-                row[0] = math.inf
-                row[1:10] = math.nan
-                row[10:12] = -1.0
-                row[12] = 1.0
-            else:
-                row[0] = res.distance
-                row[1:4] = res.point_a
-                row[4:7] = res.point_b
-                row[7:10] = res.direction
-                row[10] = res.index_a
-                row[11] = res.index_b
-                row[12] = 0.0
+            write_row(rows[k], self._queries[(p.a, p.b)](poses[slot[p.a]], poses[slot[p.b]]))
 
     def _stamp(self, stamp: float | None, source: str) -> float:
         """A checked measurement time stamp (s), the clock's reading, or NaN."""

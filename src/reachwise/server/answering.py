@@ -12,7 +12,6 @@ those alone, with their own list.
 
 from __future__ import annotations
 
-import functools
 import math
 import time
 from collections.abc import Iterable, Mapping
@@ -22,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 import reachwise.server.protocol as P
-from reachwise.distance._common import NO_RISK
+from reachwise.distance.answers import rows_of
 from reachwise.distance.scene import SceneResult
 from reachwise.server.service_core import ServiceCore, protocol_error_of, wire_error
 
@@ -136,7 +135,7 @@ class SceneAnswering(ServiceCore):
             compute,
             "",
             tuple(P.PairInfo(p.a, p.b, p.margin, p.kind) for p in pairs),
-            _rows(pairs),
+            rows_of(pairs),
             layout.objects,
             layout.robots,
             clouds,
@@ -234,44 +233,3 @@ class SceneAnswering(ServiceCore):
                 if src is not None:
                     out[src] = None
         return tuple(out)
-
-
-def _rows(pairs: tuple[Any, ...]) -> NDArray[np.float64]:
-    """The pairs' answers as the rows of :class:`~reachwise.server.protocol.QueryReply`:
-    every row starts as the no-risk row (one copy), the pairs within their margins are
-    written over it."""
-    out = _no_risk_rows(len(pairs)).copy()
-    for k, p in enumerate(pairs):
-        r = p.result
-        if not r.no_risk:
-            row = out[k]
-            row[0] = r.distance
-            row[1:4] = r.point_a
-            row[4:7] = r.point_b
-            row[7:10] = r.direction
-            row[10] = r.index_a
-            row[11] = r.index_b
-            row[12] = 0.0
-    return out
-
-
-#: The row of a pair beyond its margin (as the in-process ``NO_RISK`` result).
-_NO_RISK_ROW = np.array(
-    [
-        NO_RISK.distance,
-        *NO_RISK.point_a.tolist(),
-        *NO_RISK.point_b.tolist(),
-        *NO_RISK.direction.tolist(),
-        float(NO_RISK.index_a),
-        float(NO_RISK.index_b),
-        1.0,
-    ]
-)
-
-
-@functools.lru_cache(maxsize=64)
-def _no_risk_rows(n: int) -> NDArray[np.float64]:
-    """``n`` no-risk rows (read-only; an answer copies them)."""
-    rows = np.tile(_NO_RISK_ROW, (n, 1))
-    rows.setflags(write=False)
-    return rows
