@@ -28,30 +28,26 @@ computation; without one those times are NaN ("unknown").
 from __future__ import annotations
 
 import math
-import numbers
-import weakref
 from collections.abc import Callable, Mapping
-from types import MappingProxyType
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 import reachwise.distance._batch as B
-import reachwise.distance._kernels as K
 import reachwise.distance.scene_rules as scene_rules
 from reachwise.distance._common import (
     as_cloud,
     check_margin,
     check_pose,
 )
-from reachwise.distance.answers import ROW_COLUMNS, PairAnswers, write_row
-from reachwise.distance.engine import STRATEGIES, PairQuery, StrategyName
-from reachwise.distance.index import INDICES, cloud_index
-from reachwise.distance.ingest import CloudIngest, Ready, ready_cloud
+from reachwise.distance.answers import ROW_COLUMNS, PairAnswers
+from reachwise.distance.engine import STRATEGIES, StrategyName
+from reachwise.distance.index import cloud_index
+from reachwise.distance.ingest import CloudIngest, ready_cloud
 from reachwise.distance.pairs import PAIR_KINDS, PairKind, PairResult, WatchedPair
-from reachwise.distance.scene_arrays import SceneArrays
 from reachwise.distance.scene_ops import scene_change
-from reachwise.distance.scene_plan import QueryPlan, SceneContents, make_plan
+from reachwise.distance.scene_plan import SceneContents, make_plan
+from reachwise.distance.scene_state import SceneState, positive_length
 from reachwise.distance.scene_types import (
     Fixed,
     OnLink,
@@ -65,10 +61,9 @@ from reachwise.distance.scene_types import (
 from reachwise.errors import InputError, UnknownName, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.kinematics.fk import fk_all_into
-from reachwise.kinematics.robot import Robot
 
 
-class Scene:
+class Scene(SceneState):
     """Objects, robots and watched pairs; :meth:`query_all` answers every pair.
 
     ``clock`` (optional, s): stamps inputs given without ``stamp=``, the query and its
@@ -95,39 +90,9 @@ class Scene:
     ) -> None:
         self.strategy = check_choice(strategy, STRATEGIES, source="scene", kind="strategy")
         self.clock = clock
-        self._voxel = None if voxel is None else _positive(voxel, "voxel")
+        self._voxel = None if voxel is None else positive_length(voxel, "voxel")
         self._generation = 0
         self._empty()
-
-    def _empty(self) -> None:
-        """The state of a scene without robots, objects or pairs."""
-        self._objects: dict[str, SceneObject] = {}
-        self._robots: dict[str, RobotLike] = {}
-        self._q: dict[str, NDArray[np.float64] | None] = {}
-        # time stamps (s) of the joint states and run-time poses; NaN = unknown
-        self._q_stamp: dict[str, float] = {}
-        self._pose_stamp: dict[str, float] = {}
-        self._pairs: dict[tuple[str, str], WatchedPair] = {}
-        self._queries: dict[tuple[str, str], PairQuery] = {}  # strategies other than default
-        self._sequence = 0
-        # cloud versions: the one in use per object, the last one handed over, and the
-        # time stamp of the one in use (+inf: does not age); the read-only snapshots
-        # the answers carry are replaced, never changed, when a cloud is swapped in
-        self._versions: Mapping[str, int] = MappingProxyType({})
-        self._cloud_stamps: Mapping[str, float] = MappingProxyType({})
-        self._issued: dict[str, int] = {}
-        self._ingest = CloudIngest(voxel=self._voxel)
-        # a scene dropped without close() still stops its worker thread
-        self._stop_ingest = weakref.finalize(self, self._ingest.close)
-        # the arrays the compiled query reads, and what a query needs of them
-        self._arrays = SceneArrays()
-        self._slot: dict[str, int] = {}
-        self._frame_row: dict[str, int] = {}
-        self._plan: QueryPlan | None = None  # rebuilt when the contents change
-        self._fresh: set[tuple[str, str]] = set()  # pairs whose warm start is dropped
-        self._swaps = 0
-        self._deferred = 0
-        self._during_build = 0
 
     # ------------------------------------------------------------------ contents
     @property
@@ -464,104 +429,6 @@ class Scene:
         """Stop the cloud-ingestion worker (a remote scene disconnects here); a scene
         that is garbage-collected stops it too."""
         self._stop_ingest()
-
-    def _install(self, ready: Ready) -> None:
-        """Swap in a built cloud (unless a newer version is in use already): the object
-        takes the cloud, its slot the index (its pairs fresh warm starts); what it
-        replaced goes back to the worker to be freed there."""
-        if ready.version <= self._versions.get(ready.name, -1):
-            return
-        obj = self._objects[ready.name]
-        INDICES.put(ready.cloud, ready.index)
-        self._objects[ready.name] = SceneObject(ready.name, ready.cloud, obj.source)
-        old = self._arrays.set_index(self._slot[ready.name], ready.index)
-        self._set_version(ready.name, ready.version, ready.stamp)
-        for key in self._queries:
-            if ready.name in key:
-                self._queries[key] = self._make_query(self._pairs[key])
-        if self._plan is not None and self._plan.arguments is not None:
-            self._plan = self._plan.with_arguments(self._arrays.arguments())
-        self._swaps += 1
-        self._ingest.retire(obj.cloud, old)
-
-    def _set_version(self, name: str, version: int, stamp: float) -> None:
-        """New read-only snapshots of the versions and cloud stamps (answers already
-        given keep theirs)."""
-        self._versions = MappingProxyType({**self._versions, name: version})
-        self._cloud_stamps = MappingProxyType({**self._cloud_stamps, name: stamp})
-
-    # ------------------------------------------------------------------ helpers
-    def _forward_kinematics(self, robot: str) -> None:
-        """``robot``'s frames into the scene's frame rows: compiled for a
-        :class:`~reachwise.kinematics.robot.Robot`, else its ``fk_all`` checked."""
-        r = self._robots[robot]
-        q = self._q[robot]
-        if q is None:
-            raise InputError(
-                "scene", f"robot {robot!r}", "has no joint state; call set_joints first"
-            )
-        n = len(r.link_names)
-        row = self._frame_row[robot]
-        out = self._arrays.frames[row : row + n]
-        if isinstance(r, Robot):
-            fk_all_into(r, q, out)
-            return
-        frames = np.asarray(r.fk_all(q), dtype=np.float64)
-        if frames.shape != (n, 4, 4):
-            raise InputError(
-                f"robot {robot!r}", "fk_all", f"expected shape ({n}, 4, 4), got {frames.shape}"
-            )
-        for k in range(n):
-            P = np.ascontiguousarray(frames[k])
-            out[k] = P if K.pose_status(P) == 0 else check_pose(P, f"fk_all of {robot!r}")
-
-    def _query_pairwise(self, plan: QueryPlan, rows: NDArray[np.float64]) -> None:
-        """Every pair with its own :class:`PairQuery` (strategies other than default)."""
-        poses = self._arrays.place()
-        slot = self._slot
-        for k, p in enumerate(plan.layout):
-            write_row(rows[k], self._queries[(p.a, p.b)](poses[slot[p.a]], poses[slot[p.b]]))
-
-    def _stamp(self, stamp: float | None, source: str) -> float:
-        """A checked measurement time stamp (s), the clock's reading, or NaN."""
-        if stamp is None:
-            return self.clock() if self.clock is not None else math.nan
-        if (
-            isinstance(stamp, bool)
-            or not isinstance(stamp, numbers.Real)
-            or not math.isfinite(stamp)
-        ):
-            raise InputError(source, "stamp", f"must be a finite time in s, got {stamp!r}")
-        return float(stamp)
-
-    def _make_query(self, pair: WatchedPair) -> PairQuery:
-        return PairQuery(
-            self._objects[pair.a].cloud,
-            self._objects[pair.b].cloud,
-            margin=pair.margin,
-            strategy=self.strategy,
-        )
-
-    def _robot(self, name: str) -> RobotLike:
-        r = self._robots.get(name)
-        if r is None:
-            raise UnknownName("scene", "robot", name, self._robots)
-        return r
-
-    def _object(self, name: str) -> SceneObject:
-        o = self._objects.get(name)
-        if o is None:
-            raise UnknownName("scene", "object", name, self._objects)
-        return o
-
-
-def _positive(value: object, field_name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise InputError("scene", field_name, f"expected a number in metres, got {value!r}")
-    v = float(value)
-    if not (math.isfinite(v) and v > 0.0):
-        raise InputError("scene", field_name, f"must be a finite length > 0 m, got {v!r}")
-    return v
 
 
 __all__ = [
