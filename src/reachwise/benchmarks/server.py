@@ -127,72 +127,22 @@ def _round_trip(
     env: NDArray[np.float64],
     n: int,
 ) -> None:
+    """The round trip (module docstring, part 1): ``n`` queries of the scene in process,
+    on the server at ``endpoint`` and of the bare echo, interleaved; then ``n`` whole
+    ticks in process and batched."""
     local = Scene()
     build_scene(local, robot, part, env)
-    clock = time.perf_counter_ns
     echo = EchoProcess(workdir, 600.0)
     with (
         SceneClient(endpoint, deadline=1.0) as remote,
         SceneClient(endpoint, deadline=1.0, batch_inputs=True) as batched,
     ):
         build_scene(remote, robot, part, env)
-        diff = 0.0
-        within = 0
-        t_in = np.empty(n)
-        t_re = np.empty(n)
-        t_pairs = np.empty(n)
-        t_echo = np.empty(n)
-        warm = 50
         try:
-            for k in range(-warm, n):
-                q = crane_q(robot, k + warm)
-                local.set_joints(robot.name, q)
-                remote.set_joints(robot.name, q)
-                t0 = clock()
-                b = local.query_all()
-                t1 = clock()
-                a = remote.query_all()
-                t2 = clock()
-                echo.round_trip()
-                t3 = clock()
-                a.pairs  # noqa: B018 - built on first reading: timed apart
-                t4 = clock()
-                if k >= 0:
-                    t_in[k] = (t1 - t0) * 1e-3
-                    t_re[k] = (t2 - t1) * 1e-3
-                    t_echo[k] = (t3 - t2) * 1e-3
-                    t_pairs[k] = (t4 - t3) * 1e-3
-                diff = max(diff, _same(a, b))
-                within += sum(not p.result.no_risk for p in b.pairs)
+            t_in, t_re, t_echo, t_pairs, diff = _paired_queries(rep, local, remote, echo, robot, n)
         finally:
             echo.close()
-        rep.add_samples("zmq_echo", t_echo)
-        rep.add_samples("inprocess", t_in)
-        rep.add_samples("remote", t_re)
-        rep.add_samples("remote_pairs", t_pairs)
-        rep.metrics["remote_vs_inprocess.max_abs_diff_m"] = diff
-        rep.notes.append(
-            f"round trip: {n} queries of {len(b.pairs)} pairs, {within / (n + warm):.2f} "
-            "pairs within the margin per query on average"
-        )
-        # whole tick: joint state + query; batched = one round trip
-        tick_in = np.empty(n)
-        tick_b = np.empty(n)
-        for k in range(n):
-            q = crane_q(robot, n + k)
-            t0 = clock()
-            local.set_joints(robot.name, q)
-            local.query_all()
-            t1 = clock()
-            batched.set_joints(robot.name, q)
-            r = batched.query_all()
-            t2 = clock()
-            if not r.valid:
-                raise RuntimeError(f"batched tick failed: {r.reason}")
-            tick_in[k] = (t1 - t0) * 1e-3
-            tick_b[k] = (t2 - t1) * 1e-3
-        rep.add_samples("tick_inprocess", tick_in)
-        rep.add_samples("tick_batched", tick_b)
+        _whole_ticks(rep, local, batched, robot, n)
         compute = remote.metrics().query_compute
         rep.notes.append(f"server query compute histogram (µs edges 1-2-5 …): {list(compute)}")
     overhead = rep.metrics["remote.median"] - rep.metrics["inprocess.median"]
@@ -216,21 +166,103 @@ def _round_trip(
     rep.targets["remote_identical_to_inprocess_m"] = Target(diff, 0.0)
 
 
-def _soak(
+def _paired_queries(
     rep: BenchReport,
-    server: ServerProcess,
+    local: Scene,
+    remote: SceneClient,
+    echo: EchoProcess,
     robot: Robot,
-    ticks: int,
-    scans: list[NDArray[np.float64]],
-) -> None:
-    period = 1.0 / RATE_HZ
-    scan_due = threading.Event()
-    stop = threading.Event()
-    scan_times: list[float] = []
-    scan_failures: list[str] = []
+    n: int,
+) -> tuple[
+    NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float
+]:
+    """``n`` queries (after 50 warm-up ones) in process, on the server and of the echo,
+    one after the other in each iteration, after the same joint state: their times (µs:
+    in process, remote, echo, reading the remote pairs) and the largest difference
+    between the remote and the in-process answers; adds their samples to ``rep``."""
+    clock = time.perf_counter_ns
+    diff = 0.0
+    within = 0
+    t_in = np.empty(n)
+    t_re = np.empty(n)
+    t_pairs = np.empty(n)
+    t_echo = np.empty(n)
+    warm = 50
+    for k in range(-warm, n):
+        q = crane_q(robot, k + warm)
+        local.set_joints(robot.name, q)
+        remote.set_joints(robot.name, q)
+        t0 = clock()
+        b = local.query_all()
+        t1 = clock()
+        a = remote.query_all()
+        t2 = clock()
+        echo.round_trip()
+        t3 = clock()
+        a.pairs  # noqa: B018 - built on first reading: timed apart
+        t4 = clock()
+        if k >= 0:
+            t_in[k] = (t1 - t0) * 1e-3
+            t_re[k] = (t2 - t1) * 1e-3
+            t_echo[k] = (t3 - t2) * 1e-3
+            t_pairs[k] = (t4 - t3) * 1e-3
+        diff = max(diff, _same(a, b))
+        within += sum(not p.result.no_risk for p in b.pairs)
+    rep.add_samples("zmq_echo", t_echo)
+    rep.add_samples("inprocess", t_in)
+    rep.add_samples("remote", t_re)
+    rep.add_samples("remote_pairs", t_pairs)
+    rep.metrics["remote_vs_inprocess.max_abs_diff_m"] = diff
+    rep.notes.append(
+        f"round trip: {n} queries of {len(b.pairs)} pairs, {within / (n + warm):.2f} "
+        "pairs within the margin per query on average"
+    )
+    return t_in, t_re, t_echo, t_pairs, diff
 
-    def scanner() -> None:
-        with SceneClient(server.endpoint, setup_deadline=5.0) as sc:
+
+def _whole_ticks(
+    rep: BenchReport, local: Scene, batched: SceneClient, robot: Robot, n: int
+) -> None:
+    """``n`` whole ticks (joint state + query) in process and on the server with the
+    joint state riding on the query (one round trip): ``tick_inprocess`` and
+    ``tick_batched`` samples in ``rep``."""
+    clock = time.perf_counter_ns
+    tick_in = np.empty(n)
+    tick_b = np.empty(n)
+    for k in range(n):
+        q = crane_q(robot, n + k)
+        t0 = clock()
+        local.set_joints(robot.name, q)
+        local.query_all()
+        t1 = clock()
+        batched.set_joints(robot.name, q)
+        r = batched.query_all()
+        t2 = clock()
+        if not r.valid:
+            raise RuntimeError(f"batched tick failed: {r.reason}")
+        tick_in[k] = (t1 - t0) * 1e-3
+        tick_b[k] = (t2 - t1) * 1e-3
+    rep.add_samples("tick_inprocess", tick_in)
+    rep.add_samples("tick_batched", tick_b)
+
+
+class _Scanner:
+    """The soak's scanner: a client on its own thread that replaces the environment with
+    the next of ``scans`` each time :attr:`due` is set, timing each replacement (µs) and
+    counting the failures, until :attr:`stop` is set."""
+
+    def __init__(self, endpoint: str, scans: list[NDArray[np.float64]]) -> None:
+        self.endpoint, self.scans = endpoint, scans
+        self.due = threading.Event()
+        self.stop = threading.Event()
+        self.times: list[float] = []
+        self.failures: list[str] = []
+        self.thread = threading.Thread(target=self._run, name="bench-scanner", daemon=True)
+
+    def _run(self) -> None:
+        scan_due, stop, scans = self.due, self.stop, self.scans
+        scan_times, scan_failures = self.times, self.failures
+        with SceneClient(self.endpoint, setup_deadline=5.0) as sc:
             k = 0
             while not stop.is_set():
                 if not scan_due.wait(0.05):
@@ -244,8 +276,27 @@ def _soak(
                     scan_failures.append(f"{type(exc).__name__}: {exc}")
                 k += 1
 
-    thread = threading.Thread(target=scanner, name="bench-scanner", daemon=True)
-    thread.start()
+    def close(self) -> None:
+        """Stop the thread and wait for it."""
+        self.stop.set()
+        self.due.set()
+        self.thread.join()
+
+
+def _soak(
+    rep: BenchReport,
+    server: ServerProcess,
+    robot: Robot,
+    ticks: int,
+    scans: list[NDArray[np.float64]],
+) -> None:
+    """The soak (module docstring, part 2): ``ticks`` ticks at :data:`RATE_HZ` after
+    :data:`WARMUP_TICKS` warm-up ones, a scanner replacing the environment every
+    :data:`SCAN_EVERY` ticks; adds its figures to ``rep``."""
+    period = 1.0 / RATE_HZ
+    scanner = _Scanner(server.endpoint, scans)
+    scan_due = scanner.due
+    scanner.thread.start()
     total = WARMUP_TICKS + ticks
     times = np.empty(ticks)
     lost = 0
@@ -276,13 +327,25 @@ def _soak(
         time.sleep(0.5)  # let the last scan finish and the live state be written
         rss1 = rss_bytes(server.pid)
     finally:
-        stop.set()
-        scan_due.set()
-        thread.join()
+        scanner.close()
         client.close()
     rep.add_samples("soak_tick", times)
     rep.metrics["soak.ticks"] = float(ticks)
     rep.metrics["soak.lost_replies"] = float(lost)
+    _soak_figures(rep, lost, reasons, scanner, (rss0, rss1))
+
+
+def _soak_figures(
+    rep: BenchReport,
+    lost: int,
+    reasons: list[str],
+    scanner: _Scanner,
+    rss: tuple[float, float],
+) -> None:
+    """The soak's scan figures, the server's memory from ``rss`` (bytes, start and end)
+    and the soak's targets and notes, added to ``rep``."""
+    scan_times, scan_failures = scanner.times, scanner.failures
+    rss0, rss1 = rss
     rep.metrics["soak.scans"] = float(len(scan_times))
     rep.metrics["soak.scan_failures"] = float(len(scan_failures))
     if scan_times:

@@ -22,8 +22,10 @@ encoding.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 import reachwise.server.protocol as P
 from reachwise.benchmarks._harness import BenchReport, time_interleaved
@@ -60,10 +62,24 @@ def _service(robot: Robot) -> SceneService:
     return svc
 
 
-def stage_costs(rep: BenchReport, robot: Robot, repeat: int) -> None:
-    """Add ``stage.full.<stage>``, ``stage.tick.<stage>`` (medians, µs) and their
-    ``.total`` to ``rep``."""
-    svc = _service(robot)
+@dataclass(frozen=True)
+class _Frames:
+    """One query of the benchmark scene and its reply, made once in every form the
+    stages take as input (encoded request and tick frame, reply, encoded replies)."""
+
+    q: NDArray[np.float64]
+    query: P.Query
+    layout: P.Layout
+    full_raw: bytes
+    tick_raw: bytes
+    reply: P.QueryReply
+    full_reply: bytes
+    tick_reply: bytes
+
+
+def _frames(svc: SceneService, robot: Robot) -> _Frames:
+    """The query of :func:`stage_costs` on ``svc`` (its layout sent by a first query),
+    encoded both ways, and its reply, encoded both ways."""
     q = crane_q(robot, 2950)  # two of the four pairs within the margin
     first = svc.handle(P.Query(1.0, {robot.name: q}))
     if not isinstance(first, P.QueryReply):
@@ -71,8 +87,7 @@ def stage_costs(rep: BenchReport, robot: Robot, repeat: int) -> None:
     layout = P.Layout.of(first)
     if layout is None:
         raise RuntimeError("the first reply sent no layout")
-    name = layout.name
-    query = P.Query(1.0, {robot.name: q}, None, None, name)
+    query = P.Query(1.0, {robot.name: q}, None, None, layout.name)
     full_raw = P.encode_request(1, query)
     tick_raw = P.encode_tick(1, query, layout)
     if tick_raw is None:
@@ -82,6 +97,18 @@ def stage_costs(rep: BenchReport, robot: Robot, repeat: int) -> None:
         raise RuntimeError("the query was not answered")
     full_reply = P.encode_reply(1, reply)
     tick_reply = P.encode_tick_reply(1, reply, layout)
+    return _Frames(q, query, layout, full_raw, tick_raw, reply, full_reply, tick_reply)
+
+
+def _stage_calls(
+    svc: SceneService, robot: Robot, frames: _Frames
+) -> dict[str, Callable[[int], object]]:
+    """The timed calls: ``full.<stage>`` and ``tick.<stage>``, and the server's whole
+    ``handle``, ``tick`` and the ``query_all`` they contain."""
+    q, query, layout = frames.q, frames.query, frames.layout
+    full_raw, tick_raw, reply = frames.full_raw, frames.tick_raw, frames.reply
+    full_reply, tick_reply = frames.full_reply, frames.tick_reply
+    name = layout.name
     parts = P.read_tick_reply(tick_reply, layout)
     limits = P.DEFAULT_LIMITS
     if reply.clouds is None:
@@ -121,17 +148,21 @@ def stage_costs(rep: BenchReport, robot: Robot, repeat: int) -> None:
         "client_result": lambda i: tick_result(),
         "result_pairs": lambda i: tick_result().pairs,
     }
-    samples = time_interleaved(
-        {
-            **{f"full.{k}": v for k, v in full.items()},
-            **{f"tick.{k}": v for k, v in tick.items()},
-            "handle": lambda i: svc.handle(query),
-            "tick": lambda i: svc.tick(tick_raw, limits),
-            "query_all": lambda i: svc.scene.query_all(),
-        },
-        repeat,
-        warmup=50,
-    )
+    return {
+        **{f"full.{k}": v for k, v in full.items()},
+        **{f"tick.{k}": v for k, v in tick.items()},
+        "handle": lambda i: svc.handle(query),
+        "tick": lambda i: svc.tick(tick_raw, limits),
+        "query_all": lambda i: svc.scene.query_all(),
+    }
+
+
+def stage_costs(rep: BenchReport, robot: Robot, repeat: int) -> None:
+    """Add ``stage.full.<stage>``, ``stage.tick.<stage>`` (medians, µs) and their
+    ``.total`` to ``rep``."""
+    svc = _service(robot)
+    calls = _stage_calls(svc, robot, _frames(svc, robot))
+    samples = time_interleaved(calls, repeat, warmup=50)
     med = {k: float(np.median(v)) for k, v in samples.items()}
     server_tick = float(np.median(samples["tick"] - samples["query_all"]))
     handling = {

@@ -25,6 +25,7 @@ import math
 import subprocess
 import sys
 import time
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -117,7 +118,48 @@ def stream(
     # the same loop on the same scene without the camera first: the machine's own tails
     idle = _control_loop(server.endpoint, robot, query_hz, seconds, server.priority)
     before = _handling(server.endpoint)
-    args = [server.endpoint, str(work), str(points), str(stream_hz), str(frames)]
+    camera = [str(points), str(stream_hz), str(frames)]
+    loop = _with_camera(server, robot, camera, query_hz, seconds)
+    after = _handling(server.endpoint)
+    cam_report = json.loads((work / "camera.json").read_text())
+    settings = {
+        "stream.points": float(points),
+        "stream.rate_hz": stream_hz,
+        "stream.query_hz": query_hz,
+        "stream.seconds_s": seconds,
+    }
+    _stream_figures(rep, idle, loop, (after[0], after[1] - before[1]), cam_report, settings)
+    rep.notes.append(
+        f"streaming: a camera process hands over {points}-point float32 clouds at "
+        f"{stream_hz:g} Hz (raw frames, no copy, no block) while this process sends its "
+        f"joint state and queries every pair at {query_hz:g} Hz for {seconds:g} s; the "
+        f"camera's object is watched against the crane's parts. stream_cloud_age: reply "
+        f"arrival minus the stamp of the camera cloud the answer used (hand-over, "
+        f"indexing and swap). idle_query: the same loop just before, camera object "
+        f"registered but not streaming (the machine's own tails). "
+        f"stream.server_handling_q*_below_us: the server's own time from receipt to reply "
+        f"(its histogram's bucket edge) while streaming"
+    )
+    if loop[2]:
+        rep.notes.append(f"streaming: lost replies, first reasons: {loop[2]}")
+    if cam_report["failures"]:
+        rep.notes.append(f"streaming: failed hand-overs, first: {cam_report['failures'][:3]}")
+
+
+#: What :func:`_control_loop` returns: query times (µs), lost replies, their first
+#: reasons, the camera versions seen, the camera cloud's age per answer (µs) and
+#: version regressions.
+_Loop = tuple[NDArray[np.float64], int, list[str], set[int], NDArray[np.float64], int]
+
+
+def _with_camera(
+    server: ServerProcess, robot: Robot, camera: list[str], query_hz: float, seconds: float
+) -> _Loop:
+    """The control loop while a camera process (:data:`_CAMERA`, its arguments after the
+    endpoint and folder: ``camera``) streams into ``server``; the camera is told to stop
+    and awaited after the loop, its report left in ``camera.json``."""
+    work = server.workdir
+    args = [server.endpoint, str(work), *camera]
     cam = subprocess.Popen([sys.executable, "-c", _CAMERA, *args])
     try:
         end = time.monotonic() + 120.0
@@ -125,9 +167,7 @@ def stream(
             if cam.poll() is not None or time.monotonic() > end:
                 raise RuntimeError("the camera process did not start")
             time.sleep(0.02)
-        q_times, lost, reasons, seen, ages, regressions = _control_loop(
-            server.endpoint, robot, query_hz, seconds, server.priority
-        )
+        return _control_loop(server.endpoint, robot, query_hz, seconds, server.priority)
     finally:
         atomic_write(work / "camera-stop", b"1")
         try:
@@ -135,23 +175,34 @@ def stream(
         except subprocess.TimeoutExpired:
             cam.kill()
             cam.wait()
-    after = _handling(server.endpoint)
-    cam_report = json.loads((work / "camera.json").read_text())
+
+
+def _stream_figures(
+    rep: BenchReport,
+    idle: _Loop,
+    loop: _Loop,
+    handling: tuple[NDArray[np.float64], NDArray[np.int64]],
+    cam_report: dict[str, Any],
+    settings: dict[str, float],
+) -> None:
+    """The figures of the loop without (``idle``) and with the camera (``loop``), the
+    server's handling while streaming (histogram edges and counts), the camera's
+    report and the streaming's ``settings`` (``stream.seconds_s`` among them), with
+    their targets, added to ``rep``."""
+    q_times, lost, _, seen, ages, regressions = loop
     calls = np.asarray(cam_report["calls_us"], dtype=np.float64)
     rep.add_samples("idle_query", idle[0])
     rep.metrics["idle_query.max"] = float(idle[0].max())
     rep.metrics["idle.lost_replies"] = float(idle[1])
     rep.add_samples("stream_query", q_times)
     rep.metrics["stream_query.max"] = float(q_times.max())
-    edges, counts = after[0], after[1] - before[1]
+    edges, counts = handling
     for q in (0.5, 0.99, 0.999):
         rep.metrics[f"stream.server_handling_q{q:g}_below_us"] = _upper_edge(edges, counts, q)
     rep.metrics["stream.queries"] = float(q_times.size)
     rep.metrics["stream.lost_replies"] = float(lost)
-    rep.metrics["stream.points"] = float(points)
-    rep.metrics["stream.rate_hz"] = stream_hz
-    rep.metrics["stream.query_hz"] = query_hz
-    rep.metrics["stream.seconds_s"] = seconds
+    rep.metrics.update(settings)
+    seconds = settings["stream.seconds_s"]
     if calls.size:
         rep.add_samples("stream_handover", calls)
     span = float(cam_report["span_s"])
@@ -166,21 +217,6 @@ def stream(
     )
     rep.targets["stream_lost_replies"] = Target(float(lost), 0.0)
     rep.targets["stream_version_regressions"] = Target(float(regressions), 0.0)
-    rep.notes.append(
-        f"streaming: a camera process hands over {points}-point float32 clouds at "
-        f"{stream_hz:g} Hz (raw frames, no copy, no block) while this process sends its "
-        f"joint state and queries every pair at {query_hz:g} Hz for {seconds:g} s; the "
-        f"camera's object is watched against the crane's parts. stream_cloud_age: reply "
-        f"arrival minus the stamp of the camera cloud the answer used (hand-over, "
-        f"indexing and swap). idle_query: the same loop just before, camera object "
-        f"registered but not streaming (the machine's own tails). "
-        f"stream.server_handling_q*_below_us: the server's own time from receipt to reply "
-        f"(its histogram's bucket edge) while streaming"
-    )
-    if reasons:
-        rep.notes.append(f"streaming: lost replies, first reasons: {reasons}")
-    if cam_report["failures"]:
-        rep.notes.append(f"streaming: failed hand-overs, first: {cam_report['failures'][:3]}")
 
 
 def _handling(endpoint: str) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -201,7 +237,7 @@ def _upper_edge(edges: NDArray[np.float64], counts: NDArray[np.int64], q: float)
 
 def _control_loop(
     endpoint: str, robot: Robot, rate_hz: float, seconds: float, priority: int | None = None
-) -> tuple[NDArray[np.float64], int, list[str], set[int], NDArray[np.float64], int]:
+) -> _Loop:
     """The controller: query times (µs), lost replies, their first reasons, the camera
     versions seen, the camera cloud's age per answer (µs) and version regressions. It
     runs as a real-time loop does (:func:`realtime_settings`: no full collection of the
@@ -220,7 +256,7 @@ def _control_loop(
 
 def _ticks(
     client: SceneClient, robot: Robot, start: float, period: float, warm: int, n: int
-) -> tuple[NDArray[np.float64], int, list[str], set[int], NDArray[np.float64], int]:
+) -> _Loop:
     """The timed ticks of :func:`_control_loop`."""
     times = np.empty(n)
     ages = np.empty(n)
