@@ -22,8 +22,6 @@ MAX_FUNCTION_LINES = 90
 #: function): each an entry to remove once it is split; a stale entry fails the test.
 WAITING: set[str] = {
     "distance/_memory_kernel.py:_brick_test",
-    "report/synthesis.py:synthesis_html",
-    "benchmarks/synthesis.py:run",
 }
 
 

@@ -179,6 +179,48 @@ def _objectives(rep: BenchReport, tag: str, task: Task, template: Robot, runs: i
 def run(quick: bool = False) -> BenchReport:
     rep = BenchReport("synthesis")
     prob = hard_instance()
+    _dls_and_trf(rep, prob, quick)
+
+    # -- tunnel-87 with the SB60-like boom, inside the tunnel (reachwise synth … --runs 10)
+    task = load_task("tunnel-87")
+    sb60 = load_robot("sb60")
+    tunnel = SynthesisProblem(sb60, task)
+    n_tunnel = 3 if quick else 10
+    tt, ok, _, _ = _runs(tunnel, range(n_tunnel), task.envelope)
+    rep.metrics["tunnel.runs"] = float(n_tunnel)
+    rep.metrics["tunnel.runs_reaching_all"] = float(sum(ok))
+    rep.metrics["tunnel.median_s"] = float(np.median(tt))
+    rep.targets["tunnel_runs_reaching_all"] = Target(float(sum(ok)), float(n_tunnel), True)
+
+    _clearance(rep, quick)
+
+    _scaling(rep, quick)
+
+    # -- design objectives: the hard instance, and tunnel-87 for comparison
+    runs_obj = 1 if quick else 2
+    points = 4 if quick else 8
+    _objectives(rep, "hard", prob.task, prob.template, runs_obj, points, 0.1)
+    if "hard.gci_over_reach_only" in rep.metrics:
+        rep.targets["hard_gci_gain"] = Target(rep.metrics["hard.gci_over_reach_only"], 1.25, True)
+        rep.targets["hard_kci_not_lower"] = Target(
+            rep.metrics["hard.kci_over_reach_only"], 1.0, True
+        )
+    if "hard.size_over_reach_only" in rep.metrics:
+        rep.targets["hard_size_reduction"] = Target(rep.metrics["hard.size_over_reach_only"], 0.8)
+    if "hard.pareto_non_dominated" in rep.metrics and not quick:
+        rep.targets["hard_pareto_front"] = Target(
+            rep.metrics["hard.pareto_non_dominated"], 5.0, True
+        )
+    if not quick:
+        # no minimum length here: the stand-in boom reaches all of tunnel-87 only with
+        # a2 = d7 = 0 (with 0.1 m every run stops at 84 of 87 poses; the flags say so)
+        _objectives(rep, "tunnel", task, sb60, runs_obj, points, 0.0)
+    _gci_family(rep, quick)
+    return rep
+
+
+def _dls_and_trf(rep: BenchReport, prob: SynthesisProblem, quick: bool) -> None:
+    """``dls`` against ``trf`` on the hard instance, from the same initial design per seed."""
     runs_dls = 3 if quick else 20
     runs_trf = 1 if quick else 5
     nfev = 200 if quick else 2000
@@ -215,20 +257,10 @@ def run(quick: bool = False) -> BenchReport:
         "times include the initialization"
     )
 
-    # -- tunnel-87 with the SB60-like boom, inside the tunnel (reachwise synth … --runs 10)
-    task = load_task("tunnel-87")
-    sb60 = load_robot("sb60")
-    tunnel = SynthesisProblem(sb60, task)
-    n_tunnel = 3 if quick else 10
-    tt, ok, _, _ = _runs(tunnel, range(n_tunnel), task.envelope)
-    rep.metrics["tunnel.runs"] = float(n_tunnel)
-    rep.metrics["tunnel.runs_reaching_all"] = float(sum(ok))
-    rep.metrics["tunnel.median_s"] = float(np.median(tt))
-    rep.targets["tunnel_runs_reaching_all"] = Target(float(sum(ok)), float(n_tunnel), True)
 
-    _clearance(rep, quick)
-
-    # -- scaling: 87 and 870 poses of the same family, 3 runs each, in this run
+def _scaling(rep: BenchReport, quick: bool) -> None:
+    """87 and 870 poses of the hard family in this run: the whole run, the initialization
+    and the solve."""
     n_scale = 1 if quick else 3
     for k in (87, 870):
         tt, ok, ti, ts = _runs(hard_instance(points=k), range(n_scale))
@@ -247,28 +279,6 @@ def run(quick: bool = False) -> BenchReport:
         "points of a larger task and solves the rest for the chosen set only; the solve "
         "ratio is reported as well"
     )
-
-    # -- design objectives: the hard instance, and tunnel-87 for comparison
-    runs_obj = 1 if quick else 2
-    points = 4 if quick else 8
-    _objectives(rep, "hard", prob.task, prob.template, runs_obj, points, 0.1)
-    if "hard.gci_over_reach_only" in rep.metrics:
-        rep.targets["hard_gci_gain"] = Target(rep.metrics["hard.gci_over_reach_only"], 1.25, True)
-        rep.targets["hard_kci_not_lower"] = Target(
-            rep.metrics["hard.kci_over_reach_only"], 1.0, True
-        )
-    if "hard.size_over_reach_only" in rep.metrics:
-        rep.targets["hard_size_reduction"] = Target(rep.metrics["hard.size_over_reach_only"], 0.8)
-    if "hard.pareto_non_dominated" in rep.metrics and not quick:
-        rep.targets["hard_pareto_front"] = Target(
-            rep.metrics["hard.pareto_non_dominated"], 5.0, True
-        )
-    if not quick:
-        # no minimum length here: the stand-in boom reaches all of tunnel-87 only with
-        # a2 = d7 = 0 (with 0.1 m every run stops at 84 of 87 poses; the flags say so)
-        _objectives(rep, "tunnel", task, sb60, runs_obj, points, 0.0)
-    _gci_family(rep, quick)
-    return rep
 
 
 def _gci_family(rep: BenchReport, quick: bool) -> None:

@@ -335,36 +335,7 @@ def synthesis_html(
     tmpl = prob.template
     b = data["best"]
     with_thesis = set(prob.design_names) == set(thesis.P1_TABLE3)
-    dims = dict(zip(*np.unique(task.dims, return_counts=True), strict=True))
-    body: list[Raw] = [
-        section(
-            "Summary",
-            key_values(
-                {
-                    "task": f"{task.name}: {len(task)} points ("
-                    + ", ".join(f"{c} × {d}-D" for d, c in dims.items())
-                    + ")",
-                    "template robot": f"{tmpl.name}: {len(tmpl.joints)} joints, {tmpl.n} joint "
-                    f"variables, {len(prob.design_names)} design parameters",
-                    "problem": f"{data['unknowns']} unknowns, {data['residuals']} residuals; "
-                    f"solver {data['solver']}",
-                    "locked joints": ", ".join(f"q{k}" for k in data["locked_joints"]) or "none",
-                    "runs": f"{data['runs']} (seeds {result.runs[0].seed}…{result.runs[-1].seed}); "
-                    f"{data['runs_reaching_all']} reach every point",
-                    "best run": f"seed {data['best_seed']}: {b['reached']}/{len(task)} points "
-                    f"reached, e_obj {b['e_obj']:.4g}, max errors "
-                    f"{b['max_position_error_m'] * 1e3:.3f} mm / "
-                    f"{b['max_orientation_error_rad'] * 1e3:.3f} mrad",
-                    "GCI (mean LCI)": f"{b['gci_initial']:.4f} → {b['gci']:.4f}",
-                    "KCI (worst LCI)": f"{b['kci_initial']:.4f} → {b['kci']:.4f}",
-                    "status of the points": ", ".join(
-                        f"{k} {v}" for k, v in b["status_counts"].items()
-                    ),
-                }
-            ),
-            id="summary",
-        ),
-    ]
+    body: list[Raw] = [_summary_section(result, data)]
     objectives = objective_section(result, data)
     clear = clearance_section(result, data)
     body += [s for s in (objectives, clear, bounds_section(data)) if s is not None]
@@ -415,6 +386,43 @@ def synthesis_html(
         f"Synthesis: {tmpl.name} for {task.name}",
         "Task-based dimensional synthesis (thesis §2, P-I)",
         body,
+    )
+
+
+def _summary_section(result: SynthesisResult, data: Mapping[str, Any]) -> Raw:
+    """The report's first section: the task, the template, the problem, the runs and
+    the best run's reach, errors and indices (``data``: ``results.synthesis_out.summary``)."""
+    prob = result.problem
+    task = prob.task
+    tmpl = prob.template
+    b = data["best"]
+    dims = dict(zip(*np.unique(task.dims, return_counts=True), strict=True))
+    return section(
+        "Summary",
+        key_values(
+            {
+                "task": f"{task.name}: {len(task)} points ("
+                + ", ".join(f"{c} × {d}-D" for d, c in dims.items())
+                + ")",
+                "template robot": f"{tmpl.name}: {len(tmpl.joints)} joints, {tmpl.n} joint "
+                f"variables, {len(prob.design_names)} design parameters",
+                "problem": f"{data['unknowns']} unknowns, {data['residuals']} residuals; "
+                f"solver {data['solver']}",
+                "locked joints": ", ".join(f"q{k}" for k in data["locked_joints"]) or "none",
+                "runs": f"{data['runs']} (seeds {result.runs[0].seed}…{result.runs[-1].seed}); "
+                f"{data['runs_reaching_all']} reach every point",
+                "best run": f"seed {data['best_seed']}: {b['reached']}/{len(task)} points "
+                f"reached, e_obj {b['e_obj']:.4g}, max errors "
+                f"{b['max_position_error_m'] * 1e3:.3f} mm / "
+                f"{b['max_orientation_error_rad'] * 1e3:.3f} mrad",
+                "GCI (mean LCI)": f"{b['gci_initial']:.4f} → {b['gci']:.4f}",
+                "KCI (worst LCI)": f"{b['kci_initial']:.4f} → {b['kci']:.4f}",
+                "status of the points": ", ".join(
+                    f"{k} {v}" for k, v in b["status_counts"].items()
+                ),
+            }
+        ),
+        id="summary",
     )
 
 

@@ -1,8 +1,8 @@
 """Exact clearance of the design bodies at every task pose, with analytic gradients.
 
 A template's bodies (``reachwise.kinematics.design_bodies.DesignBody``) are cut
-into convex *parts*: segments (a capsule's axis, with its radius) and boxes. The
-*terms* of the clearance, per task pose, are:
+into convex *parts* (``clearance_parts``): segments (a capsule's axis, with its
+radius) and boxes. The *terms* of the clearance, per task pose, are:
 
 * **body vs environment** — the tunnel envelope's free space is convex
   (``reachwise.tasks.workspace.TunnelEnvelope``), so its signed distance ``s`` is
@@ -33,7 +33,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -43,123 +43,39 @@ from reachwise.geometry.mesh_distance import segment_closest_parameters
 from reachwise.kinematics.design_bodies import DesignBody
 from reachwise.kinematics.fk import fk_all
 from reachwise.kinematics.robot import Robot
+from reachwise.synthesis.clearance_parts import (
+    ENVIRONMENT,
+    Anchor,
+    ClearanceTerms,
+    Part,
+    as_vec3,
+    body_frame,
+    segments_of,
+    watched_pairs,
+)
 from reachwise.synthesis.workspace_points import attached_point_jacobians
 
 if TYPE_CHECKING:
     from reachwise.synthesis.problem import SynthesisProblem
     from reachwise.tasks.workspace import TunnelEnvelope
 
+__all__ = [
+    "ENVIRONMENT",
+    "Anchor",
+    "ClearanceModel",
+    "ClearanceTerms",
+    "Part",
+    "Unservable",
+    "body_frame",
+    "box_signed_distance",
+    "task_fixed_frames",
+    "unservable_poses",
+    "watched_pairs",
+]
+
 Array = NDArray[np.float64]
-ENVIRONMENT = "environment"
 _GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
 _GOLDEN_ITER = 64
-
-
-@dataclass(frozen=True)
-class Anchor:
-    """A point fixed in frame ``frame`` at ``local`` (link frame, m); ``elbow`` is the
-    DH row whose elbow it is (its local coordinate then follows that row), else -1."""
-
-    frame: int
-    local: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    elbow: int = -1
-
-
-@dataclass(frozen=True)
-class Part:
-    """A convex piece of body ``body``: a segment between anchors ``ends`` with radius
-    ``radius`` (``env_ends``: the anchors its environment terms use), or a box on
-    ``frame`` with ``half`` sizes placed by ``origin`` (corners: anchors ``ends``)."""
-
-    body: int
-    kind: Literal["segment", "box"]
-    ends: tuple[int, ...]
-    radius: float = 0.0
-    env_ends: tuple[int, ...] = ()
-    frame: int = -1
-    half: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    origin: tuple[tuple[float, ...], ...] = ()
-
-
-@dataclass(frozen=True)
-class ClearanceTerms:
-    """Clearance terms at every task pose: ``distance (K, m)`` (m), their gradients
-    w.r.t. the design variables ``(K, m, p)`` and the free joints ``(K, m, n_f)``, and
-    per term the pair it measures (``pairs[i] = (body, other body or "environment")``)."""
-
-    distance: Array
-    grad_design: Array
-    grad_joints: Array
-    pairs: tuple[tuple[str, str], ...]
-
-    def smallest(self) -> tuple[Array, list[tuple[str, str]]]:
-        """Per pose: the smallest clearance and the pair it belongs to."""
-        if self.distance.shape[1] == 0:
-            K = self.distance.shape[0]
-            return np.full(K, np.inf), [("", "")] * K
-        i = np.argmin(self.distance, axis=1)
-        return self.distance[np.arange(i.size), i], [self.pairs[k] for k in i]
-
-
-def _vec3(v: Array) -> tuple[float, float, float]:
-    return (float(v[0]), float(v[1]), float(v[2]))
-
-
-def body_frame(robot: Robot, body: DesignBody) -> int:
-    """Row of ``fk_all`` of the link a body sits on."""
-    return robot.link_names.index(body.link)
-
-
-def _carries_extent(robot: Robot, body: DesignBody) -> bool:
-    return not body.follows_design or bool(_segments_of(robot, body))
-
-
-def watched_pairs(robot: Robot) -> list[tuple[int, int]]:
-    """Pairs of bodies (indices into ``robot.design.bodies``) whose clearance is kept.
-
-    Bodies on one link, on consecutive frames, on frames joined through frames that
-    carry no body (as MoveIt treats links without geometry), or with no moving joint
-    between them are adjacent; every other pair is watched.
-    """
-    bodies = robot.design.bodies
-    frames = [body_frame(robot, b) for b in bodies]
-    occupied = {f for f, b in zip(frames, bodies, strict=True) if _carries_extent(robot, b)}
-    movable = set(robot.movable_joints)
-    out = []
-    for i in range(len(bodies)):
-        for j in range(i + 1, len(bodies)):
-            fa, fb = sorted((frames[i], frames[j]))
-            if fa == fb or not any(f in occupied for f in range(fa + 1, fb)):
-                continue
-            if not any(r in movable for r in range(fa, fb)):
-                continue  # rigidly connected: no pose changes their distance
-            if bodies[i].shape == "box" and bodies[j].shape == "box":
-                raise InputError(
-                    robot.name,
-                    f"design.bodies.{bodies[i].name}",
-                    f"a watched pair needs a capsule on one side ({bodies[j].name} is a box too)",
-                )
-            out.append((i, j))
-    return out
-
-
-def _segments_of(robot: Robot, body: DesignBody) -> list[tuple[Anchor, Anchor]]:
-    """The segments of a design-following capsule, skipping those whose length is 0 in
-    every design (the parameter is not free, 0, and no prismatic joint drives it)."""
-    j = body_frame(robot, body) - 1
-    free = {(r, p) for kind, r, p in robot.design.free if kind == "joint"}
-    a, d = robot.dh[j, 0], robot.dh[j, 2]
-    has_a = a != 0.0 or (j, "a") in free
-    has_d = d != 0.0 or (j, "d") in free or robot.joints[j].type == "prismatic"
-    origin, elbow, nxt = Anchor(j), Anchor(j, elbow=j), Anchor(j + 1)
-    classic = robot.convention == "classic"
-    out = []
-    for seg in body.along:
-        if seg == "a" and has_a:
-            out.append((elbow, nxt) if classic else (origin, elbow))
-        elif seg == "d" and has_d:
-            out.append((origin, elbow) if classic else (elbow, nxt))
-    return out
 
 
 class ClearanceModel:
@@ -191,7 +107,7 @@ class ClearanceModel:
     def _add_body(self, i: int, b: DesignBody) -> None:
         f = body_frame(self.robot, b)
         if b.follows_design:
-            for a0, a1 in _segments_of(self.robot, b):
+            for a0, a1 in segments_of(self.robot, b):
                 ends = (self._anchor(a0), self._anchor(a1))
                 self.parts.append(Part(i, "segment", ends, b.radius, ends))
         elif b.shape == "capsule":
@@ -200,15 +116,15 @@ class ClearanceModel:
             env = ends
             if b.contact > 0:
                 cut = e - b.contact * (e - s) / np.linalg.norm(e - s)
-                env = (ends[0], self._anchor(Anchor(f, _vec3(cut))))
+                env = (ends[0], self._anchor(Anchor(f, as_vec3(cut))))
             self.parts.append(Part(i, "segment", ends, b.radius, env))
         else:
             T = np.array(b.origin)
             h = np.array(b.size) / 2
             signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
             corners = (T[:3, :3] @ (signs * h).T).T + T[:3, 3]
-            corner_ids = tuple(self._anchor(Anchor(f, _vec3(c))) for c in corners)
-            part = Part(i, "box", corner_ids, 0.0, corner_ids, f, _vec3(h), b.origin)
+            corner_ids = tuple(self._anchor(Anchor(f, as_vec3(c))) for c in corners)
+            part = Part(i, "box", corner_ids, 0.0, corner_ids, f, as_vec3(h), b.origin)
             self.parts.append(part)
 
     @cached_property

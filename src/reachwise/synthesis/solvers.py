@@ -33,28 +33,24 @@ point's large joint step shrank every step (and the iteration count grew with th
 number of points); and, near the tunnel walls, a wall motion that raised the cost made
 every step fail while the unbounded boost damped the task step to nothing.
 
-``trf`` — ``scipy.optimize.least_squares`` (trust-region reflective) with bounds, the
-exact sparse Jacobian and the same workspace penalty as extra residuals: the baseline.
+The pieces live in their own modules: the options, outcome and row weights
+(``solver_options``), the workspace motion (``workspace_motion``) and the re-seeding
+(``reseed``). ``trf`` (``trf.solve_trf``) — ``scipy.optimize.least_squares``
+(trust-region reflective) with bounds, the exact sparse Jacobian and the same workspace
+penalty as extra residuals: the baseline.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
-from typing import Protocol
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise.kinematics.dls import EPSILON_SOLVER, LAMBDA_MAX, damping_squared
+from reachwise.kinematics.dls import damping_squared
 from reachwise.synthesis.active_set import BoundedStep, VariableBox, bounded_step
 from reachwise.synthesis.clearance import ClearanceModel
-from reachwise.synthesis.clearance_rows import (
-    Rows,
-    clearance_motion,
-    merit,
-    pose_merits,
-    stacked_rows,
-)
+from reachwise.synthesis.clearance_rows import Rows, clearance_motion, merit, stacked_rows
 from reachwise.synthesis.linalg import (
     BlockSystem,
     null_space_project,
@@ -62,62 +58,29 @@ from reachwise.synthesis.linalg import (
     weighted,
 )
 from reachwise.synthesis.problem import Evaluation, SynthesisProblem
-from reachwise.synthesis.workspace_points import link_points
+from reachwise.synthesis.reseed import keep_clearer, reseed_points
+from reachwise.synthesis.solver_options import (
+    SolveOutcome,
+    SolverOptions,
+    Workspace,
+    converged,
+    row_weights,
+)
+from reachwise.synthesis.trf import solve_trf
+from reachwise.synthesis.workspace_motion import workspace_clear, workspace_motion
+
+__all__ = [
+    "SolveOutcome",
+    "SolverOptions",
+    "Workspace",
+    "converged",
+    "reseed_points",
+    "row_weights",
+    "solve_dls",
+    "solve_trf",
+]
 
 Array = NDArray[np.float64]
-
-
-class Workspace(Protocol):
-    """Constraint geometry: signed distance (> 0 inside the free space) and its gradient."""
-
-    def signed_distance(self, points: Array) -> Array: ...
-
-    def gradient(self, points: Array) -> Array: ...
-
-
-@dataclass(frozen=True)
-class SolverOptions:
-    """Tuning of the ``dls`` solver (lengths in m, angles in rad); ``lambda_max`` and
-    ``epsilon``: the damping schedule (``reachwise.kinematics.dls``)."""
-
-    max_iter: int = 1000
-    lambda_max: float = LAMBDA_MAX
-    epsilon: float = EPSILON_SOLVER
-    err_ref: float = 0.05
-    max_step_angle: float = 0.3
-    max_step_length: float = 0.5
-    workspace_margin: float = 0.1
-    workspace_gain: float = 0.5
-    samples_per_link: int = 4
-    stall_iterations: int = 100
-    reseed_every: int = 15
-    reseed_restarts: int = 8
-    stall_decrease: float = 1e-3
-    reseed_progress: float = 0.5
-    max_boost: float = 1.0
-
-
-@dataclass(frozen=True)
-class SolveOutcome:
-    """What one solver run returns: the final vector, its evaluation and the history."""
-
-    z: Array
-    evaluation: Evaluation
-    iterations: int
-    converged: bool
-    cost_history: list[float] = field(default_factory=list)
-
-
-def row_weights(problem: SynthesisProblem) -> Array:
-    """``W_x`` per padded row: 1 for position rows, ``tol_p/tol_o`` for orientation rows."""
-    w = np.ones((problem.K, 6))
-    w[:, 3:] = (problem.task.tol_position / problem.task.tol_orientation)[:, None]
-    return np.where(problem.active_rows, w, 0.0)
-
-
-def converged(problem: SynthesisProblem, ev: Evaluation) -> bool:
-    pos_ok, ori_ok, _ = problem.point_status(ev)
-    return bool(pos_ok.all() and ori_ok.all())
 
 
 def _max_steps(problem: SynthesisProblem) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
@@ -288,9 +251,7 @@ def _candidate_steps(
     task step alone."""
     wd, wq = bs.weight_design, bs.weight_joints
     task_step = np.concatenate([bs.design, bs.joints.ravel()])
-    nd, nq = (
-        (None, None) if workspace is None else _workspace_motion(problem, cur.z, workspace, opt)
-    )
+    nd, nq = (None, None) if workspace is None else workspace_motion(problem, cur.z, workspace, opt)
     if cur.rows.terms is not None:
         push = clearance_motion(cur.rows.terms, c_min, opt.workspace_gain)
         if push is not None:
@@ -345,7 +306,7 @@ def _reseeded(
     with the clearance only where they lower their pose's merit; None if none moved."""
     z2 = reseed_points(problem, cur.z, cur.ev, rng, opt.reseed_restarts)
     if z2 is not None and clearance is not None:
-        z2 = _keep_clearer(problem, cur.z, cur.ev, z2, wx, clearance)
+        z2 = keep_clearer(problem, cur.z, cur.ev, z2, wx, clearance)
     return None if z2 is None else _iterate(problem, z2, wx, clearance)
 
 
@@ -362,7 +323,7 @@ def _done(
     return (
         converged(problem, ev)
         and rows.clear(clearance)
-        and _workspace_clear(problem, z, workspace, opt)
+        and workspace_clear(problem, z, workspace, opt)
     )
 
 
@@ -377,174 +338,3 @@ def _capped(step: Array, caps: Array, p: int, K: int, nf: int) -> tuple[Array, f
     rq = np.maximum(1.0, r[p:].reshape(K, nf).max(axis=1))
     out = np.concatenate([step[:p] / rd, (step[p:].reshape(K, nf) / rq[:, None]).ravel()])
     return out, max(rd, float(rq.max(initial=1.0)))
-
-
-def _keep_clearer(
-    problem: SynthesisProblem,
-    z: Array,
-    ev: Evaluation,
-    z2: Array,
-    wx: Array,
-    clearance: ClearanceModel,
-) -> Array | None:
-    """``z2`` (re-seeded joints, same design as ``z``) with each pose's joints kept only
-    where they lower that pose's share of the merit, clearance rows included: the IK of
-    ``reseed_points`` knows the task only, and joints that reach a pose through a body
-    would raise the merit and undo the solver's progress. None if no pose gained."""
-    before = pose_merits(problem, ev, wx, z, clearance)
-    after = pose_merits(problem, problem.evaluate(z2), wx, z2, clearance)
-    better = after < before
-    if not better.any():
-        return None
-    p, nf = problem.p, problem.n_free_joints
-    Q = np.where(better[:, None], z2[p:].reshape(-1, nf), z[p:].reshape(-1, nf))
-    return np.concatenate([z[:p], Q.ravel()])
-
-
-def reseed_points(
-    problem: SynthesisProblem,
-    z: Array,
-    ev: Evaluation,
-    rng: np.random.Generator,
-    restarts: int,
-) -> Array | None:
-    """Re-solve the joints of every unreached task point by IK on the current design.
-
-    Given the design, the task points are independent inverse-kinematics problems; a
-    point whose joints are trapped (a wrong branch, a joint stuck at a limit) gets
-    fresh random restarts. A point's joints are replaced only when IK lowers its
-    weighted error. Returns the new vector, or None if nothing improved.
-    """
-    from reachwise.kinematics.ik import solve_ik
-    from reachwise.synthesis.init import locked_robot
-
-    pos_ok, ori_ok, _ = problem.point_status(ev)
-    todo = np.flatnonzero(~(pos_ok & ori_ok))
-    if todo.size == 0:
-        return None
-    design, Q = problem.split(z)
-    robot = locked_robot(problem, problem.robot_at(design))
-    task = problem.task
-    w = task.tol_position / task.tol_orientation
-    improved = False
-    for k in todo:
-        res = solve_ik(
-            robot, task.poses[k], q0=Q[k], mask=int(task.dims[k]), rng=rng,
-            tol_position=float(task.tol_position[k]),
-            tol_orientation=float(task.tol_orientation[k]), max_iter=80, restarts=restarts,
-        )  # fmt: skip
-        before = ev.position_error[k] + w[k] * ev.orientation_error[k]
-        if res.position_error + w[k] * res.orientation_error < before:
-            Q[k] = res.q
-            improved = True
-    return problem.pack(design, Q) if improved else None
-
-
-def _workspace_clear(
-    problem: SynthesisProblem, z: Array, ws: Workspace | None, opt: SolverOptions
-) -> bool:
-    if ws is None:
-        return True
-    pts, _, _, _ = link_points(problem, z, opt.samples_per_link)
-    return bool(np.all(ws.signed_distance(pts.reshape(-1, 3)) >= 0.0))
-
-
-def _workspace_motion(
-    problem: SynthesisProblem, z: Array, ws: Workspace, opt: SolverOptions
-) -> tuple[Array | None, Array | None]:
-    """``Σ J_dᵀ k (margin − distance) n`` over violating link points (P-II Eq. 29–31)."""
-    pts, Jd, Jq, owner = link_points(problem, z, opt.samples_per_link)
-    flat = pts.reshape(-1, 3)
-    sd = ws.signed_distance(flat)
-    bad = np.flatnonzero(sd < opt.workspace_margin)
-    if bad.size == 0:
-        return None, None
-    g = ws.gradient(flat[bad])
-    v = opt.workspace_gain * (opt.workspace_margin - sd[bad])[:, None] * g  # (k, 3)
-    Jd_bad = Jd.reshape(-1, 3, problem.p)[bad]
-    Jq_bad = Jq.reshape(-1, 3, problem.n_free_joints)[bad]
-    nd = np.einsum("kia,ki->a", Jd_bad, v)
-    nq = np.zeros((problem.K, problem.n_free_joints))
-    np.add.at(nq, owner.reshape(-1)[bad], np.einsum("kia,ki->ka", Jq_bad, v))
-    return nd, nq
-
-
-def solve_trf(
-    problem: SynthesisProblem,
-    z0: Array,
-    workspace: Workspace | None = None,
-    options: SolverOptions | None = None,
-    max_nfev: int | None = None,
-) -> SolveOutcome:
-    """``scipy.optimize.least_squares(method="trf")`` with bounds, the exact sparse
-    Jacobian and, with a workspace, one penalty residual ``max(0, margin − distance)``
-    per sampled link point."""
-    from scipy.optimize import least_squares
-    from scipy.sparse import csr_matrix
-
-    opt = options or SolverOptions()
-    lo, hi = problem.bounds
-    wx = row_weights(problem)
-    act = problem.active_rows
-    p, K, nf = problem.p, problem.K, problem.n_free_joints
-    rows_idx = np.flatnonzero(act.ravel())
-    cols = np.empty((K, 6, p + nf), dtype=np.int64)
-    cols[:, :, :p] = np.arange(p)
-    cols[:, :, p:] = p + np.arange(K)[:, None, None] * nf + np.arange(nf)
-    cols_flat = cols.reshape(K * 6, p + nf)[rows_idx]
-    rr = np.repeat(np.arange(rows_idx.size), p + nf)
-
-    def blocks(z: Array) -> tuple[Evaluation, Array]:
-        ev = problem.evaluate(np.clip(z, lo, hi))
-        return ev, -(ev.e * wx).ravel()[rows_idx]
-
-    def ws_terms(z: Array) -> tuple[Array, Array, NDArray[np.int64]]:
-        if workspace is None:
-            return np.zeros(0), np.zeros((0, p + nf)), np.zeros(0, int)
-        pts, Jd, Jq, owner = link_points(problem, np.clip(z, lo, hi), opt.samples_per_link)
-        flat = pts.reshape(-1, 3)
-        sd = workspace.signed_distance(flat)
-        pen = np.maximum(0.0, opt.workspace_margin - sd)
-        g = workspace.gradient(flat)
-        Jall = np.concatenate([Jd.reshape(-1, 3, p), Jq.reshape(-1, 3, nf)], axis=2)
-        # d pen / dz = −gᵀ J where violated, 0 otherwise
-        dpen = -np.einsum("ki,kia->ka", g, Jall) * (pen > 0)[:, None]
-        return pen, dpen, owner.reshape(-1)
-
-    def fun(z: Array) -> Array:
-        _, r = blocks(z)
-        pen, _, _ = ws_terms(z)
-        return np.concatenate([r, pen])
-
-    def jac(z: Array) -> csr_matrix:
-        ev, _ = blocks(z)
-        D = (ev.D * wx[:, :, None]).reshape(K * 6, p)[rows_idx]
-        J = (ev.J * wx[:, :, None]).reshape(K * 6, nf)[rows_idx]
-        vals = np.concatenate([D, J], axis=1).ravel()
-        m = rows_idx.size
-        pen, dpen, owner = ws_terms(z)
-        if pen.size:
-            wcols = np.empty((pen.size, p + nf), dtype=np.int64)
-            wcols[:, :p] = np.arange(p)
-            wcols[:, p:] = p + owner[:, None] * nf + np.arange(nf)
-            r2 = m + np.repeat(np.arange(pen.size), p + nf)
-            data = np.concatenate([vals, dpen.ravel()])
-            ri = np.concatenate([rr, r2])
-            ci = np.concatenate([cols_flat.ravel(), wcols.ravel()])
-            return csr_matrix((data, (ri, ci)), shape=(m + pen.size, problem.size))
-        return csr_matrix((vals, (rr, cols_flat.ravel())), shape=(m, problem.size))
-
-    z_init = np.clip(z0, lo, hi)
-    # least_squares needs strictly feasible starts and lo < hi
-    span = hi - lo
-    fixed = span <= 0
-    lo_s = np.where(fixed, lo - 1e-12, lo)
-    hi_s = np.where(fixed, hi + 1e-12, hi)
-    res = least_squares(
-        fun, z_init, jac=jac, bounds=(lo_s, hi_s), method="trf", tr_solver="lsmr",
-        x_scale="jac", max_nfev=max_nfev or 200, xtol=1e-12, ftol=1e-12, gtol=1e-12,
-    )  # fmt: skip
-    z = np.clip(res.x, lo, hi)
-    ev = problem.evaluate(z)
-    done = converged(problem, ev) and _workspace_clear(problem, z, workspace, opt)
-    return SolveOutcome(z, ev, int(res.nfev), done, [float(res.cost)])

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from concurrent.futures import FIRST_COMPLETED, Executor, Future, wait
 from dataclasses import asdict, dataclass
 from typing import Any
@@ -133,18 +133,15 @@ def _config_json(cfg: SweepConfig) -> dict[str, Any]:
     return asdict(cfg)
 
 
-def _run_round(
-    store: ResultStore,
-    sid: str,
+def _work_items(
+    done: Collection[tuple[str, int]],
     task: Task,
     round: int,
     topologies: Sequence[Topology],
     cfg: SweepConfig,
-    ex: Executor | None,
-    emit: Callable[[SweepEvent], None],
-    counts: list[int],
-) -> None:
-    done = store.done(sid, round)
+) -> tuple[list[WorkItem], dict[str, int]]:
+    """The round's runs not in ``done`` (``(topology, run)`` pairs already stored), in
+    order, and how many each topology has left."""
     todo: list[WorkItem] = []
     left: dict[str, int] = {}
     for t in topologies:
@@ -168,6 +165,21 @@ def _run_round(
                 )
             )
             left[t.name] = left.get(t.name, 0) + 1
+    return todo, left
+
+
+def _run_round(
+    store: ResultStore,
+    sid: str,
+    task: Task,
+    round: int,
+    topologies: Sequence[Topology],
+    cfg: SweepConfig,
+    ex: Executor | None,
+    emit: Callable[[SweepEvent], None],
+    counts: list[int],
+) -> None:
+    todo, left = _work_items(store.done(sid, round), task, round, topologies, cfg)
     finished = len(topologies) - len(left)
     counts[1] += len(topologies) * cfg.runs - len(todo)
     emit(SweepEvent("round", round, total=len(topologies), done=finished))
