@@ -5,13 +5,16 @@ nothing imports the package root, no submodule imports its own package's ``__ini
 and the math layers import nothing from the layers that touch files, clocks, sockets or
 screens. ``lint-imports`` (the contracts in pyproject.toml) checks the layer order and
 the forbidden edges; this test states the rules that must hold whatever the order, and
-is itself tested on a small package that breaks each of them."""
+is itself tested on a small package that breaks each of them. ``docs/architecture.md``
+names only what exists and states every contract of ``pyproject.toml``; those checks
+are tested on pages that break them."""
 
 from __future__ import annotations
 
 import ast
 import importlib
 import re
+import tomllib
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -329,4 +332,97 @@ def test_the_page_check_finds_a_missing_module_function_and_bare_name() -> None:
         "kinematics.fk.no_such: 'no_such' not found",
         "control._kernel.control_step: '_kernel' not found",
         "no_jacobian: not in reachwise.kinematics.jacobian",
+    ]
+
+
+# ---- docs/architecture.md states every import-linter contract -----------------------
+
+PYPROJECT = SRC.parent / "pyproject.toml"
+_DIAGRAM = re.compile(r"```\n(.*?)```", re.S)
+
+
+def unstated_contracts(text: str, contracts: list[dict[str, Any]], root: str) -> list[str]:
+    """The import-linter ``contracts`` the page ``text`` does not state (module names
+    without ``root.``): a ``layers`` contract is the page's first diagram, each layer
+    starting a line of it, top to bottom; a ``forbidden`` one between packages is
+    written ``source → a | b`` in backticks, one from modules names each module in
+    backticks; an ``independence`` one is a sentence that says "independent" and names
+    each package in backticks. Any other type is reported as not checked."""
+
+    def short(module: str) -> str:
+        return re.sub(rf"\b{re.escape(root)}\.", "", module.strip("()"))
+
+    bad = []
+    sentences = re.split(r"(?<=[.;])\s+|\n\s*\n|\n- ", text)
+    diagram = _DIAGRAM.search(text)
+    rows = diagram.group(1).splitlines() if diagram else []
+    for c in contracts:
+        if c["type"] == "layers":
+            at = -1
+            for layer in map(short, c["layers"]):
+                starts = re.compile(
+                    r"^(?:\s*top|\s*bottom)?\s+" + re.escape(layer) + r"(?:\s{2,}|$)"
+                )
+                found = [i for i, row in enumerate(rows) if starts.match(row)]
+                if not found or found[0] <= at:
+                    bad.append(f"{c['name']}: layer {layer!r} not in the diagram in order")
+                else:
+                    at = found[0]
+        elif c["type"] == "forbidden":
+            sources = [short(m) for m in c["source_modules"]]
+            forbidden = [short(m) for m in c["forbidden_modules"]]
+            if all("." not in m for m in sources):
+                edges = [f"`{m} → {' | '.join(forbidden)}`" for m in sources]
+                bad += [f"{c['name']}: {e} not stated" for e in edges if e not in text]
+            else:
+                named = [f"`{m}`" for m in sources + forbidden]
+                bad += [f"{c['name']}: {n} not named" for n in named if n not in text]
+        elif c["type"] == "independence":
+            names = [f"`{short(m)}`" for m in c["modules"]]
+            if not any("independent" in x and all(n in x for n in names) for x in sentences):
+                bad.append(f"{c['name']}: no sentence says {', '.join(names)} are independent")
+        else:
+            bad.append(f"{c['name']}: contract type {c['type']!r} not checked")
+    return bad
+
+
+def test_the_architecture_page_states_every_contract() -> None:
+    contracts = tomllib.loads(PYPROJECT.read_text())["tool"]["importlinter"]["contracts"]
+    assert len(contracts) >= 9
+    assert unstated_contracts(DOC.read_text(), contracts, ROOT) == []
+
+
+_CONTRACTS: list[dict[str, Any]] = [
+    {"name": "L", "type": "layers", "layers": ["(pkg.api)", "pkg.sim | pkg.io", "pkg.maths"]},
+    {"name": "F", "type": "forbidden", "source_modules": ["pkg.sim"],
+     "forbidden_modules": ["pkg.io", "pkg.api"]},
+    {"name": "M", "type": "forbidden", "source_modules": ["pkg.sim.world", "pkg.sim.run"],
+     "forbidden_modules": ["pkg.io"]},
+    {"name": "I", "type": "independence", "modules": ["pkg.sim", "pkg.maths"]},
+]  # fmt: skip
+
+
+def test_the_contract_check_passes_a_page_that_states_them() -> None:
+    page = (
+        "```\n top   api        the facade\n       sim | io\nbottom maths\n```\n\n"
+        "- `sim → io | api`: never; `sim.world` and `sim.run` import no `io`.\n"
+        "- `sim` is independent\n  of `maths`.\n"
+    )
+    assert unstated_contracts(page, _CONTRACTS, "pkg") == []
+
+
+def test_the_contract_check_finds_what_the_page_leaves_out() -> None:
+    page = (
+        "```\n top   sim | io     the middle\n       api\n       mathsy\n```\n"
+        "`sim → io` is forbidden; `sim.world` imports no `io`.\n"
+        "`sim` is independent of `io`; `maths` stands alone.\n"
+    )
+    contracts = [*_CONTRACTS, {"name": "A", "type": "acyclic_siblings"}]
+    assert unstated_contracts(page, contracts, "pkg") == [
+        "L: layer 'sim | io' not in the diagram in order",
+        "L: layer 'maths' not in the diagram in order",
+        "F: `sim → io | api` not stated",
+        "M: `sim.run` not named",
+        "I: no sentence says `sim`, `maths` are independent",
+        "A: contract type 'acyclic_siblings' not checked",
     ]
