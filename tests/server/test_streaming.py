@@ -393,3 +393,39 @@ def test_only_indexed_clouds_are_saved_and_a_crash_restores_the_last_saved(
     assert answer.clouds.tolist() == [[2.0, 12.0]]
     svc.close()
     again.close()
+
+
+def test_a_cloud_handed_over_before_a_clear_is_never_swapped_in_or_saved(
+    tmp_path: Path,
+) -> None:
+    """A ``block`` hand-over parked across a ``clear`` is refused (``unknown_id``) even
+    when an object of the same name was added again meanwhile; its cloud is never used
+    and never saved, and the new object answers with its own cloud."""
+    svc = SceneService(store=StateStore(tmp_path))
+    svc.load()
+    svc.handle(P.AddObject(CAMERA, _frame(0)))
+    svc.handle(P.AddObject("probe", np.array([[2.0, -0.4, 0.0]]), None, dynamic=True))
+    wait = svc.hand_over(P.ReplaceCloud(CAMERA, _frame(5), 15.0, block=True))
+    assert svc.handle(P.Clear()) == P.Ack()
+    svc.handle(P.AddObject(CAMERA, _frame(1)))
+    svc.handle(P.AddObject("probe", np.array([[2.0, -0.4, 0.0]]), None, dynamic=True))
+    svc.handle(P.OperationCall.of("watch", "probe", CAMERA, 10.0))
+    with pytest.raises(P.ProtocolError) as info:
+        while svc.settle(wait) is None:  # the old worker was stopped: returns at once
+            pass
+    assert info.value.code == P.ErrorCode.UNKNOWN_ID and "cleared" in info.value.message
+    svc.flush_clouds(force=True, timeout=HANG_GUARD)
+    answer = svc.handle(P.Query(1.0))
+    assert isinstance(answer, P.QueryReply) and answer.clouds is not None
+    assert answer.clouds.tolist() == [[0.0, math.inf], [0.0, math.inf]]  # both as added
+    probe = np.array([2.0, -0.4, 0.0])
+    want = float(np.min(np.linalg.norm(_frame(1) - probe, axis=1)))
+    assert answer.rows[0, 0] == pytest.approx(want, abs=1e-12)
+    again = SceneService(store=StateStore(tmp_path))
+    again.load()
+    described = again.handle(P.Describe(True))
+    assert isinstance(described, P.DescribeReply)
+    cam = next(o for o in described.objects if o.name == CAMERA)
+    np.testing.assert_array_equal(cam.cloud, _frame(1))
+    svc.close()
+    again.close()

@@ -1,13 +1,13 @@
 """What a distance scene holds, and the private steps its methods share.
 
-:class:`SceneState` is the state of :class:`~reachwise.distance.scene.Scene`: its
-objects, robots and joint states, the watched pairs, the cloud versions and the
-worker that indexes handed-over clouds, and the arrays the compiled query reads
-(:class:`~reachwise.distance.scene_arrays.SceneArrays`). It swaps a built cloud in,
-places a robot's frames by forward kinematics, answers pair by pair for the
-strategies other than the default, checks time stamps and looks names up (an unknown
-one is an :class:`~reachwise.errors.UnknownName` with the closest name). The public
-methods that change and query the state are :class:`~reachwise.distance.scene.Scene`'s.
+:class:`SceneState` is the state of :class:`~reachwise.distance.Scene`: its objects,
+robots and joint states, the watched pairs, the cloud versions and the worker that
+indexes handed-over clouds, and the arrays the compiled query reads
+(``reachwise.distance.scene_arrays.SceneArrays``). It swaps a built cloud in, places
+a robot's frames by forward kinematics, answers pair by pair for the strategies other
+than the default, checks time stamps and looks names up (an unknown one is an
+:class:`~reachwise.errors.UnknownName` with the closest name). The public methods that
+change and query the state are :class:`~reachwise.distance.Scene`'s.
 """
 
 from __future__ import annotations
@@ -39,8 +39,10 @@ __all__ = ["SceneState", "positive_length"]
 
 
 class SceneState:
-    """The state of a :class:`~reachwise.distance.scene.Scene` and the private steps
-    its methods share (see the module docstring)."""
+    """The state of a :class:`~reachwise.distance.Scene` and the private steps its
+    methods share: objects, robots, joint states, pairs, cloud versions, the indexing
+    worker and the arrays the compiled query reads, with the cloud swap, forward
+    kinematics into the frame rows, pair-by-pair answers, stamp checks and lookups."""
 
     strategy: StrategyName
     clock: Callable[[], float] | None
