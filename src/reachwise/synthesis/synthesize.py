@@ -38,7 +38,8 @@ from reachwise.synthesis.objectives import (
 )
 from reachwise.synthesis.problem import SynthesisProblem, locked_from_spec
 from reachwise.synthesis.rank import best_run_index
-from reachwise.synthesis.solvers import SolverOptions, Workspace, solve_dls, solve_trf
+from reachwise.synthesis.solvers import SolverOptions, Workspace, solve_trf
+from reachwise.synthesis.starts import solve_from_starts
 from reachwise.tasks.task import Task
 
 Array = NDArray[np.float64]
@@ -197,22 +198,23 @@ def run_once(
     clearance: ClearanceModel | None = None,
     keep: Sequence[str] | None = None,
 ) -> RunResult:
-    """One run: Beta/IK initialization from ``seed``, one solve and, with an
+    """One run: Beta/IK initialization from ``seed``, one solve (with ``clearance``, up
+    to ``starts.CLEARANCE_STARTS`` from clearance-aware restarts) and, with an
     ``objective`` (weights) and every pose reached, the null-space improvement, which
     never makes an index in ``keep`` worse than at the reach-only design (``None``:
     ``keep.default_keep``, the KCI when the GCI is weighted). With
     ``clearance`` (``clearance_setup``) the solve and the improvement keep every watched
     pair of bodies at least its clearance apart at every pose, and a pose counts as
     reached only when it is within tolerance *and* clear."""
-    rng = np.random.default_rng(seed)
-    guess = initial_guess(problem, rng, init_sets)
-    d0, Q0 = problem.split(guess.z)
     if solver == "dls":
-        out = solve_dls(problem, guess.z, options, workspace, rng, clearance)
+        started = solve_from_starts(problem, seed, init_sets, options, workspace, clearance)
+        guess, out = started.start, started.outcome
     else:
         if clearance is not None:
             raise InputError("synthesize", "solver", "the clearance needs the dls solver")
+        guess = initial_guess(problem, np.random.default_rng(seed), init_sets)
         out = solve_trf(problem, guess.z, workspace, options)
+    d0, Q0 = problem.split(guess.z)
     z, ev, iterations = out.z, out.evaluation, out.iterations
     weights = check_objective(objective)
     extra: dict[str, object] = {}
