@@ -22,12 +22,12 @@ from reachwise.distance.scene import Fixed, OnLink, Scene, SceneObject
 from reachwise.distance.scene_memories import add_memory, memory_setups
 from reachwise.distance.scene_memory import MemoryConfig
 from reachwise.io.robot_file import robot_from_dict
-from reachwise.kinematics.robot import Robot
 from reachwise.server.service_core import (
     ObjectMeta,
     ObjectSource,
     ServiceCore,
     indexed_cloud,
+    stamp_source,
     wire_error,
 )
 from reachwise.server.state import (
@@ -177,7 +177,6 @@ class ScenePersistence(ServiceCore):
         m, live = snap.manifest, snap.live
         where = str(store.root / "scene.json")
         scene = Scene(strategy=m.strategy)
-        robots: dict[str, Robot] = {}
         joints: dict[str, tuple[NDArray[np.float64], float]] = {}
         runtime: dict[str, tuple[NDArray[np.float64], float]] = {}
         meta: dict[str, ObjectMeta] = {}
@@ -185,7 +184,6 @@ class ScenePersistence(ServiceCore):
         for rs in m.robots:
             robot = robot_from_dict(rs.model, f"{where}: robot {rs.name!r}")
             scene.add_robot(robot)
-            robots[robot.name] = robot
             js = live.joints.get(robot.name)
             if js is not None:
                 q = np.array(js.q, dtype=np.float64)
@@ -194,21 +192,16 @@ class ScenePersistence(ServiceCore):
         for o in m.objects:
             cloud = indexed_cloud(snap.clouds[o.name], o.name, o.link or "world")
             pose = np.array(o.pose, dtype=np.float64)
-            saved = (o.cloud, o.points, o.version, o.stamp)
             if o.source == "runtime":
                 ps = live.poses.get(o.name)
                 stamp = self.clock()
                 if ps is not None:
                     pose, stamp = np.array(ps.pose, dtype=np.float64), ps.stamp
-                scene.add_object(o.name, cloud, pose, dynamic=True)
                 runtime[o.name] = (check_pose(pose, o.name), stamp)
-                meta[o.name] = ObjectMeta(saved[0], ("object", o.name), *saved[1:])
-            elif o.source == "link":
-                scene.add_object(o.name, cloud, pose, robot=o.robot, link=o.link)
-                meta[o.name] = ObjectMeta(saved[0], ("robot", str(o.robot)), *saved[1:])
-            else:
-                scene.add_object(o.name, cloud, pose)
-                meta[o.name] = ObjectMeta(saved[0], None, *saved[1:])
+            dynamic = o.source == "runtime"
+            obj = scene.add_object(o.name, cloud, pose, robot=o.robot, link=o.link, dynamic=dynamic)
+            source = stamp_source(o.name, obj.source)
+            meta[o.name] = ObjectMeta(o.cloud, source, o.points, o.version, o.stamp)
             if o.version > 0:  # a handed-over cloud: its version and stamp go on
                 cloud_stamp = math.inf if o.stamp is None else o.stamp
                 base[o.name] = o.version - scene.replace_cloud(
@@ -217,7 +210,6 @@ class ScenePersistence(ServiceCore):
         for ms in m.memories:  # the setup of each scene memory; its map starts unknown
             config = MemoryConfig(ms.voxel, ms.shadow_depth, ms.memory_s, ms.free_hold_s, ms.band)
             add_memory(scene, ms.name, np.array(ms.lower), np.array(ms.upper), config)
-            meta[ms.name] = ObjectMeta(None, None, len(scene.objects[ms.name].cloud))
         for p in m.pairs:
             scene.watch(p.a, p.b, p.margin, kind=p.kind)
         removed = store.remove_unreferenced(m)
@@ -226,12 +218,11 @@ class ScenePersistence(ServiceCore):
         with self.lock:
             old_scene, self.scene = self.scene, scene
             self.strategy = m.strategy
-            self._robots = robots
             self._models = {rs.name: rs.model for rs in m.robots}
             self._joints = joints
             self._runtime = runtime
             self._meta = meta
             self._version_base = base
             self._unsaved = {}
-            self._pairs_changed()
+            self._adopt()  # the robots and the memories' objects
         old_scene.close()
