@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import threading
 import weakref
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Annotated
 
@@ -73,6 +73,7 @@ __all__ = [
     "add_memory",
     "fuse_depth",
     "memories_of",
+    "memory_cloud",
     "memory_inflation",
     "memory_margin",
     "memory_setups",
@@ -180,7 +181,7 @@ def add_memory(
     if name in scene.objects:
         raise InputError("scene", f"object {name!r}", "already exists")
     memory = SceneMemory(lower, upper, config)
-    scene.add_object(name, _empty(memory, name))
+    scene.add_object(name, memory_cloud(memory, name=name))
     box = (np.array(lower, dtype=np.float64), np.array(upper, dtype=np.float64))
     _memories(scene)[name] = _Held(memory, *box)
     return memory.inflation
@@ -271,15 +272,9 @@ def fuse_depth(
         pieces, bounds = _robot_body(scene, held, q)
         mask = _self_filter(depth, pose, view, body, pieces, bounds, memory.inflation)
         memory.integrate(depth, pose, view, t, mask)
-        cloud = memory.obstacle_cloud(body=pieces, name=name)
+        cloud = memory_cloud(memory, body=pieces, name=name)
         held.frames += 1
-        return _Fused(
-            name,
-            held,
-            held.frames,
-            cloud if cloud is not None else _empty(memory, name),
-            memory.stamp,
-        )
+        return _Fused(name, held, held.frames, cloud, memory.stamp)
 
 
 def _robot_body(
@@ -366,8 +361,17 @@ def _intrinsics(value: object) -> tuple[float, ...]:
     return row
 
 
-def _empty(memory: SceneMemory, name: str) -> PointCloud:
-    """One point far above the memory's box: the cloud of a memory with no obstacle."""
+def memory_cloud(
+    memory: SceneMemory, *, body: Sequence[NDArray[np.float64]] = (), name: str = ""
+) -> PointCloud:
+    """The cloud a scene holds for ``memory``: its occupied and shadow voxels' centres
+    without the ``body`` pieces (:meth:`SceneMemory.obstacle_cloud
+    <reachwise.distance.scene_memory.SceneMemory.obstacle_cloud>`, index built), or,
+    while there are none, one point 1 km above the centre of its box: a cloud has a
+    point, and this one says "nothing here" (beyond every margin)."""
+    cloud = memory.obstacle_cloud(body=body, name=name)
+    if cloud is not None:
+        return cloud
     top = memory.origin + np.asarray(memory.shape) * memory.config.voxel
     centre = 0.5 * (memory.origin + top)
     return PointCloud((centre + np.array([0.0, 0.0, _EMPTY_LIFT]))[None], name=name)

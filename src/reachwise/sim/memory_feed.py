@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from reachwise.distance.scene_memories import memory_cloud
 from reachwise.distance.scene_memory import MemoryConfig, SceneMemory, ViewIntrinsics
 from reachwise.geometry.body_pieces import BodyPiece, body_pieces
 from reachwise.geometry.cloud import PointCloud
@@ -102,16 +103,11 @@ class MemoryFeed:
 
     def cloud(self, frames: dict[str, F64] | None = None) -> PointCloud:
         """The occupied and shadow voxels' centres (without the robots' bodies at their
-        frame poses ``frames``), or, while there are none, one point far above the box
-        (a cloud has at least one point; it says "nothing here"). The voxels' cloud
-        comes with its index (:meth:`SceneMemory.obstacle_cloud
-        <reachwise.distance.scene_memory.SceneMemory.obstacle_cloud>`): the scene
-        swaps it in without a build."""
+        frame poses ``frames``), or, while there are none, the point that says
+        "nothing here" (:func:`~reachwise.distance.scene_memories.memory_cloud`, as a
+        memory on the collision server). The voxels' cloud comes with its index: the
+        scene swaps it in without a build."""
         body = []
         if frames is not None:
             body = [p.placed(frames[p.robot][p.frame]) for p in self.body if p.robot in frames]
-        cloud = self.memory.obstacle_cloud(body=body, name=self.name)
-        if cloud is not None:
-            return cloud
-        lo, hi = self.memory.origin, np.asarray(self.spec.box.upper, dtype=np.float64)
-        return PointCloud((0.5 * (lo + hi) + [0.0, 0.0, 1.0e3])[None], name=self.name)
+        return memory_cloud(self.memory, body=body, name=self.name)
