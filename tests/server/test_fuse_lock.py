@@ -11,6 +11,7 @@ swap in their order whichever hands over first.
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 import pytest
@@ -20,9 +21,12 @@ from reachwise.distance.scene_memories import add_memory, fuse_depth, watch_memo
 from reachwise.distance.scene_memory import MemoryConfig, SceneMemory
 from reachwise.distance.scene_ops import OPERATIONS
 from reachwise.server import protocol as P
+from reachwise.server.client import SceneClient
 from reachwise.server.service import SceneService
+from reachwise.server.transport import CollisionServer
 
 from ..distance.test_scene_memories import INTRINSICS, LOWER, MARGIN, POSE, PROBE, UPPER, frames
+from .conftest import HANG_GUARD
 from .lock_probe import from_another_thread
 
 CONFIG = MemoryConfig(voxel=0.03, shadow_depth=0.4)
@@ -97,3 +101,45 @@ def test_frames_fused_at_once_swap_in_their_order() -> None:
     (pair,) = scene.query_all().pairs
     assert pair.result.distance == math.inf  # the box gone (second frame): freed
     assert scene.query_all().cloud_stamps["memory"] == 4.0
+
+
+def test_a_server_answers_queries_while_it_fuses_a_frame(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Through the wire: while the server fuses a camera client's frame (held in
+    ``integrate`` until the controller's query is answered), a second client's query
+    is answered; the fuse then completes and its cloud answers. A server that fused on
+    the thread that answers queries would let the query run into its deadline."""
+    answered = threading.Event()
+    entered = threading.Event()
+    integrate = SceneMemory.integrate
+
+    def held(memory: SceneMemory, *args: object, **kwargs: object) -> None:
+        entered.set()
+        answered.wait(HANG_GUARD)
+        integrate(memory, *args, **kwargs)  # type: ignore[arg-type]
+
+    with_box, _ = frames()
+    with CollisionServer("tcp://127.0.0.1:*").background() as endpoint:
+        with (
+            SceneClient(endpoint, deadline=HANG_GUARD, setup_deadline=HANG_GUARD) as camera,
+            SceneClient(endpoint, deadline=5.0, setup_deadline=HANG_GUARD) as controller,
+        ):
+            add_memory(camera, "memory", LOWER, UPPER, CONFIG)
+            camera.add_object("probe", PROBE)
+            watch_memory(camera, "probe", "memory", MARGIN)
+            monkeypatch.setattr(SceneMemory, "integrate", held)
+            versions: list[int] = []
+            fuser = threading.Thread(
+                target=lambda: versions.append(
+                    fuse_depth(camera, "memory", with_box, POSE, INTRINSICS, 3.0)
+                )
+            )
+            fuser.start()
+            assert entered.wait(HANG_GUARD)  # the server is fusing the frame now
+            during = controller.query_all()
+            answered.set()
+            fuser.join(HANG_GUARD)
+            assert during.valid, during.reason  # answered while the frame was fused
+            assert during.get("probe", "memory").result.distance == math.inf
+            assert versions == [1]
+            after = controller.query_all()
+            assert math.isfinite(after.get("probe", "memory").result.distance)

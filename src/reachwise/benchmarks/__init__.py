@@ -19,4 +19,5 @@ REGISTRY: dict[str, str] = {
     "realtime-memory": "reachwise.benchmarks.realtime_memory",
     "replay": "reachwise.benchmarks.replay",
     "memory": "reachwise.benchmarks.memory",
+    "server-memory": "reachwise.benchmarks.server_memory",
 }

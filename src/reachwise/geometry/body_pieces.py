@@ -22,6 +22,7 @@ from itertools import product
 from typing import NamedTuple, Protocol
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -129,19 +130,47 @@ def body_pieces(bodies: Iterable[LinkSurface]) -> tuple[BodyPiece, ...]:
 def near_pieces(points: F64, pieces: Sequence[F64], reach: float) -> NDArray[np.bool_]:
     """Which ``points`` ``(k, 3)`` lie within ``reach`` (m) of one of the placed
     ``pieces`` (each ``(m, 4)`` world half-space rows ``nx, ny, nz, d``, unit normals):
-    their largest signed distance to the piece's planes is at most ``reach``. Six planes
-    at a time rule rows out, so far points cost one small product per piece."""
-    inside = np.zeros(len(points), dtype=np.bool_)
-    for h in pieces:
-        rows = np.flatnonzero(~inside)
-        for start in range(0, len(h), 6):
-            block = h[start : start + 6]
-            gap = points[rows] @ block[:, :3].T - block[None, :, 3]
-            rows = rows[gap.max(axis=1) <= reach]
-            if rows.size == 0:
+    their largest signed distance to the piece's planes is at most ``reach``. Compiled
+    (GIL released): a point leaves a piece at its first plane farther than ``reach``,
+    and the six axis planes of a 26-DOP come first."""
+    pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+    out = np.zeros(len(pts), dtype=np.bool_)
+    if pieces and len(pts):
+        planes, starts = _stacked(pieces)
+        _near_kernel(pts, planes, starts, float(reach), out)
+    return out
+
+
+def _stacked(pieces: Sequence[F64]) -> tuple[F64, NDArray[np.int64]]:
+    """The pieces' rows one under the other, and where each piece starts (and the end)."""
+    planes = np.ascontiguousarray(np.concatenate([np.asarray(h) for h in pieces]), np.float64)
+    starts = np.concatenate([[0], np.cumsum([len(h) for h in pieces])]).astype(np.int64)
+    return planes, starts
+
+
+@njit(cache=True, nogil=True)
+def _within(
+    x: float, y: float, z: float, planes: F64, starts: NDArray[np.int64], reach: float
+) -> bool:
+    """Whether ``(x, y, z)`` lies within ``reach`` of one of the stacked pieces."""
+    for p in range(starts.shape[0] - 1):
+        inside = True
+        for r in range(starts[p], starts[p + 1]):
+            gap = planes[r, 0] * x + planes[r, 1] * y + planes[r, 2] * z - planes[r, 3]
+            if gap > reach:
+                inside = False
                 break
-        inside[rows] = True
-    return inside
+        if inside:
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True)
+def _near_kernel(
+    points: F64, planes: F64, starts: NDArray[np.int64], reach: float, out: NDArray[np.bool_]
+) -> None:
+    for i in range(points.shape[0]):
+        out[i] = _within(points[i, 0], points[i, 1], points[i, 2], planes, starts, reach)
 
 
 def dop_bounds(offsets: F64, pose: F64) -> tuple[F64, F64]:
@@ -170,17 +199,42 @@ def body_pixels(
     frame → world); ``bounds`` (``lo``, ``hi``, e.g. from :func:`dop_bounds`) a world
     box holding every piece: only the points within ``reach`` of it are tested plane
     by plane."""
-    z = np.asarray(depth, dtype=np.float64)
+    z = np.ascontiguousarray(depth, dtype=np.float64)
     out = np.zeros(z.shape, dtype=np.bool_)
-    if not pieces or z.size == 0:
+    if not pieces or z.ndim != 2 or z.size == 0:
         return out
-    fx, fy, cx, cy = focal
-    v, u = np.nonzero(np.isfinite(z) & (z > 0.0))
-    zz = z[v, u]
-    cam = np.column_stack([(u - cx) / fx * zz, (v - cy) / fy * zz, zz])
-    world = cam @ pose[:3, :3].T + pose[:3, 3]
+    planes, starts = _stacked(pieces)
     lo, hi = bounds
-    near = np.flatnonzero(np.all((world >= lo - reach) & (world <= hi + reach), axis=1))
-    hit = near[near_pieces(world[near], pieces, reach)]
-    out[v[hit], u[hit]] = True
+    box = np.concatenate([np.asarray(lo, np.float64) - reach, np.asarray(hi, np.float64) + reach])
+    T = np.ascontiguousarray(pose, dtype=np.float64)
+    camera = np.array([float(v) for v in focal], dtype=np.float64)
+    _pixel_kernel(z, camera, T, box, planes, starts, float(reach), out)
     return out
+
+
+@njit(cache=True, nogil=True)
+def _pixel_kernel(
+    depth: F64,
+    camera: F64,
+    pose: F64,
+    box: F64,
+    planes: F64,
+    starts: NDArray[np.int64],
+    reach: float,
+    out: NDArray[np.bool_],
+) -> None:
+    """:func:`body_pixels` pixel by pixel: back-project, the box test, the pieces."""
+    fx, fy, cx, cy = camera[0], camera[1], camera[2], camera[3]
+    for v in range(depth.shape[0]):
+        for u in range(depth.shape[1]):
+            zc = depth[v, u]
+            if not zc > 0.0:  # NaN too
+                continue
+            xc = (u - cx) / fx * zc
+            yc = (v - cy) / fy * zc
+            x = pose[0, 0] * xc + pose[0, 1] * yc + pose[0, 2] * zc + pose[0, 3]
+            y = pose[1, 0] * xc + pose[1, 1] * yc + pose[1, 2] * zc + pose[1, 3]
+            z = pose[2, 0] * xc + pose[2, 1] * yc + pose[2, 2] * zc + pose[2, 3]
+            if x < box[0] or y < box[1] or z < box[2] or x > box[3] or y > box[4] or z > box[5]:
+                continue
+            out[v, u] = _within(x, y, z, planes, starts, reach)

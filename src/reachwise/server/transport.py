@@ -16,7 +16,9 @@ Threads, so that one request never blocks another longer than its own work:
   and indexes handed-over clouds; the first query after a build swaps the new cloud in.
 - the *writer thread* does, in arrival order, everything that registers or persists:
   restoring the state directory at start, registering robots and clouds (the cloud and
-  its k-d tree are built *outside* the lock and swapped in under it), pair rules, the
+  its k-d tree are built *outside* the lock and swapped in under it), pair rules,
+  staged scene operations (a depth frame fused into a scene memory, outside the lock,
+  its cloud swapped in under it), the
   batched write of the latest joint states and poses, and the lazy save of the newest
   streamed clouds. Its replies go back to the I/O thread over an ``inproc://`` socket.
   The distance kernels release the GIL (numba ``nogil``), so an index being built does
@@ -330,7 +332,9 @@ class CollisionServer:
                 return
             self._parked.append(_Parked(route, rid, wait))
             return
-        if req.structural:
+        # a staged operation (a depth frame fused) is slow: on the writer thread, so
+        # that this thread answers the queries meanwhile
+        if req.structural or (isinstance(req, P.OperationCall) and req.staged):
             if not self.service.ready:
                 why = P.ProtocolError(
                     P.ErrorCode.NOT_READY, "op", f"the server is {self.service.state}", rid

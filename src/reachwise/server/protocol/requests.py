@@ -385,6 +385,13 @@ class OperationCall(Request):
         """An operation that changes the scene is structural."""
         return operation(self.operation, "operation").mutates
 
+    @property
+    def staged(self) -> bool:
+        """A staged operation (``reachwise.distance.scene_ops.staged_operation``): its
+        slow first stage runs without the scene lock, off the thread that answers
+        queries."""
+        return operation(self.operation, "operation").hand_over is not None
+
     def body(self) -> Body:
         op = operation(self.operation, "operation")
         hints = {a.name: a.hint for a in op.arguments}
