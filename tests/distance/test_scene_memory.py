@@ -51,9 +51,10 @@ def random_frame(rng: np.random.Generator, h: int = 18, w: int = 24):
     return depth, body, K, camera_pose(rng)
 
 
-def reference_update(mem: SceneMemory, depth, body, K, T, t) -> None:
+def reference_update(mem: SceneMemory, freed: np.ndarray, depth, body, K, T, t) -> None:
     """The update written the plainest way: every voxel centre projected, one at a time
-    in numpy, then every pixel's point marked."""
+    in numpy, then every pixel's point marked; ``freed`` (one per voxel, flat) is when
+    each voxel was last seen free, written here."""
     cfg = mem.config
     idx = np.indices(mem.shape).reshape(3, -1).T
     centres = mem.origin + (idx + 0.5) * cfg.voxel
@@ -67,7 +68,6 @@ def reference_update(mem: SceneMemory, depth, body, K, T, t) -> None:
         v = np.floor(K.fy * pc[:, 1] / z + K.cy + 0.5)
     ok = (z > K.near) & (z <= reach) & (u >= 0) & (u < w) & (v >= 0) & (v < h)
     state = mem.state.reshape(-1)
-    freed = mem.freed_at.reshape(-1)
     for n in np.flatnonzero(ok):
         r, c = int(v[n]), int(u[n])
         d = depth[r, c]
@@ -103,11 +103,13 @@ def test_the_kernel_equals_the_plain_reference(seed: int, frames: int) -> None:
     rng = np.random.default_rng(seed)
     cfg = MemoryConfig(voxel=0.1, shadow_depth=0.3, memory_s=1.0, free_hold_s=0.05)
     fast, slow = SceneMemory(LOWER, UPPER, cfg), SceneMemory(LOWER, UPPER, cfg)
+    freed = np.full(slow.state.size, -np.inf)
     for f in range(frames):
         depth, body, K, T = random_frame(rng)
         fast.integrate(depth, T, K, t=0.04 * f, body=body)
-        reference_update(slow, depth, body, K, T, 0.04 * f)
+        reference_update(slow, freed, depth, body, K, T, 0.04 * f)
         assert np.array_equal(fast.state, slow.state)
+        assert np.array_equal(fast.freed_at.reshape(-1), freed)
 
 
 @settings(max_examples=30, deadline=None)

@@ -48,6 +48,16 @@ SHADOW = np.uint8(3)
 BRICK = 8
 TILE = 8
 
+#: What the per-brick summary ``held`` (one byte per brick of ``BRICK``³ voxels) knows
+#: of its brick's voxels: nothing (``HELD_NONE``: no occupied or shadow voxel, others
+#: unknown or free), that it may hold an occupied or shadow voxel (``HELD_OBSTACLE``:
+#: every kernel that makes one sets it, :func:`collect_ordered` reads only these), or
+#: that every voxel is free (``HELD_FREE``: set when a frame frees the whole brick, so
+#: the next frame that frees it whole writes no voxel, only the brick's stamp).
+HELD_NONE = np.uint8(0)
+HELD_OBSTACLE = np.uint8(1)
+HELD_FREE = np.uint8(2)
+
 _W_U1_3D = types.Array(types.uint8, 3, "C")
 _W_F8_3D = types.Array(types.float64, 3, "C")
 _RO_F8_2D = types.Array(types.float64, 2, "C", readonly=True)
@@ -133,7 +143,16 @@ def prepare_frame(depth, body, near, far, code, tiles):  # type: ignore[no-untyp
 # camera = [fx, fy, cx, cy, near, far]; grid = [ox, oy, oz, voxel];
 # rules = [band, shadow, t, hold, dmax]; pose_cw: world -> camera (4 x 4)
 _SIG_PROJECT = types.int64(
-    _W_U1_3D, _W_F8_3D, _W_U1_3D, _RO_F4_2D, _RO_F8_4D, _RO_F8_1D, _RO_F8_2D, _RO_F8_1D, _RO_F8_1D
+    _W_U1_3D,
+    _W_F8_3D,
+    _W_F8_3D,
+    _W_U1_3D,
+    _RO_F4_2D,
+    _RO_F8_4D,
+    _RO_F8_1D,
+    _RO_F8_2D,
+    _RO_F8_1D,
+    _RO_F8_1D,
 )
 
 # what a brick test decides for every voxel of a brick
@@ -238,31 +257,50 @@ def _brick_test(lo3, ext, view, tiles, rules, W, H):  # type: ignore[no-untyped-
 
 
 @njit(cache=True, nogil=True)
-def _apply(decision, lo3, ext, state, freed_at, held, code, view, rules, W, H):  # type: ignore[no-untyped-def]
-    """Apply a brick test's ``decision`` to its voxels (voxel by voxel for ``_EACH``),
-    flagging their brick in ``held`` (:func:`collect_ordered`) when one turns shadow;
+def _apply(decision, whole, lo3, ext, state, freed_at, freed_brick, held, code, view, rules, W, H):  # type: ignore[no-untyped-def]
+    """Apply a brick test's ``decision`` to its voxels (voxel by voxel for ``_EACH``);
     returns how many of them projected onto a pixel with a return. The voxels lie in
-    one brick of ``BRICK``³. Compiled with numba, which takes the grids, the view and
-    the rules as arrays one by one, not as one object."""
+    one brick of ``BRICK``³, all of its voxels when ``whole``.
+
+    When a voxel was last seen free is the later of its own stamp ``freed_at`` and its
+    brick's ``freed_brick``: a brick freed whole stamps the brick, not its voxels (and
+    writes their states only if ``held`` does not say they are all free already), so a
+    static free space costs one write per brick and frame. The brick is flagged in
+    ``held`` (:data:`HELD_OBSTACLE`) when a voxel turns shadow. Compiled with numba,
+    which takes the grids, the view and the rules as arrays one by one, not as one
+    object."""
     band, shadow, t, hold = rules[0], rules[1], rules[2], rules[3]
     bi, bj, bk = lo3[0], lo3[1], lo3[2]
     ei, ej, ek = ext[0], ext[1], ext[2]
+    b0, b1, b2 = bi // BRICK, bj // BRICK, bk // BRICK
     if decision == _SKIP:
         return 0
     if decision == _ALL_FREE:
+        if whole:
+            freed_brick[b0, b1, b2] = t
+            if held[b0, b1, b2] != HELD_FREE:
+                held[b0, b1, b2] = HELD_FREE
+                for i in range(bi, bi + ei):
+                    for j in range(bj, bj + ej):
+                        for k in range(bk, bk + ek):
+                            state[i, j, k] = FREE
+            return ei * ej * ek
         for i in range(bi, bi + ei):
             for j in range(bj, bj + ej):
                 for k in range(bk, bk + ek):
                     state[i, j, k] = FREE
                     freed_at[i, j, k] = t
         return ei * ej * ek
+    # a voxel seen free within ``hold`` is not shadowed: none is when its brick was
+    may_shadow = t - freed_brick[b0, b1, b2] > hold
     if decision == _ALL_SHADOW:
-        held[bi // BRICK, bj // BRICK, bk // BRICK] = 1
-        for i in range(bi, bi + ei):
-            for j in range(bj, bj + ej):
-                for k in range(bk, bk + ek):
-                    if state[i, j, k] != OCCUPIED and t - freed_at[i, j, k] > hold:
-                        state[i, j, k] = SHADOW
+        if may_shadow:
+            for i in range(bi, bi + ei):
+                for j in range(bj, bj + ej):
+                    for k in range(bk, bk + ek):
+                        if state[i, j, k] != OCCUPIED and t - freed_at[i, j, k] > hold:
+                            state[i, j, k] = SHADOW
+                            held[b0, b1, b2] = HELD_OBSTACLE
         return ei * ej * ek
     fx, fy, cx, cy, near = view[4, 0], view[4, 1], view[4, 2], view[4, 3], view[4, 4]
     reach = rules[4] + shadow
@@ -287,9 +325,13 @@ def _apply(decision, lo3, ext, state, freed_at, held, code, view, rules, W, H): 
                                     state[i, j, k] = FREE
                                     freed_at[i, j, k] = t
                                 elif pz <= d + shadow:
-                                    if state[i, j, k] != OCCUPIED and t - freed_at[i, j, k] > hold:
+                                    if (
+                                        may_shadow
+                                        and state[i, j, k] != OCCUPIED
+                                        and t - freed_at[i, j, k] > hold
+                                    ):
                                         state[i, j, k] = SHADOW
-                                        held[bi // BRICK, bj // BRICK, bk // BRICK] = 1
+                                        held[b0, b1, b2] = HELD_OBSTACLE
                             elif pz < -d - band:
                                 state[i, j, k] = FREE
                                 freed_at[i, j, k] = t
@@ -300,11 +342,12 @@ def _apply(decision, lo3, ext, state, freed_at, held, code, view, rules, W, H): 
 
 
 @njit(_SIG_PROJECT, cache=True, nogil=True)
-def project_frame(state, freed_at, held, code, tiles, camera, pose_cw, grid, rules):  # type: ignore[no-untyped-def]
+def project_frame(state, freed_at, freed_brick, held, code, tiles, camera, pose_cw, grid, rules):  # type: ignore[no-untyped-def]
     """Free and shadow marks of one frame (module docstring) from its ``code`` image and
     ``tiles`` (:func:`prepare_frame`); ``rules`` = [band, shadow, t, hold, farthest
-    return]; a brick where a voxel turns shadow is flagged in ``held``
-    (:func:`collect_ordered`). Bricks of ``BRICK``³ voxels are decided at once where
+    return]. When a voxel was last seen free is the later of ``freed_at`` (per voxel)
+    and ``freed_brick`` (per brick: the brick was freed whole then); ``held`` is the
+    per-brick summary (:data:`HELD_OBSTACLE`, :data:`HELD_FREE`). Bricks of ``BRICK``³ voxels are decided at once where
     their corners allow (:func:`_brick_test`), else split into bricks of half the edge,
     then voxel by voxel.
     Returns the number of voxels whose centre projected onto a pixel with a return."""
@@ -347,8 +390,9 @@ def project_frame(state, freed_at, held, code, tiles, camera, pose_cw, grid, rul
                 decision = _brick_test(lo3, ext, view, tiles, rules, W, H)
                 if decision != _EACH:
                     seen += _apply(
-                        decision, lo3, ext, state, freed_at, held, code, view, rules, W, H
-                    )
+                        decision, True, lo3, ext, state, freed_at, freed_brick, held,
+                        code, view, rules, W, H,
+                    )  # fmt: skip
                     continue
                 for si in range(bi, bi + ext[0], half):
                     for sj in range(bj, bj + ext[1], half):
@@ -359,8 +403,9 @@ def project_frame(state, freed_at, held, code, tiles, camera, pose_cw, grid, rul
                             sext[2] = min(half, bk + ext[2] - sk)
                             d = _brick_test(sub, sext, view, tiles, rules, W, H)
                             seen += _apply(
-                                d, sub, sext, state, freed_at, held, code, view, rules, W, H
-                            )
+                                d, False, sub, sext, state, freed_at, freed_brick, held,
+                                code, view, rules, W, H,
+                            )  # fmt: skip
     return seen
 
 
@@ -418,7 +463,7 @@ def mark_points(state, seen_at, held, code, camera, pose_wc, grid, t):  # type: 
                 if i != li or j != lj or k != lk:
                     state[i, j, k] = OCCUPIED
                     seen_at[i, j, k] = t
-                    held[i // BRICK, j // BRICK, k // BRICK] = 1
+                    held[i // BRICK, j // BRICK, k // BRICK] = HELD_OBSTACLE
                     li, lj, lk = i, j, k
     return marked
 
@@ -500,7 +545,7 @@ def collect_ordered(state, seen_at, held, grid, t, memory, bricks, voxels, out, 
     n = 0
     for b in range(bricks.shape[0]):
         bi, bj, bk, bcode = bricks[b, 0], bricks[b, 1], bricks[b, 2], bricks[b, 3]
-        if held[bi // BRICK, bj // BRICK, bk // BRICK] == 0:
+        if held[bi // BRICK, bj // BRICK, bk // BRICK] != HELD_OBSTACLE:
             continue
         found = 0
         for i in range(bi, min(bi + BRICK, nx)):
@@ -514,7 +559,7 @@ def collect_ordered(state, seen_at, held, grid, t, memory, bricks, voxels, out, 
                     flags[_spread3(i - bi) << 2 | _spread3(j - bj) << 1 | _spread3(k - bk)] = True
                     found += 1
         if found == 0:
-            held[bi // BRICK, bj // BRICK, bk // BRICK] = 0
+            held[bi // BRICK, bj // BRICK, bk // BRICK] = HELD_NONE
             continue
         for v in range(voxels.shape[0]):
             if not flags[v]:

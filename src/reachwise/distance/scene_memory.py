@@ -67,6 +67,7 @@ from numpy.typing import ArrayLike, NDArray
 from reachwise.distance._memory_kernel import (
     BRICK,
     FREE,
+    HELD_OBSTACLE,
     MORTON_AXIS_BITS,
     OCCUPIED,
     SHADOW,
@@ -199,9 +200,10 @@ class SceneMemory:
     """The voxel memory of the axis-aligned box ``lower`` … ``upper`` (m, world frame)
     under ``config``; :meth:`integrate` fuses one depth frame, :meth:`obstacles` gives
     the occupied and shadow voxels' centres for the distance scene (:meth:`obstacle_cloud`
-    with their index). ``state``, ``seen_at`` and ``freed_at`` are the map per voxel:
-    read them, do not write them (only the bricks the kernels flag when they make a
-    voxel occupied or shadow are collected)."""
+    with their index). ``state`` and ``seen_at`` are the map per voxel: read them, do
+    not write them (the kernels keep a summary per brick of ``BRICK``³ voxels beside
+    them: which may hold an occupied or shadow voxel, which are all free);
+    :attr:`freed_at` is a copy."""
 
     def __init__(self, lower: ArrayLike, upper: ArrayLike, config: MemoryConfig | None = None):
         self.config = config or MemoryConfig()
@@ -227,9 +229,14 @@ class SceneMemory:
         self._grid.setflags(write=False)
         self.state = np.zeros(shape, dtype=np.uint8)
         self.seen_at = np.full(shape, -np.inf)
-        self.freed_at = np.full(shape, -np.inf)
-        # per brick of BRICK**3 voxels: whether it may hold an occupied or shadow voxel
-        self._held = np.zeros(tuple(-(-n // BRICK) for n in shape), dtype=np.uint8)
+        bricks = tuple(-(-n // BRICK) for n in shape)
+        # when a voxel was last seen free: the later of its own stamp and its brick's
+        # (a frame that frees a whole brick stamps the brick only)
+        self._freed_voxel = np.full(shape, -np.inf)
+        self._freed_brick = np.full(bricks, -np.inf)
+        # per brick of BRICK**3 voxels: HELD_NONE, HELD_OBSTACLE (may hold an occupied
+        # or shadow voxel) or HELD_FREE (every voxel free)
+        self._held = np.zeros(bricks, dtype=np.uint8)
         self._stamp = -math.inf
         self._order = brick_order(shape)
         for a in self._order:
@@ -242,6 +249,17 @@ class SceneMemory:
         of its voxel. Subtract it from distances to :meth:`obstacles` (or add it to the
         margin) for an answer never larger than the distance to the observed points."""
         return 0.5 * math.sqrt(3.0) * self.config.voxel
+
+    @property
+    def freed_at(self) -> NDArray[np.float64]:
+        """When each voxel was last seen free (s; -inf: never), a read-only copy: the
+        later of the voxel's own stamp and that of its brick of ``BRICK``³ voxels,
+        which a frame that frees the whole brick stamps instead of its voxels."""
+        nx, ny, nz = self.shape
+        per_brick = np.repeat(np.repeat(np.repeat(self._freed_brick, BRICK, 0), BRICK, 1), BRICK, 2)
+        out = np.maximum(self._freed_voxel, per_brick[:nx, :ny, :nz])
+        out.setflags(write=False)
+        return out
 
     @property
     def stamp(self) -> float:
@@ -318,7 +336,8 @@ class SceneMemory:
         """The second pass of :meth:`integrate`: the frame's free and shadow marks."""
         project_frame(
             self.state,
-            self.freed_at,
+            self._freed_voxel,
+            self._freed_brick,
             self._held,
             frame.code,
             frame.tiles,
@@ -415,7 +434,8 @@ class SceneMemory:
         """Forget everything: every voxel unknown, no frame fused."""
         self.state.fill(UNKNOWN)
         self.seen_at.fill(-np.inf)
-        self.freed_at.fill(-np.inf)
+        self._freed_voxel.fill(-np.inf)
+        self._freed_brick.fill(-np.inf)
         self._held.fill(0)
         self._stamp = -math.inf
 
@@ -433,8 +453,9 @@ class SceneMemory:
             )
         np.copyto(self.state, snapshot.state)
         np.copyto(self.seen_at, snapshot.seen_at)
-        np.copyto(self.freed_at, snapshot.freed_at)
-        self._held.fill(1)  # any brick may hold an obstacle: the next collection sees
+        np.copyto(self._freed_voxel, snapshot.freed_at)
+        self._freed_brick.fill(-np.inf)
+        self._held.fill(HELD_OBSTACLE)  # any brick may hold an obstacle: the next collection sees
         self._stamp = snapshot.stamp
 
     def voxel_of(self, point: ArrayLike) -> tuple[int, int, int] | None:
