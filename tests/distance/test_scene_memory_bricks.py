@@ -1,6 +1,7 @@
-"""The scene memory's brick stamps against the plain per-voxel rules: a frame that frees
-a whole brick of voxels stamps the brick, not its voxels, and skips writing their
-states when the brick is known to be all free; the map must not tell the difference.
+"""The scene memory's block stamps against the plain per-voxel rules: a frame that frees
+a whole brick or half-brick of voxels stamps its blocks, not its voxels, and skips
+writing their states when a brick is known to be all free; the map must not tell the
+difference.
 Smooth frames (a plane behind the cell, a person-sized patch in front, a hole without
 returns, the robot's pixels) from cameras around the cell, fused close together in
 time, so that whole bricks are freed, stay free, and are seen from behind a surface by
@@ -49,11 +50,11 @@ def smooth_frame(rng: np.random.Generator, h: int = 36, w: int = 48):
 
 @settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), frames=st.integers(2, 6))
-def test_brick_stamps_keep_the_per_voxel_rules(seed: int, frames: int) -> None:
+def test_block_stamps_keep_the_per_voxel_rules(seed: int, frames: int) -> None:
     """After every frame the state and the time each voxel was last seen free equal
     the plain per-voxel update's (the rules written once in numpy), while whole bricks
-    are freed by brick stamps. Frames 20 ms apart, the free hold 50 ms: a voxel a
-    brick stamp freed must not be shadowed by the next camera's view from behind."""
+    and half-bricks are freed by block stamps. Frames 20 ms apart, the free hold 50 ms:
+    a voxel a block stamp freed must not be shadowed by the next camera's view from behind."""
     rng = np.random.default_rng(seed)
     cfg = MemoryConfig(voxel=0.05, shadow_depth=0.4, memory_s=1.0, free_hold_s=0.05)
     fast, slow = SceneMemory(LOWER, UPPER, cfg), SceneMemory(LOWER, UPPER, cfg)
@@ -65,8 +66,8 @@ def test_brick_stamps_keep_the_per_voxel_rules(seed: int, frames: int) -> None:
         reference_update(slow, freed, depth, body, K, T, 0.02 * f)
         assert np.array_equal(fast.state, slow.state)
         assert np.array_equal(fast.freed_at.reshape(-1), freed)
-        stamped += int(np.count_nonzero(fast._freed_brick == 0.02 * f))
-    # only runs where whole bricks were freed by their stamp count (hypothesis fails
+        stamped += int(np.count_nonzero(fast._freed_block == 0.02 * f))
+    # only runs where whole blocks were freed by their stamp count (hypothesis fails
     # the test when too few do)
     assume(stamped > 0)
 

@@ -47,6 +47,9 @@ SHADOW = np.uint8(3)
 #: :func:`project_frame`.
 BRICK = 8
 TILE = 8
+#: Edge of a block (voxels): a half-brick, the unit of the free stamps ``freed_block``
+#: of :func:`project_frame`.
+BLOCK = BRICK // 2
 
 #: What the per-brick summary ``held`` (one byte per brick of ``BRICK``³ voxels) knows
 #: of its brick's voxels: nothing (``HELD_NONE``: no occupied or shadow voxel, others
@@ -257,16 +260,17 @@ def _brick_test(lo3, ext, view, tiles, rules, W, H):  # type: ignore[no-untyped-
 
 
 @njit(cache=True, nogil=True)
-def _apply(decision, whole, lo3, ext, state, freed_at, freed_brick, held, code, view, rules, W, H):  # type: ignore[no-untyped-def]
+def _apply(decision, whole, lo3, ext, state, freed_at, freed_block, held, code, view, rules, W, H):  # type: ignore[no-untyped-def]
     """Apply a brick test's ``decision`` to its voxels (voxel by voxel for ``_EACH``);
     returns how many of them projected onto a pixel with a return. The voxels lie in
     one brick of ``BRICK``³, all of its voxels when ``whole``.
 
     When a voxel was last seen free is the later of its own stamp ``freed_at`` and its
-    brick's ``freed_brick``: a brick freed whole stamps the brick, not its voxels (and
-    writes their states only if ``held`` does not say they are all free already), so a
-    static free space costs one write per brick and frame. The brick is flagged in
-    ``held`` (:data:`HELD_OBSTACLE`) when a voxel turns shadow. Compiled with numba,
+    block's ``freed_block`` (blocks of ``BLOCK``³ voxels, half a brick's edge): bricks
+    and half-bricks freed whole stamp their blocks, not their voxels (and a whole brick
+    writes its voxels' states only if ``held`` does not say they are all free already),
+    so a static free space costs one write per block and frame. The brick is flagged
+    in ``held`` (:data:`HELD_OBSTACLE`) when a voxel turns shadow. Compiled with numba,
     which takes the grids, the view and the rules as arrays one by one, not as one
     object."""
     band, shadow, t, hold = rules[0], rules[1], rules[2], rules[3]
@@ -276,32 +280,34 @@ def _apply(decision, whole, lo3, ext, state, freed_at, freed_brick, held, code, 
     if decision == _SKIP:
         return 0
     if decision == _ALL_FREE:
-        if whole:
-            freed_brick[b0, b1, b2] = t
-            if held[b0, b1, b2] != HELD_FREE:
-                held[b0, b1, b2] = HELD_FREE
-                for i in range(bi, bi + ei):
-                    for j in range(bj, bj + ej):
-                        for k in range(bk, bk + ek):
-                            state[i, j, k] = FREE
+        for i in range(bi // BLOCK, (bi + ei - 1) // BLOCK + 1):
+            for j in range(bj // BLOCK, (bj + ej - 1) // BLOCK + 1):
+                for k in range(bk // BLOCK, (bk + ek - 1) // BLOCK + 1):
+                    freed_block[i, j, k] = t
+        if whole and held[b0, b1, b2] == HELD_FREE:
             return ei * ej * ek
+        if whole:
+            held[b0, b1, b2] = HELD_FREE
         for i in range(bi, bi + ei):
             for j in range(bj, bj + ej):
                 for k in range(bk, bk + ek):
                     state[i, j, k] = FREE
-                    freed_at[i, j, k] = t
         return ei * ej * ek
-    # a voxel seen free within ``hold`` is not shadowed: none is when its brick was
-    may_shadow = t - freed_brick[b0, b1, b2] > hold
     if decision == _ALL_SHADOW:
-        if may_shadow:
-            for i in range(bi, bi + ei):
-                for j in range(bj, bj + ej):
-                    for k in range(bk, bk + ek):
-                        if state[i, j, k] != OCCUPIED and t - freed_at[i, j, k] > hold:
-                            state[i, j, k] = SHADOW
-                            held[b0, b1, b2] = HELD_OBSTACLE
+        for i in range(bi, bi + ei):
+            for j in range(bj, bj + ej):
+                for k in range(bk, bk + ek):
+                    if (
+                        state[i, j, k] != OCCUPIED
+                        and t - freed_at[i, j, k] > hold
+                        and t - freed_block[i // BLOCK, j // BLOCK, k // BLOCK] > hold
+                    ):
+                        state[i, j, k] = SHADOW
+                        held[b0, b1, b2] = HELD_OBSTACLE
         return ei * ej * ek
+    # a voxel seen free within ``hold`` is not shadowed: none is when its block was
+    # (the voxels of ``_EACH`` lie in one block)
+    may_shadow = t - freed_block[bi // BLOCK, bj // BLOCK, bk // BLOCK] > hold
     fx, fy, cx, cy, near = view[4, 0], view[4, 1], view[4, 2], view[4, 3], view[4, 4]
     reach = rules[4] + shadow
     sx, sy, sz = view[3, 0], view[3, 1], view[3, 2]
@@ -342,12 +348,13 @@ def _apply(decision, whole, lo3, ext, state, freed_at, freed_brick, held, code, 
 
 
 @njit(_SIG_PROJECT, cache=True, nogil=True)
-def project_frame(state, freed_at, freed_brick, held, code, tiles, camera, pose_cw, grid, rules):  # type: ignore[no-untyped-def]
+def project_frame(state, freed_at, freed_block, held, code, tiles, camera, pose_cw, grid, rules):  # type: ignore[no-untyped-def]
     """Free and shadow marks of one frame (module docstring) from its ``code`` image and
     ``tiles`` (:func:`prepare_frame`); ``rules`` = [band, shadow, t, hold, farthest
     return]. When a voxel was last seen free is the later of ``freed_at`` (per voxel)
-    and ``freed_brick`` (per brick: the brick was freed whole then); ``held`` is the
-    per-brick summary (:data:`HELD_OBSTACLE`, :data:`HELD_FREE`). Bricks of ``BRICK``³ voxels are decided at once where
+    and ``freed_block`` (per block of ``BLOCK``³ voxels: the block was freed whole
+    then); ``held`` is the per-brick summary (:data:`HELD_OBSTACLE`,
+    :data:`HELD_FREE`). Bricks of ``BRICK``³ voxels are decided at once where
     their corners allow (:func:`_brick_test`), else split into bricks of half the edge,
     then voxel by voxel.
     Returns the number of voxels whose centre projected onto a pixel with a return."""
@@ -372,7 +379,7 @@ def project_frame(state, freed_at, freed_brick, held, code, tiles, camera, pose_
     for a in range(5):
         view[4, a] = camera[a]
     view[4, 5] = vox
-    half = BRICK // 2
+    half = BLOCK
     lo3 = np.empty(3, dtype=np.int64)
     ext = np.empty(3, dtype=np.int64)
     sub = np.empty(3, dtype=np.int64)
@@ -390,7 +397,7 @@ def project_frame(state, freed_at, freed_brick, held, code, tiles, camera, pose_
                 decision = _brick_test(lo3, ext, view, tiles, rules, W, H)
                 if decision != _EACH:
                     seen += _apply(
-                        decision, True, lo3, ext, state, freed_at, freed_brick, held,
+                        decision, True, lo3, ext, state, freed_at, freed_block, held,
                         code, view, rules, W, H,
                     )  # fmt: skip
                     continue
@@ -403,7 +410,7 @@ def project_frame(state, freed_at, freed_brick, held, code, tiles, camera, pose_
                             sext[2] = min(half, bk + ext[2] - sk)
                             d = _brick_test(sub, sext, view, tiles, rules, W, H)
                             seen += _apply(
-                                d, False, sub, sext, state, freed_at, freed_brick, held,
+                                d, False, sub, sext, state, freed_at, freed_block, held,
                                 code, view, rules, W, H,
                             )  # fmt: skip
     return seen

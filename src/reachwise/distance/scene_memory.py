@@ -65,6 +65,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from reachwise.distance._memory_kernel import (
+    BLOCK,
     BRICK,
     FREE,
     HELD_OBSTACLE,
@@ -230,10 +231,10 @@ class SceneMemory:
         self.state = np.zeros(shape, dtype=np.uint8)
         self.seen_at = np.full(shape, -np.inf)
         bricks = tuple(-(-n // BRICK) for n in shape)
-        # when a voxel was last seen free: the later of its own stamp and its brick's
-        # (a frame that frees a whole brick stamps the brick only)
+        # when a voxel was last seen free: the later of its own stamp and its block's
+        # (a frame that frees a whole block of BLOCK**3 voxels stamps the block only)
         self._freed_voxel = np.full(shape, -np.inf)
-        self._freed_brick = np.full(bricks, -np.inf)
+        self._freed_block = np.full(tuple(-(-n // BLOCK) for n in shape), -np.inf)
         # per brick of BRICK**3 voxels: HELD_NONE, HELD_OBSTACLE (may hold an occupied
         # or shadow voxel) or HELD_FREE (every voxel free)
         self._held = np.zeros(bricks, dtype=np.uint8)
@@ -253,11 +254,13 @@ class SceneMemory:
     @property
     def freed_at(self) -> NDArray[np.float64]:
         """When each voxel was last seen free (s; -inf: never), a read-only copy: the
-        later of the voxel's own stamp and that of its brick of ``BRICK``³ voxels,
-        which a frame that frees the whole brick stamps instead of its voxels."""
+        later of the voxel's own stamp and that of its block of ``BLOCK``³ voxels (half
+        a brick's edge), which a frame that frees the whole block stamps instead of its
+        voxels."""
         nx, ny, nz = self.shape
-        per_brick = np.repeat(np.repeat(np.repeat(self._freed_brick, BRICK, 0), BRICK, 1), BRICK, 2)
-        out = np.maximum(self._freed_voxel, per_brick[:nx, :ny, :nz])
+        b = self._freed_block
+        per_block = np.repeat(np.repeat(np.repeat(b, BLOCK, 0), BLOCK, 1), BLOCK, 2)
+        out = np.maximum(self._freed_voxel, per_block[:nx, :ny, :nz])
         out.setflags(write=False)
         return out
 
@@ -337,7 +340,7 @@ class SceneMemory:
         project_frame(
             self.state,
             self._freed_voxel,
-            self._freed_brick,
+            self._freed_block,
             self._held,
             frame.code,
             frame.tiles,
@@ -435,7 +438,7 @@ class SceneMemory:
         self.state.fill(UNKNOWN)
         self.seen_at.fill(-np.inf)
         self._freed_voxel.fill(-np.inf)
-        self._freed_brick.fill(-np.inf)
+        self._freed_block.fill(-np.inf)
         self._held.fill(0)
         self._stamp = -math.inf
 
@@ -454,7 +457,7 @@ class SceneMemory:
         np.copyto(self.state, snapshot.state)
         np.copyto(self.seen_at, snapshot.seen_at)
         np.copyto(self._freed_voxel, snapshot.freed_at)
-        self._freed_brick.fill(-np.inf)
+        self._freed_block.fill(-np.inf)
         self._held.fill(HELD_OBSTACLE)  # any brick may hold an obstacle: the next collection sees
         self._stamp = snapshot.stamp
 
