@@ -1,6 +1,6 @@
 """Compiled kernels of the scene memory (:mod:`reachwise.distance.scene_memory`).
 
-Three passes per depth frame and one per hand-over, each over flat arrays:
+Three passes per depth frame, each over flat arrays:
 
 - :func:`prepare_frame` — one pass over the pixels: the frame as one ``code`` image
   (the return's depth, minus it where the pixel saw the robot, NaN without a return)
@@ -20,23 +20,24 @@ Three passes per depth frame and one per hand-over, each over flat arrays:
 - :func:`mark_points` — every returned pixel back-projected to its point, whose voxel
   is marked occupied at time ``t``: a voxel that holds an observed point is occupied,
   whatever its centre's pixel saw (depth edges).
-- :func:`collect_ordered` — occupied voxels not re-observed for ``memory`` s fade to
-  shadow (never to free); the centres of the occupied and shadow voxels are returned in
-  Morton order of their voxel indices, with their codes, so that their distance index
-  is built without a sort (``reachwise.distance.index.index_of_ordered``).
+
+The hand-over's collection (fading, Morton order) is in
+:mod:`reachwise.distance._memory_collect`.
 
 The loops are long by design: one pass over millions of voxels, with the camera
-coordinates of each centre updated by three additions along the innermost axis.
+coordinates of each centre updated by three additions along the innermost axis. The
+module holds the three passes and the brick test and its application they share (about
+470 lines): they read one frame layout (``code``, ``tiles``) and one map layout
+(``state``, the free stamps, the per-brick summary ``held``), which a split would
+spread over several files.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 from numba import njit, types
-from numpy.typing import NDArray
 
 UNKNOWN = np.uint8(0)
 FREE = np.uint8(1)
@@ -54,7 +55,8 @@ BLOCK = BRICK // 2
 #: What the per-brick summary ``held`` (one byte per brick of ``BRICK``³ voxels) knows
 #: of its brick's voxels: nothing (``HELD_NONE``: no occupied or shadow voxel, others
 #: unknown or free), that it may hold an occupied or shadow voxel (``HELD_OBSTACLE``:
-#: every kernel that makes one sets it, :func:`collect_ordered` reads only these), or
+#: every kernel that makes one sets it, and the hand-over's
+#: :func:`~reachwise.distance._memory_collect.collect_ordered` reads only these), or
 #: that every voxel is free (``HELD_FREE``: set when a frame frees the whole brick, so
 #: the next frame that frees it whole writes no voxel, only the brick's stamp).
 HELD_NONE = np.uint8(0)
@@ -172,7 +174,14 @@ def _brick_test(lo3, ext, view, tiles, rules, W, H):  # type: ignore[no-untyped-
     coordinates of voxel (0, 0, 0)'s centre, one step along i, j, k, then [fx, fy, cx,
     cy, near, voxel]. The centres of a convex brick project inside the convex hull of
     its corners' projections (every centre in front of the camera), so the tiles under
-    the corners' pixel rectangle bound every pixel a centre reads."""
+    the corners' pixel rectangle bound every pixel a centre reads.
+
+    One function (about 90 lines) of four stages, each of which may end the test: the
+    bounding sphere against the near plane and the farthest reach, against the
+    frustum's side planes, the corners' pixel rectangle, and the tile bounds over it.
+    Every stage reads the centre, radius and corners of the one before, and the test
+    runs about ten thousand times per frame inside :func:`project_frame`'s loop:
+    split, the stages would hand those back and forth."""
     fx, fy, cx, cy, near, vox = (
         view[4, 0],
         view[4, 1],
@@ -430,10 +439,11 @@ def _cell(f):  # type: ignore[no-untyped-def]
 @njit(_SIG_MARK, cache=True, nogil=True)
 def mark_points(state, seen_at, held, code, camera, pose_wc, grid, t):  # type: ignore[no-untyped-def]
     """Mark the voxel of every scene pixel's point (``code`` > 0, :func:`prepare_frame`)
-    occupied at time ``t``, its brick flagged in ``held`` (:func:`collect_ordered`);
-    returns the number of points that fell inside the grid. Per image row, the voxel
-    indices of all its pixels are found first in a branch-free pass (which the compiler
-    vectorises), then the voxels marked."""
+    occupied at time ``t``, its brick flagged in ``held``
+    (:func:`~reachwise.distance._memory_collect.collect_ordered`); returns the number
+    of points that fell inside the grid. Per image row, the voxel indices of all its
+    pixels are found first in a branch-free pass (which the compiler vectorises), then
+    the voxels marked."""
     fx, fy, cx, cy = camera[0], camera[1], camera[2], camera[3]
     ox, oy, oz, vox = grid[0], grid[1], grid[2], grid[3]
     inv_vox = 1.0 / vox
@@ -473,109 +483,3 @@ def mark_points(state, seen_at, held, code, camera, pose_wc, grid, t):  # type: 
                     held[i // BRICK, j // BRICK, k // BRICK] = HELD_OBSTACLE
                     li, lj, lk = i, j, k
     return marked
-
-
-#: Bits per axis of a voxel's Morton code (:func:`collect_ordered`): codes stay below
-#: 2**60, as the ordered tree build (``index_of_ordered``) needs.
-MORTON_AXIS_BITS = 20
-_LOCAL_BITS = 9  # the Morton code of a voxel within its BRICK**3 brick
-
-
-def morton_codes(i: NDArray[np.int64], j: NDArray[np.int64], k: NDArray[np.int64]) -> Any:
-    """The Morton codes of the voxel indices ``i``, ``j``, ``k`` (each below
-    2**:data:`MORTON_AXIS_BITS`): their bits interleaved, ``i``'s highest."""
-    out = np.zeros(np.broadcast(i, j, k).shape, dtype=np.int64)
-    for b in range(MORTON_AXIS_BITS):
-        for shift, axis in ((2, i), (1, j), (0, k)):
-            out |= ((np.asarray(axis, dtype=np.int64) >> b) & 1) << (3 * b + shift)
-    return out
-
-
-def brick_order(shape: tuple[int, int, int]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """The traversal of :func:`collect_ordered` over a grid of ``shape``: the bricks
-    (rows: first voxel's i, j, k and the Morton code of that voxel) and the voxels of a
-    brick (rows: offsets i, j, k and their Morton code), each in increasing code. A
-    brick's first index is a multiple of ``BRICK`` (a power of two), so a voxel's code
-    is its brick's code plus its offset's: the two orders together visit the voxels in
-    increasing Morton code."""
-    nb = [(n + BRICK - 1) // BRICK for n in shape]
-    b = np.indices(nb, dtype=np.int64).reshape(3, -1) * BRICK
-    bricks = np.column_stack([*b, morton_codes(*b)])
-    local = np.indices((BRICK,) * 3, dtype=np.int64).reshape(3, -1)
-    voxels = np.column_stack([*local, morton_codes(*local)])
-    return (
-        np.ascontiguousarray(bricks[np.argsort(bricks[:, 3])]),
-        np.ascontiguousarray(voxels[np.argsort(voxels[:, 3])]),
-    )
-
-
-_RO_I8_2D = types.Array(types.int64, 2, "C", readonly=True)
-_W_I8_1D = types.Array(types.int64, 1, "C")
-_SIG_COLLECT = types.int64(
-    _W_U1_3D,
-    _W_F8_3D,
-    _W_U1_3D,
-    _RO_F8_1D,
-    types.float64,
-    types.float64,
-    _RO_I8_2D,
-    _RO_I8_2D,
-    _W_F8_2D,
-    _W_I8_1D,
-)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _spread3(x):  # type: ignore[no-untyped-def]
-    """The three low bits of ``x`` spread to every third bit (bit b → bit 3b)."""
-    return (x & 1) | ((x & 2) << 2) | ((x & 4) << 4)
-
-
-@njit(_SIG_COLLECT, cache=True, nogil=True)
-def collect_ordered(state, seen_at, held, grid, t, memory, bricks, voxels, out, codes):  # type: ignore[no-untyped-def]
-    """Fade occupied voxels older than ``memory`` s to shadow, then write the centres of
-    the occupied and shadow voxels into ``out`` and their Morton codes into ``codes``
-    (as many rows as fit), in increasing code (the traversal ``bricks``, ``voxels`` of
-    :func:`brick_order`); returns their count (call again with larger arrays when it
-    exceeds ``len(out)``: the fading is done already). Points in Morton order of
-    distinct codes are what the ordered tree build takes without a sort.
-
-    ``held`` flags the bricks (``BRICK``³ voxels, indexed by ``i // BRICK`` …) that
-    may hold an occupied or shadow voxel: every kernel that makes one flags its brick,
-    and only flagged bricks are read here (in memory order: fading, and flagging their
-    obstacle voxels by their code within the brick), a brick found without any
-    unflagged. A brick with some is walked again, in code order over those flags."""
-    ox, oy, oz, vox = grid[0], grid[1], grid[2], grid[3]
-    nx, ny, nz = state.shape
-    cap = out.shape[0]
-    flags = np.zeros(voxels.shape[0], dtype=np.bool_)
-    n = 0
-    for b in range(bricks.shape[0]):
-        bi, bj, bk, bcode = bricks[b, 0], bricks[b, 1], bricks[b, 2], bricks[b, 3]
-        if held[bi // BRICK, bj // BRICK, bk // BRICK] != HELD_OBSTACLE:
-            continue
-        found = 0
-        for i in range(bi, min(bi + BRICK, nx)):
-            for j in range(bj, min(bj + BRICK, ny)):
-                for k in range(bk, min(bk + BRICK, nz)):
-                    s = state[i, j, k]
-                    if s < OCCUPIED:
-                        continue
-                    if s == OCCUPIED and t - seen_at[i, j, k] > memory:
-                        state[i, j, k] = SHADOW
-                    flags[_spread3(i - bi) << 2 | _spread3(j - bj) << 1 | _spread3(k - bk)] = True
-                    found += 1
-        if found == 0:
-            held[bi // BRICK, bj // BRICK, bk // BRICK] = HELD_NONE
-            continue
-        for v in range(voxels.shape[0]):
-            if not flags[v]:
-                continue
-            flags[v] = False
-            if n < cap:
-                out[n, 0] = ox + (bi + voxels[v, 0] + 0.5) * vox
-                out[n, 1] = oy + (bj + voxels[v, 1] + 0.5) * vox
-                out[n, 2] = oz + (bk + voxels[v, 2] + 0.5) * vox
-                codes[n] = bcode | v
-            n += 1
-    return n

@@ -64,17 +64,15 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from reachwise.distance._memory_collect import MORTON_AXIS_BITS, brick_order, collect_ordered
 from reachwise.distance._memory_kernel import (
     BLOCK,
     BRICK,
     FREE,
     HELD_OBSTACLE,
-    MORTON_AXIS_BITS,
     OCCUPIED,
     SHADOW,
     UNKNOWN,
-    brick_order,
-    collect_ordered,
     mark_points,
     prepare_frame,
     project_frame,
