@@ -181,7 +181,8 @@ def _brick_test(lo3, ext, view, tiles, rules, W, H):  # type: ignore[no-untyped-
     frustum's side planes, the corners' pixel rectangle, and the tile bounds over it.
     Every stage reads the centre, radius and corners of the one before, and the test
     runs about ten thousand times per frame inside :func:`project_frame`'s loop:
-    split, the stages would hand those back and forth."""
+    compiled with numba, split, the stages would hand those back and forth through
+    memory."""
     fx, fy, cx, cy, near, vox = (
         view[4, 0],
         view[4, 1],
