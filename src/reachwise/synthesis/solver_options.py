@@ -29,7 +29,9 @@ class Workspace(Protocol):
 @dataclass(frozen=True)
 class SolverOptions:
     """Tuning of the ``dls`` solver (lengths in m, angles in rad); ``lambda_max`` and
-    ``epsilon``: the damping schedule (``reachwise.kinematics.dls``)."""
+    ``epsilon``: the damping schedule (``reachwise.kinematics.dls``);
+    ``stationary_decrease`` and ``stationary_gradient``: when a run has found a
+    constrained stationary point of its merit (``solvers.solve_dls``)."""
 
     max_iter: int = 1000
     lambda_max: float = LAMBDA_MAX
@@ -46,6 +48,8 @@ class SolverOptions:
     stall_decrease: float = 1e-3
     reseed_progress: float = 0.5
     max_boost: float = 1.0
+    stationary_decrease: float = 1e-3
+    stationary_gradient: float = 1e-2
 
 
 @dataclass(frozen=True)
