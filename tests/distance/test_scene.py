@@ -305,8 +305,7 @@ def test_clear_empties_the_scene_and_drops_clouds_handed_over_before() -> None:
     scene.watch_environment("arm", 5.0, ["env"])
     add_memory(scene, "seen", np.array([-1.0, -1.0, 0.0]), np.ones(3))
     scene.replace_cloud("env", np.array([[0.0, 0.0, 0.05]]))  # not swapped in yet
-    old = scene.clear()
-    old.close()
+    scene.clear()
     assert scene.generation == 1
     assert (scene.objects, scene.robots, scene.pairs, dict(memories_of(scene))) == ({}, {}, (), {})
     q = np.array([0.5, -0.4, 0.2, 0.1])

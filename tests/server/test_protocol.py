@@ -46,7 +46,7 @@ def sample_requests(crane: Robot) -> list[P.Request]:
         P.OperationCall.of("watch_environment", "hiab-xs033", 0.5),
         P.OperationCall.of("watch_robots", "r1", "r2", 0.3),
         P.OperationCall.of("unwatch", "a", "b"),
-        P.Clear(),
+        P.OperationCall.of("clear"),
         P.Query(),
         P.Query(1.0, {"hiab-xs033": np.zeros(crane.n)}, {"probe": _pose()}, (("a", "b"),), "x-1"),
         P.Describe(True),

@@ -406,7 +406,8 @@ def test_a_cloud_handed_over_before_a_clear_is_never_swapped_in_or_saved(
     svc.handle(P.AddObject(CAMERA, _frame(0)))
     svc.handle(P.AddObject("probe", np.array([[2.0, -0.4, 0.0]]), None, dynamic=True))
     wait = svc.hand_over(P.ReplaceCloud(CAMERA, _frame(5), 15.0, block=True))
-    assert svc.handle(P.Clear()) == P.Ack()
+    cleared = svc.handle(P.OperationCall.of("clear"))
+    assert isinstance(cleared, P.OperationResult) and cleared.result is None
     svc.handle(P.AddObject(CAMERA, _frame(1)))
     svc.handle(P.AddObject("probe", np.array([[2.0, -0.4, 0.0]]), None, dynamic=True))
     svc.handle(P.OperationCall.of("watch", "probe", CAMERA, 10.0))

@@ -412,18 +412,17 @@ class Scene(SceneState):
             cloud_stamps=self._cloud_stamps,
         )
 
-    def clear(self) -> CloudIngest:
+    @scene_change
+    def clear(self) -> None:
         """Remove every robot, object and pair, as a new scene of the same strategy,
         clock and voxel has none, and count one more :attr:`generation`. Clouds handed
         over and not swapped in yet are dropped: the worker that indexed them is told
-        to stop and returned (its build in progress ends on it; ``close()`` waits for
-        that), and a new one indexes the clouds handed over from now on."""
-        old = self._ingest
-        old.stop()
+        to stop (its build in progress ends on it, then its thread exits), and a new
+        one indexes the clouds handed over from now on."""
+        self._ingest.stop()
         self._stop_ingest.detach()
         self._empty()
         self._generation += 1
-        return old
 
     def close(self) -> None:
         """Stop the cloud-ingestion worker (a remote scene disconnects here); a scene

@@ -110,7 +110,6 @@ class SceneService(SceneAnswering, CloudHandover):
             P.ReplaceCloud: self._replace_cloud,
             P.SetJoints: self._set_joints,
             P.SetPose: self._set_pose,
-            P.Clear: self._clear,
             P.Query: self._query,
             P.Describe: self._describe,
             P.OperationCall: self._operation,
@@ -210,16 +209,19 @@ class SceneService(SceneAnswering, CloudHandover):
             with self.lock:
                 result = op.hand_over(self.scene, prepared)
                 return P.OperationResult(P.encode_value(result, op.result))
+        dropped: list[str] = []
         with self.lock:
             try:
                 result = op.function(self.scene, **req.arguments)
             finally:
                 if op.mutates:  # a failed call may have changed part of the scene
-                    self._adopt()
+                    dropped = self._adopt()
                     manifest = self._manifest()
             reply = P.OperationResult(P.encode_value(result, op.result))
         if op.mutates:
             self._persist(manifest)
+        for cloud_file in dropped:  # of objects the change removed, once unlisted
+            self._drop_file(cloud_file)
         return reply
 
     # ------------------------------------------------------------------ initialization phase
@@ -303,19 +305,6 @@ class SceneService(SceneAnswering, CloudHandover):
             raise
         self._persist(manifest)
         return P.ObjectReply(req.name, len(cloud))
-
-    def _clear(self, req: P.Clear) -> P.Reply:
-        with self.lock:
-            dropped = [m.cloud_file for m in self._meta.values()]
-            ingest = self.scene.clear()
-            self._adopt()
-            self._live_dirty = True
-            manifest = self._manifest()
-        ingest.close()  # the worker of the clouds handed over before
-        self._persist(manifest)
-        for f in dropped:
-            self._drop_file(f)
-        return P.Ack()
 
     def close(self) -> None:
         """Stop the scene's cloud-indexing worker."""

@@ -162,12 +162,14 @@ class ServiceCore:
         if name not in self._meta:
             raise unknown_error("object", name, self._meta, where)
 
-    def _adopt(self, saved: dict[str, str | None] | None = None) -> None:
+    def _adopt(self, saved: dict[str, str | None] | None = None) -> list[str]:
         """Take over what a change did to the scene (call under the lock): its robots
         (and their YAML models), its objects — the saved cloud file of each new one
         from ``saved`` (an object without one, such as a scene memory's, is left out of
         the state directory), whose time stamp its pose carries from its pose source —
-        and a new layout. What the scene no longer holds is forgotten."""
+        and a new layout. What the scene no longer holds is forgotten; the saved cloud
+        files of its objects are returned, to be deleted once the new manifest is
+        saved."""
         robots = self.scene.robots
         self._robots = {k: r for k, r in robots.items() if isinstance(r, Robot)}
         self._models = {k: self._models.get(k) or robot_to_dict(r) for k, r in self._robots.items()}
@@ -180,11 +182,14 @@ class ServiceCore:
                 cloud_file = (saved or {}).get(name)
                 old = ObjectMeta(cloud_file, stamp_source(name, obj.source), points)
             meta[name] = old
+        dropped = [m.cloud_file for k, m in self._meta.items() if k not in meta and m.cloud_file]
         self._meta = meta
         for kept in (self._joints, self._runtime, self._unsaved, self._version_base):
             for name in [k for k in kept if k not in robots and k not in objects]:
                 del kept[name]
+                self._live_dirty |= kept is self._joints or kept is self._runtime
         self._pairs_changed()
+        return dropped
 
     def _check_q(self, robot: Robot, q: NDArray[np.float64], where: str) -> None:
         if q.shape != (robot.n,):

@@ -148,6 +148,8 @@ class SceneClient(RemoteQueries):
             result = P.decode_value(rep.result, op.result, "body.result")
         except P.ProtocolError as exc:
             raise ServerError(f"invalid reply to {name}: {exc}", exc.code, exc.field) from None
+        if op.mutates:  # it may have removed or replaced a robot
+            self._robot_cache = {}
         if self._mirror is not None and (op.mutates or op.hand_over is not None):
             # the same change on the local copy; a staged operation hands its result
             # over into the scene (a fused frame's cloud), so it is applied too
@@ -213,7 +215,7 @@ class SceneClient(RemoteQueries):
         """Registered robots, rebuilt from the YAML mappings the server holds (with
         ``mirror``: the ones this client registered)."""
         if self._mirror is not None:
-            return dict(self._robot_cache)
+            return {k: r for k, r in self._mirror.robots.items() if isinstance(r, Robot)}
         out = {}
         for name, model in self.describe().robots.items():
             robot = self._robot_cache.get(name)
@@ -381,18 +383,8 @@ class SceneClient(RemoteQueries):
             self._mirror.replace_cloud(name, copy, block=False, stamp=t)
         return rep.version
 
-    def clear(self, *, deadline: float | None = None) -> None:
-        """Remove every robot, object and pair from the server's scene (and its saved
-        state): for a client that owns the scene, before it registers its own."""
-        self._setup(P.Clear(), P.Ack, deadline)
-        self._robot_cache = {}
-        self._layout = self._channel.layout = None
-        self._last_pairs = ()
-        self._pending_joints, self._pending_poses = {}, {}
-        if self._mirror is not None:
-            self._mirror.clear().close()
-
-    # the pair rules are the scene's own operations, carried over the wire
+    # clear and the pair rules are the scene's own operations, carried over the wire
+    clear = Scene.clear
     watch = Scene.watch
     unwatch = Scene.unwatch
     watch_self = Scene.watch_self

@@ -341,7 +341,6 @@ REPLIES: dict[str, type[Reply]] = {
     "replace_cloud": ObjectReply,
     "set_joints": Ack,
     "set_pose": Ack,
-    "clear": Ack,
     "query": QueryReply,
     "describe": DescribeReply,
     "call": OperationResult,

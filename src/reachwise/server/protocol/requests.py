@@ -347,15 +347,6 @@ def _array_map(
 
 
 @dataclass(frozen=True)
-class Clear(Request):
-    """Remove every robot, object and pair (and their saved state): a simulator that
-    owns the server's scene starts each run from an empty one."""
-
-    OP: ClassVar[str] = "clear"
-    STRUCTURAL: ClassVar[bool] = True
-
-
-@dataclass(frozen=True)
 class Describe(Request):
     """The scene's contents: robots, objects (with their clouds if ``clouds``), pairs."""
 
@@ -425,7 +416,6 @@ REQUESTS: dict[str, type[Request]] = {
         ReplaceCloud,
         SetJoints,
         SetPose,
-        Clear,
         Query,
         Describe,
         OperationCall,
