@@ -95,6 +95,10 @@ __all__ = [
 
 Array = NDArray[np.float64]
 
+#: A trial step whose merit is at most this much higher (relative) is taken: the merit
+#: counts as flat there.
+FLAT_MERIT = 1e-6
+
 
 def _max_steps(problem: SynthesisProblem) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
     """Per-variable step caps: angles ``max_step_angle``, lengths ``max_step_length``."""
@@ -290,20 +294,21 @@ def _line_search(
     clearance: ClearanceModel | None,
 ) -> _Trial:
     """The first of ``steps`` (capped per block, then halved up to four times) that
-    lowers the merit; a step with the null-space motion (all but the last) is also
-    kept when it leaves the merit unchanged. The merit of a trial is computed from the
-    distances alone (``clearance_rows.merit``)."""
+    does not raise the merit beyond ``1e-6`` relative (``FLAT_MERIT``): a step across a
+    flat merit is taken, so the iteration moves on and the stall rule, not the line
+    search, decides when it has stopped progressing (a step that lowers the merit by
+    less than ``stall_decrease`` releases the bounds). The merit of a trial is computed
+    from the distances alone (``clearance_rows.merit``)."""
     lo, hi = problem.bounds
     c_try, alpha = cur.cost, 1.0
-    for i, raw in enumerate(steps):
+    for raw in steps:
         step, _ = _capped(raw, caps.flat, problem.p, problem.K, problem.n_free_joints)
-        with_motion = i < len(steps) - 1
         alpha = 1.0
         for _ in range(5):
             z_try = np.clip(cur.z + alpha * step, lo, hi)
             ev_try = problem.evaluate(z_try)
             c_try = merit(problem, ev_try, wx, z_try, clearance)
-            if c_try < cur.cost or (with_motion and c_try <= cur.cost * 1.000001 + 1e-12):
+            if c_try <= cur.cost * (1.0 + FLAT_MERIT) + 1e-12:
                 return _Trial(z_try, ev_try, c_try, alpha)
             alpha *= 0.5
     return _Trial(None, None, c_try, alpha)
