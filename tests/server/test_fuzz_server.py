@@ -203,7 +203,7 @@ def _templates(robot: Robot) -> list[P.Request]:
         P.OperationCall.of("unwatch", "fuzz_part", "environment"),
         P.Query(),
         P.Query(1.0, {name: crane_q(robot, 7)}, None, (("link_6", "environment"),)),
-        P.Describe(True),
+        P.OperationCall.of("describe", clouds=True),
         P.OperationCall("object_poses", {}),
     ]
 

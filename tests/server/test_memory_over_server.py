@@ -46,6 +46,7 @@ from ..distance.test_scene_memories import (
     wall_distances,
 )
 from .conftest import HANG_GUARD
+from .described import described
 
 CONFIG = MemoryConfig(voxel=0.03, shadow_depth=0.4)
 
@@ -180,14 +181,13 @@ def test_a_state_directory_keeps_the_memory_watched_and_unknown(tmp_path: Path) 
         assert isinstance(svc.handle(P.OperationCall.of(str(name), *args)), P.OperationResult)
     rows = svc.handle(P.Query(stamp=4.0))
     assert isinstance(rows, P.QueryReply) and rows.rows[0, 0] < MARGIN  # answered
-    before = svc.handle(P.Describe())
+    before = described(svc)
     first = memories_of(svc.scene)["memory"]
 
     again = SceneService(store=StateStore(tmp_path))
     again.load()
     assert again.ready, again.reason
-    after = again.handle(P.Describe())
-    assert isinstance(after, P.DescribeReply) and isinstance(before, P.DescribeReply)
+    after = described(again)
     assert sorted(o.name for o in after.objects) == ["memory", "probe"]
     assert after.pairs == before.pairs  # watched as before, margin + inflation
     (setup,) = memory_setups(again.scene)

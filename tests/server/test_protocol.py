@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -11,6 +12,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from reachwise.distance.pairs import WatchedPair
+from reachwise.distance.scene_queries import ObjectInfo, SceneDescription
 from reachwise.io.robot_file import robot_to_dict
 from reachwise.kinematics.robot import Robot
 from reachwise.server import protocol as P
@@ -49,7 +52,7 @@ def sample_requests(crane: Robot) -> list[P.Request]:
         P.OperationCall.of("clear"),
         P.Query(),
         P.Query(1.0, {"hiab-xs033": np.zeros(crane.n)}, {"probe": _pose()}, (("a", "b"),), "x-1"),
-        P.Describe(True),
+        P.OperationCall.of("describe", clouds=True),
         P.OperationCall("object_poses", {}),
     ]
 
@@ -85,6 +88,16 @@ def test_replies_round_trip(crane: Robot) -> None:
     rows[1, :10] = [math.inf] + [math.nan] * 9
     rows[1, 10:] = [-1, -1, 1]
     pairs = (P.PairInfo("a", "b", 0.5, "custom"), P.PairInfo("c", "d", math.inf, "self"))
+    description = SceneDescription(
+        "default",
+        {"hiab-xs033": crane},
+        {"hiab-xs033": np.zeros(crane.n)},
+        (
+            ObjectInfo("part", 10, "link", np.eye(4), "hiab-xs033", "link_2"),
+            ObjectInfo("env", 2, "fixed", _pose(), cloud=np.ones((2, 3))),
+        ),
+        (WatchedPair("a", "b", 0.5, "custom"), WatchedPair("c", "d", math.inf, "self")),
+    )
     replies: list[tuple[str, P.Reply]] = [
         ("hello", P.HelloReply("reachwise", "0.1.0", 1, "abc", True)),
         ("health", P.HealthReply(True, "ready", "", 7, "abc", 1.5, 1, 2, 3)),
@@ -99,26 +112,18 @@ def test_replies_round_trip(crane: Robot) -> None:
         ("set_joints", P.Ack()),
         ("query", P.QueryReply(3, 1.25, 1e-4, "abc-2", pairs, rows)),
         ("query", P.QueryReply(4, 1.25, 1e-4, "abc-2", None, rows)),
-        (
-            "describe",
-            P.DescribeReply(
-                "default",
-                {"hiab-xs033": robot_to_dict(crane)},
-                {"hiab-xs033": np.zeros(crane.n)},
-                (
-                    P.ObjectInfo("part", 10, "link", np.eye(4), "hiab-xs033", "link_2"),
-                    P.ObjectInfo("env", 2, "fixed", _pose(), cloud=np.ones((2, 3))),
-                ),
-                pairs,
-                4,
-            ),
-        ),
+        ("call", P.OperationResult(P.encode_value(description, SceneDescription))),
         ("call", P.OperationResult({"part": P.encode_array(_pose())})),
     ]
     for op, rep in replies:
         back = P.decode_reply(P.encode_reply(11, rep), P.REPLIES[op])
         assert back.request_id == 11 and back.error is None
         assert _equal(back.reply, rep), op
+    wire = P.encode_value(description, SceneDescription)
+    back_description = P.decode_value(wire, SceneDescription, "result")
+    assert robot_to_dict(back_description.robots["hiab-xs033"]) == robot_to_dict(crane)
+    no_robots = dataclasses.replace(description, robots={})
+    assert _equal(dataclasses.replace(back_description, robots={}), no_robots)
     q = P.decode_reply(P.encode_reply(1, replies[6][1]), P.QueryReply).reply
     assert isinstance(q, P.QueryReply)
     assert q.index.tolist() == [[7, 9], [-1, -1]] and q.no_risk.tolist() == [False, True]
@@ -261,7 +266,7 @@ def _code(raw: bytes, limits: P.Limits = LIMITS) -> tuple[P.ErrorCode, str]:
             E.WRONG_TYPE,
             "body.robot.blob",
         ),
-        (_raw("describe", {"clouds": "yes"}), E.WRONG_TYPE, "body.clouds"),
+        (_call("describe", {"clouds": "yes"}), E.WRONG_TYPE, "body.arguments.clouds"),
         # the checks the messages' type hints make: names, finite stamps and joint
         # values, pose shapes, unknown and missing fields, list entries
         (

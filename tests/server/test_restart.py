@@ -29,6 +29,8 @@ from numpy.typing import NDArray
 from reachwise.api import simulate
 from reachwise.benchmarks.server import ServerProcess
 from reachwise.distance.scene import SceneResult
+from reachwise.distance.scene_queries import SceneDescription
+from reachwise.io.robot_file import robot_to_dict
 from reachwise.server import protocol as P
 from reachwise.server.client import SceneClient, ServerOptions
 from reachwise.sim.scenarios import scenario_from_dict
@@ -64,7 +66,7 @@ def _scenario(folder: Path, environment: NDArray[np.float64]) -> dict[str, objec
     }  # fmt: skip
 
 
-def _describe(endpoint: str) -> P.DescribeReply:
+def _describe(endpoint: str) -> SceneDescription:
     with SceneClient(endpoint, setup_deadline=20.0) as c:
         c.wait_ready(30.0)
         return c.describe(clouds=True)
@@ -80,7 +82,7 @@ def test_sigkill_stops_the_robot_and_a_restart_restores_the_scene(
     procs: list[ServerProcess] = [first]
     restarter: list[threading.Thread] = []
     answers: list[tuple[float, int, bool, str]] = []  # t, sequence, valid, reason
-    before: list[P.DescribeReply] = []
+    before: list[SceneDescription] = []
     down = threading.Event()  # set from the kill until the first valid answer after it
     real_call, real_query_all = SceneClient.call, SceneClient.query_all
 
@@ -161,7 +163,10 @@ def test_sigkill_stops_the_robot_and_a_restart_restores_the_scene(
     assert np.array_equal(still, np.broadcast_to(still[0], still.shape))
     # after the restart: the same scene, fresh sequence numbers, on to the goal
     b = before[0]
-    assert after.robots == b.robots and after.pairs == b.pairs
+    assert {k: robot_to_dict(r) for k, r in after.robots.items()} == {
+        k: robot_to_dict(r) for k, r in b.robots.items()
+    }
+    assert after.pairs == b.pairs
     assert [(o.name, o.source, o.robot, o.link) for o in after.objects] == [
         (o.name, o.source, o.robot, o.link) for o in b.objects
     ]

@@ -18,6 +18,7 @@ from reachwise.server.service import SceneService
 from reachwise.server.state import StateError, StateStore, atomic_write
 
 from .conftest import LINKS, crane_q
+from .described import described
 
 
 def _service(root: Path | None) -> SceneService:
@@ -69,7 +70,7 @@ def test_restore_gives_the_same_scene_and_answers(
     assert isinstance(hand_over, P.ObjectReply) and hand_over.version == 1
     svc.flush_live(force=True)
     svc.flush_clouds(force=True)
-    before = svc.handle(P.Describe(True))
+    before = described(svc, clouds=True)
     answer = _query(svc)
     last_sequence = svc.sequence.last
 
@@ -77,9 +78,11 @@ def test_restore_gives_the_same_scene_and_answers(
     assert not again.ready and again.state == "loading"
     again.load()
     assert again.ready
-    after = again.handle(P.Describe(True))
-    assert isinstance(before, P.DescribeReply) and isinstance(after, P.DescribeReply)
-    assert after.robots == before.robots and after.pairs == before.pairs
+    after = described(again, clouds=True)
+    assert {k: robot_to_dict(r) for k, r in after.robots.items()} == {
+        k: robot_to_dict(r) for k, r in before.robots.items()
+    }
+    assert after.pairs == before.pairs
     assert [o.name for o in after.objects] == [o.name for o in before.objects]
     for a, b in zip(after.objects, before.objects, strict=True):
         assert (a.source, a.robot, a.link, a.points) == (b.source, b.robot, b.link, b.points)
@@ -159,7 +162,7 @@ def test_not_ready_until_restored_then_failed_on_a_bad_state(tmp_path: Path) -> 
     assert isinstance(health, P.HealthReply)
     assert health.state == "failed" and not health.ready and "scene.json" in health.reason
     with pytest.raises(P.ProtocolError) as info:
-        svc.handle(P.Describe())
+        described(svc)
     assert info.value.code == P.ErrorCode.NOT_READY and "failed" in info.value.message
 
 

@@ -24,6 +24,7 @@ from reachwise.server.service import SceneService
 from reachwise.server.state import StateStore
 
 from .conftest import HANG_GUARD, LINKS, MAX_CLOUD_POINTS, box_points, crane_q, start_server
+from .described import described
 
 E = P.ErrorCode
 CAMERA = "camera"
@@ -384,9 +385,7 @@ def test_only_indexed_clouds_are_saved_and_a_crash_restores_the_last_saved(
     again = SceneService(store=StateStore(tmp_path))  # the same directory, no clean stop
     again.load()
     assert again.ready
-    described = again.handle(P.Describe(True))
-    assert isinstance(described, P.DescribeReply)
-    (cam,) = described.objects
+    (cam,) = described(again, clouds=True).objects
     np.testing.assert_array_equal(cam.cloud, _frame(2).astype(np.float32))
     answer = again.handle(P.Query(1.0))
     assert isinstance(answer, P.QueryReply) and answer.clouds is not None
@@ -424,9 +423,7 @@ def test_a_cloud_handed_over_before_a_clear_is_never_swapped_in_or_saved(
     assert answer.rows[0, 0] == pytest.approx(want, abs=1e-12)
     again = SceneService(store=StateStore(tmp_path))
     again.load()
-    described = again.handle(P.Describe(True))
-    assert isinstance(described, P.DescribeReply)
-    cam = next(o for o in described.objects if o.name == CAMERA)
+    cam = next(o for o in described(again, clouds=True).objects if o.name == CAMERA)
     np.testing.assert_array_equal(cam.cloud, _frame(1))
     svc.close()
     again.close()

@@ -19,6 +19,7 @@ from reachwise.server.counters import Metrics
 from reachwise.server.service import SceneService
 
 from .conftest import LINKS, box_points, crane_q
+from .described import described
 
 E = P.ErrorCode
 
@@ -140,9 +141,7 @@ def test_a_bad_tick_is_refused_with_its_request_id(
     assert compute is None and decoded.request_id == 77 and decoded.error is not None
     assert (decoded.error.code, decoded.error.field) == (E.WRONG_SHAPE, f"body.joints.{crane.name}")
     assert "6 joint variables" in decoded.error.message
-    described = svc.handle(P.Describe())
-    assert isinstance(described, P.DescribeReply)
-    np.testing.assert_array_equal(described.joints[crane.name], crane_q(crane, 0))
+    np.testing.assert_array_equal(described(svc).joints[crane.name], crane_q(crane, 0))
 
 
 def test_a_tick_that_fails_inside_is_an_internal_error_and_the_next_is_answered(

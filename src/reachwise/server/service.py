@@ -111,7 +111,6 @@ class SceneService(SceneAnswering, CloudHandover):
             P.SetJoints: self._set_joints,
             P.SetPose: self._set_pose,
             P.Query: self._query,
-            P.Describe: self._describe,
             P.OperationCall: self._operation,
         }
 
@@ -174,27 +173,6 @@ class SceneService(SceneAnswering, CloudHandover):
             pose = self._checked_pose(req.name, req.pose, "body.name", "body.pose")
             self._store_pose(req.name, pose, stamp)
         return P.Ack()
-
-    def _describe(self, req: P.Describe) -> P.Reply:
-        with self.lock:
-            self.scene.swap_in()  # the clouds in use: those indexed so far
-            objects = tuple(
-                P.ObjectInfo(
-                    name,
-                    len(obj.cloud),
-                    *self._source(name, obj),
-                    cloud=obj.cloud.points if req.clouds else None,
-                )
-                for name, obj in self.scene.objects.items()
-            )
-            return P.DescribeReply(
-                self.strategy,
-                dict(self._models),
-                {k: v[0] for k, v in self._joints.items()},
-                objects,
-                tuple(P.PairInfo(p.a, p.b, p.margin, p.kind) for p in self.scene.pairs),
-                self.sequence.last,
-            )
 
     def _operation(self, req: P.OperationCall) -> P.Reply:
         """A registered scene operation (:mod:`reachwise.distance.scene_ops`) run on

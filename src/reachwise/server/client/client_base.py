@@ -23,7 +23,6 @@ from reachwise.distance.scene import (
     Scene,
 )
 from reachwise.errors import InputError
-from reachwise.kinematics.robot import Robot
 from reachwise.server.client.channel import Channel
 from reachwise.server.client.errors import ServerError
 from reachwise.server.security import ClientKeys, load_client_keys
@@ -72,7 +71,6 @@ class ClientBase:
         self._last_measured = math.nan
         self._layout: P.Layout | None = None
         self._last_pairs: tuple[P.PairInfo, ...] = ()
-        self._robot_cache: dict[str, Robot] = {}
         self._mirror: Scene | None = Scene() if mirror else None
 
     # ------------------------------------------------------------------ channel

@@ -84,18 +84,15 @@ from reachwise.distance.scene import (
     SceneObject,
     WatchedPair,
 )
-from reachwise.distance.scene_queries import object_poses
+from reachwise.distance.scene_queries import describe, object_poses
 from reachwise.errors import CloudError, InputError, check_choice
 from reachwise.geometry.cloud import PointCloud
-from reachwise.io.robot_file import robot_from_dict, robot_to_dict
+from reachwise.io.robot_file import robot_to_dict
 from reachwise.kinematics.robot import Robot
 from reachwise.server.client.client_base import SETUP_DEADLINE, TICK_DEADLINE
 from reachwise.server.client.errors import ServerError, ServerUnavailable
 from reachwise.server.client.remote_query import RemoteQueries
-from reachwise.server.client.results import (
-    scene_object,
-    watched_pair,
-)
+from reachwise.server.client.results import scene_object
 
 __all__ = ["SETUP_DEADLINE", "TICK_DEADLINE", "SceneClient"]
 
@@ -148,8 +145,6 @@ class SceneClient(RemoteQueries):
             result = P.decode_value(rep.result, op.result, "body.result")
         except P.ProtocolError as exc:
             raise ServerError(f"invalid reply to {name}: {exc}", exc.code, exc.field) from None
-        if op.mutates:  # it may have removed or replaced a robot
-            self._robot_cache = {}
         if self._mirror is not None and (op.mutates or op.hand_over is not None):
             # the same change on the local copy; a staged operation hands its result
             # over into the scene (a fused frame's cloud), so it is applied too
@@ -170,10 +165,6 @@ class SceneClient(RemoteQueries):
     def metrics(self, deadline: float | None = None) -> P.MetricsReply:
         """Request and error counts and the query latency histograms."""
         return self._setup(P.Metrics(), P.MetricsReply, deadline)
-
-    def describe(self, clouds: bool = False, deadline: float | None = None) -> P.DescribeReply:
-        """The server's scene: robots, objects (with clouds if asked), pairs."""
-        return self._setup(P.Describe(clouds), P.DescribeReply, deadline)
 
     def wait_ready(self, timeout: float = 30.0, poll: float = 0.5) -> P.HealthReply:
         """Ask for health until the server is ready (retrying on a fresh socket after
@@ -202,28 +193,21 @@ class SceneClient(RemoteQueries):
     def strategy(self) -> StrategyName:
         """The server scene's distance strategy."""
         return check_choice(
-            self.describe().strategy, STRATEGIES, source=self.address, kind="strategy"
+            describe(self).strategy, STRATEGIES, source=self.address, kind="strategy"
         )
 
     @property
     def sequence(self) -> int:
         """The server's last sequence number."""
-        return self.describe().sequence
+        return self.metrics().sequence
 
     @property
     def robots(self) -> dict[str, Robot]:
-        """Registered robots, rebuilt from the YAML mappings the server holds (with
-        ``mirror``: the ones this client registered)."""
+        """Registered robots, rebuilt from the YAML mappings the server sends (with
+        ``mirror``: the local copy's)."""
         if self._mirror is not None:
             return {k: r for k, r in self._mirror.robots.items() if isinstance(r, Robot)}
-        out = {}
-        for name, model in self.describe().robots.items():
-            robot = self._robot_cache.get(name)
-            if robot is None:
-                robot = robot_from_dict(model, f"collision server {self.address}: robot {name!r}")
-                self._robot_cache[name] = robot
-            out[name] = robot
-        return out
+        return describe(self).robots
 
     @property
     def objects(self) -> dict[str, SceneObject]:
@@ -232,14 +216,14 @@ class SceneClient(RemoteQueries):
         if self._mirror is not None:
             self._mirror.swap_in()
             return self._mirror.objects
-        return {o.name: scene_object(o) for o in self.describe(clouds=True).objects}
+        return {o.name: scene_object(o) for o in describe(self, clouds=True).objects}
 
     @property
     def pairs(self) -> tuple[WatchedPair, ...]:
         """Watched pairs in query order (with ``mirror``: the local copy)."""
         if self._mirror is not None:
             return self._mirror.pairs
-        return tuple(watched_pair(p) for p in self.describe().pairs)
+        return describe(self).pairs
 
     def add_robot(
         self,
@@ -257,7 +241,6 @@ class SceneClient(RemoteQueries):
         qa = None if q is None else _vector(q, robot.name)
         t = None if qa is None else (self.clock() if stamp is None else float(stamp))
         self._setup(P.AddRobot(robot_to_dict(robot), qa, t), P.RobotReply, deadline)
-        self._robot_cache[robot.name] = robot
         if self._mirror is not None:
             self._mirror.add_robot(robot, qa, stamp=t)
 
@@ -383,7 +366,9 @@ class SceneClient(RemoteQueries):
             self._mirror.replace_cloud(name, copy, block=False, stamp=t)
         return rep.version
 
-    # clear and the pair rules are the scene's own operations, carried over the wire
+    # describe, clear and the pair rules are the scene's own operations, carried over
+    # the wire
+    describe = describe
     clear = Scene.clear
     watch = Scene.watch
     unwatch = Scene.unwatch
@@ -396,13 +381,13 @@ class SceneClient(RemoteQueries):
         if self._mirror is not None:
             self._mirror.swap_in()
             return self._mirror.robot_objects(robot)
-        d = self.describe(clouds=True)
+        d = describe(self, clouds=True)
         model = d.robots.get(robot)
         if model is None:
             raise InputError(
                 "scene", f"robot {robot!r}", f"not registered; robots: {list(d.robots)}"
             )
-        order = {n: i for i, n in enumerate(self.robots[robot].link_names)}
+        order = {n: i for i, n in enumerate(model.link_names)}
         mine = [o for o in d.objects if o.source == "link" and o.robot == robot]
         return tuple(scene_object(o) for o in sorted(mine, key=lambda o: order[str(o.link)]))
 

@@ -25,6 +25,7 @@ from reachwise.distance.scene import (
     SceneResult,
     WatchedPair,
 )
+from reachwise.distance.scene_queries import ObjectInfo
 from reachwise.geometry.cloud import PointCloud
 from reachwise.server.client.errors import ServerError
 
@@ -34,7 +35,6 @@ __all__ = [
     "missing_result",
     "pair_results",
     "scene_object",
-    "watched_pair",
 ]
 
 
@@ -163,12 +163,7 @@ def missing_result(
     )
 
 
-def watched_pair(p: P.PairInfo) -> WatchedPair:
-    """A pair the server watches, as the in-process scene's :class:`WatchedPair`."""
-    return WatchedPair(p.a, p.b, p.margin, p.kind)
-
-
-def scene_object(o: P.ObjectInfo) -> SceneObject:
+def scene_object(o: ObjectInfo) -> SceneObject:
     """A described object (sent with its cloud) as a :class:`SceneObject`."""
     if o.cloud is None:
         raise ServerError(f"object {o.name!r} came without its cloud")

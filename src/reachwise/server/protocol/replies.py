@@ -6,12 +6,11 @@ on the per-tick path, does."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated, Any, Literal, Self
+from typing import Annotated, Any, Self
 
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise.distance.engine import StrategyName
 from reachwise.distance.scene import PAIR_KINDS, PairKind
 from reachwise.distance.scene_ops import ArrayShape
 from reachwise.server.protocol.fields import (
@@ -287,34 +286,6 @@ def _names(r: Reader, key: str) -> tuple[str, ...] | None:
 
 
 @dataclass(frozen=True, eq=False)
-class ObjectInfo:
-    """One object of the scene: ``source`` is ``fixed`` (``pose`` in world), ``link``
-    (``pose`` the offset from ``robot``'s ``link``) or ``runtime`` (``pose`` the current
-    world pose); ``cloud`` only when asked for."""
-
-    name: Name
-    points: Count
-    source: Literal["fixed", "link", "runtime"]
-    pose: _Pose
-    robot: Name | None = None
-    link: Name | None = None
-    cloud: Annotated[NDArray[np.float64], ArrayShape((None, 3))] | None = None
-
-
-@dataclass(frozen=True, eq=False)
-class DescribeReply(Reply):
-    """The scene: distance ``strategy``, robots (YAML mappings) and their joint
-    states, objects in insertion order, watched pairs in query order, the sequence."""
-
-    strategy: StrategyName
-    robots: dict[str, dict[str, Any]]
-    joints: dict[str, Annotated[NDArray[np.float64], ArrayShape((None,))]]
-    objects: tuple[ObjectInfo, ...]
-    pairs: tuple[PairInfo, ...]
-    sequence: Count
-
-
-@dataclass(frozen=True, eq=False)
 class OperationResult(Reply):
     """The result of an :class:`~reachwise.server.protocol.requests.OperationCall` as
     sent: ``result`` is plain data, which
@@ -342,7 +313,6 @@ REPLIES: dict[str, type[Reply]] = {
     "set_joints": Ack,
     "set_pose": Ack,
     "query": QueryReply,
-    "describe": DescribeReply,
     "call": OperationResult,
 }
 

@@ -346,14 +346,6 @@ def _array_map(
     return out
 
 
-@dataclass(frozen=True)
-class Describe(Request):
-    """The scene's contents: robots, objects (with their clouds if ``clouds``), pairs."""
-
-    OP: ClassVar[str] = "describe"
-    clouds: bool = False
-
-
 @dataclass(frozen=True, eq=False)
 class OperationCall(Request):
     """Run the registered scene operation ``operation``
@@ -417,7 +409,6 @@ REQUESTS: dict[str, type[Request]] = {
         SetJoints,
         SetPose,
         Query,
-        Describe,
         OperationCall,
     )
 }

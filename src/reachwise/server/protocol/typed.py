@@ -12,8 +12,10 @@ path. The forms follow the rest of the protocol: a float64 array travels as
 ``[dtype, shape, bytes]``, a frozen dataclass as a map of its fields (strict: unknown
 fields are errors; a None field that defaults to None is left out), tuples, lists and
 other iterables as lists, ``dict[str, X]`` as a map; ``dict[str, Any]`` is a map of
-plain data (a robot's YAML mapping,
-:func:`~reachwise.server.protocol.fields.check_model`); a class with its own
+plain data (:func:`~reachwise.server.protocol.fields.check_model`); a
+:class:`~reachwise.kinematics.robot.Robot` travels as its YAML mapping
+(:func:`~reachwise.io.robot_file.robot_to_dict`, read back and checked by
+:func:`~reachwise.io.robot_file.robot_from_dict`); a class with its own
 ``wire()`` and ``parse(value, where)`` (a pair's compact list) travels in its own
 form. ``Annotated[float, Bound(...)]`` (or ``int``) bounds a number. The hints are
 finite, so decoding recurses at most as deep as the hint nests.
@@ -40,6 +42,9 @@ import numpy as np
 import reachwise.distance.scene_memories
 import reachwise.distance.scene_queries  # noqa: F401
 from reachwise.distance.scene_ops import OPERATIONS, ArrayShape, SceneOperation
+from reachwise.errors import InputError
+from reachwise.io.robot_file import robot_from_dict, robot_to_dict
+from reachwise.kinematics.robot import Robot
 from reachwise.server.protocol.fields import (
     FLOAT,
     MAX_LIST,
@@ -144,6 +149,8 @@ def encode_value(value: Any, hint: Any) -> Any:
     origin = typing.get_origin(hint)
     if value is None or hint is Any:
         return value
+    if hint is Robot:
+        return robot_to_dict(value)
     if hasattr(hint, "wire"):
         return value.wire()
     if _is_array(hint):
@@ -242,6 +249,8 @@ def decode_value(raw: Any, hint: Any, where: str) -> Any:
         return out if origin is list else tuple(out)
     if origin is dict and typing.get_args(hint)[1] is Any:
         return check_model(raw, where)
+    if hint is Robot:
+        return _decode_robot(raw, where)
     if origin is dict:
         entries = check_map(raw, where)
         if len(entries) > MAX_LIST:
@@ -257,6 +266,16 @@ def decode_value(raw: Any, hint: Any, where: str) -> Any:
         r.done()
         return value
     raise ProtocolError(ErrorCode.INVALID, where, "the wire carries no values of this type")
+
+
+def _decode_robot(raw: Any, where: str) -> Robot:
+    """A robot sent as its YAML mapping; what the model gets wrong is ``invalid`` at
+    the field below ``where`` that :func:`robot_from_dict` names."""
+    try:
+        return robot_from_dict(check_model(raw, where), "robot")
+    except InputError as exc:
+        field = f"{where}.{exc.field}" if exc.field else where
+        raise ProtocolError(ErrorCode.INVALID, field, exc.reason) from None
 
 
 def operation(name: object, where: str) -> SceneOperation:
