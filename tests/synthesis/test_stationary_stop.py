@@ -78,13 +78,15 @@ def test_a_task_no_design_serves_stops_at_its_stationary_point() -> None:
     prob = _problem(far=True)
     rng = np.random.default_rng(0)
     z0 = initial_guess(prob, rng).z
-    opt = SolverOptions()
+    opt = SolverOptions(stationary_without_clearance=True)  # a reach-only task
     stop = solve_dls(prob, z0, opt, rng=np.random.default_rng(0))
     # the same run without the stationary test: only the stall limit ends it
     never = replace(opt, stationary_gradient=0.0)
     full = solve_dls(prob, z0, never, rng=np.random.default_rng(0))
     assert not stop.converged and not full.converged
     assert stop.iterations < full.iterations
+    default = solve_dls(prob, z0, SolverOptions(), rng=np.random.default_rng(0))
+    assert default.iterations == full.iterations  # reach-only runs: the stall rule alone
     assert stop.iterations % opt.reseed_every == 0  # stopped at the end of a window
     # the stop cut nothing that was still improving: the same merit within 1e-3
     assert stop.cost_history[-1] <= full.cost_history[-1] * (1 + 1e-3)

@@ -30,8 +30,9 @@ class Workspace(Protocol):
 class SolverOptions:
     """Tuning of the ``dls`` solver (lengths in m, angles in rad); ``lambda_max`` and
     ``epsilon``: the damping schedule (``reachwise.kinematics.dls``);
-    ``stationary_decrease`` and ``stationary_gradient``: when a run has found a
-    constrained stationary point of its merit (``solvers.solve_dls``)."""
+    ``stationary_decrease`` and ``stationary_gradient``: when a run with clearance terms
+    (or any run, with ``stationary_without_clearance``) has found a constrained
+    stationary point of its merit (``solvers.solve_dls``)."""
 
     max_iter: int = 1000
     lambda_max: float = LAMBDA_MAX
@@ -50,6 +51,7 @@ class SolverOptions:
     max_boost: float = 1.0
     stationary_decrease: float = 1e-3
     stationary_gradient: float = 1e-2
+    stationary_without_clearance: bool = False
 
 
 @dataclass(frozen=True)
