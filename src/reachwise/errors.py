@@ -29,6 +29,7 @@ __all__ = [
     "CloudError",
     "InputError",
     "MissingDependency",
+    "NameTaken",
     "ReachwiseError",
     "RobotFileError",
     "ServerUnavailable",
@@ -71,6 +72,10 @@ class CloudError(InputError):
 
 class TaskError(InputError):
     """A task file or task definition is invalid."""
+
+
+class NameTaken(InputError):
+    """A name that must be new (a robot or object added to a scene) is taken already."""
 
 
 #: How many valid names an :class:`UnknownName` message lists before it abbreviates.

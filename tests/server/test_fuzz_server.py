@@ -18,7 +18,6 @@ import zmq
 from numpy.typing import NDArray
 
 from reachwise.distance.scene import Scene
-from reachwise.io.robot_file import robot_to_dict
 from reachwise.kinematics.robot import Robot
 from reachwise.server import protocol as P
 from reachwise.server.client import SceneClient
@@ -189,7 +188,7 @@ def _templates(robot: Robot) -> list[P.Request]:
         P.Hello("fuzz", (1,)),
         P.Health(),
         P.Metrics(),
-        P.AddRobot(robot_to_dict(robot), np.zeros(robot.n), 1.0),
+        P.OperationCall.of("add_robot", robot, np.zeros(robot.n), stamp=1.0),
         P.AddObject("fuzz_part", cloud, pose, name, "link_2"),
         P.AddObject("fuzz_probe", cloud, None, None, None, True),
         P.ReplaceCloud("environment", cloud, 2.0),

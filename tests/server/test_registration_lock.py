@@ -14,7 +14,6 @@ from numpy.typing import NDArray
 
 import reachwise.server.service_core as core
 from reachwise.geometry.cloud import PointCloud
-from reachwise.io.robot_file import robot_to_dict
 from reachwise.kinematics.robot import Robot
 from reachwise.server import protocol as P
 from reachwise.server.service import SceneService
@@ -25,7 +24,7 @@ from .lock_probe import from_another_thread
 
 def _watched_crane(crane: Robot, clouds: dict[str, NDArray[np.float64]]) -> SceneService:
     svc = SceneService(clock=lambda: 1000.0)
-    svc.handle(P.AddRobot(robot_to_dict(crane), crane_q(crane, 0), 1.0))
+    svc.handle(P.OperationCall.of("add_robot", crane, crane_q(crane, 0), stamp=1.0))
     for link in LINKS:
         svc.handle(P.AddObject(link, clouds[link], None, crane.name, link))
     env = np.eye(4)

@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from reachwise.benchmarks.server import ServerProcess
 from reachwise.distance import Scene, closest_points
 from reachwise.errors import InputError
+from reachwise.io.robot_file import robot_from_dict, robot_to_dict
 from reachwise.kinematics.robot import Robot
 from reachwise.server import protocol as P
 from reachwise.server.client import SceneClient, SceneLike, ServerInputError, ServerSceneResult
@@ -149,6 +150,7 @@ def test_same_answers_as_the_in_process_scene(
 def test_bad_input_gets_typed_errors_and_the_server_keeps_serving(
     loaded: ServerProcess, crane: Robot
 ) -> None:
+    renamed = robot_from_dict(dict(robot_to_dict(crane), name="crane-2"), "crane-2")
     with SceneClient(loaded.endpoint, deadline=HANG_GUARD) as c:
         cases: list[tuple[P.Request, P.ErrorCode, str]] = [
             (P.SetJoints("crane-x", np.zeros(6)), E.UNKNOWN_ID, "body.robot"),
@@ -188,11 +190,12 @@ def test_bad_input_gets_typed_errors_and_the_server_keeps_serving(
                 E.INVALID,
                 "watch_robots",
             ),
-            (P.AddRobot({"name": "r", "joints": []}), E.INVALID, "body.robot.joints"),
+            (P.OperationCall.of("add_robot", crane), E.EXISTS, "robot"),
+            (P.OperationCall.of("add_robot", renamed, np.zeros(2)), E.INVALID, "q"),
             (
-                P.AddRobot({"name": "r", "joints": [{"type": "revolute", "a": "long"}]}),
+                P.OperationCall.of("add_robot", renamed, np.zeros(crane.n), stamp=math.inf),
                 E.INVALID,
-                "body.robot.joints[0].a",
+                "stamp",
             ),
         ]
         for req, code, field in cases:
@@ -200,6 +203,30 @@ def test_bad_input_gets_typed_errors_and_the_server_keeps_serving(
                 c.call(req, HANG_GUARD)
             assert (info.value.code, info.value.field) == (code, field), req.OP
             assert isinstance(info.value, InputError)
+        assert "crane-2" not in c.robots  # a refused robot is not registered at all
+        with pytest.raises(InputError, match="reachwise Robot"):  # a model is no Robot
+            c.add_robot({"name": "r", "joints": []})  # type: ignore[arg-type]
+        # robot models the client would refuse itself, sent raw
+        for model, code, field in [
+            ({"name": "r", "joints": []}, E.INVALID, "body.arguments.robot.joints"),
+            (
+                {"name": "r", "joints": [{"type": "revolute", "a": "long"}]},
+                E.INVALID,
+                "body.arguments.robot.joints[0].a",
+            ),
+            (dict(robot_to_dict(crane), name="a\x00b"), E.WRONG_TYPE, "body.arguments.robot.name"),
+        ]:
+            raw = msgpack.packb(
+                {
+                    "v": 1,
+                    "id": 8,
+                    "op": "call",
+                    "body": {"operation": "add_robot", "arguments": {"robot": model}},
+                },
+                use_bin_type=True,
+            )
+            err = _error_of(_raw_request(loaded.endpoint, [b"", raw]))
+            assert (err.code, err.field) == (code, field)
         # non-finite values the client would refuse itself, sent raw
         bad = P.encode_array(np.array([0.0, np.nan, 0, 0, 0, 0]))
         raw = msgpack.packb(

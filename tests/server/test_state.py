@@ -26,7 +26,7 @@ def _service(root: Path | None) -> SceneService:
 
 
 def _populate(svc: SceneService, crane: Robot, clouds: dict[str, NDArray[np.float64]]) -> None:
-    svc.handle(P.AddRobot(robot_to_dict(crane), crane_q(crane, 0), 5.0))
+    svc.handle(P.OperationCall.of("add_robot", crane, crane_q(crane, 0), stamp=5.0))
     for link in LINKS:
         svc.handle(P.AddObject(link, clouds[link], None, crane.name, link))
     env = np.eye(4)

@@ -16,7 +16,7 @@ import zmq
 from numpy.typing import NDArray
 
 from reachwise.distance import Scene, closest_points
-from reachwise.io.robot_file import load_robot, robot_to_dict
+from reachwise.io.robot_file import load_robot, robot_from_dict, robot_to_dict
 from reachwise.kinematics.robot import Robot
 from reachwise.server import protocol as P
 from reachwise.server.client import SceneClient, ServerInputError, ServerSceneResult
@@ -250,7 +250,10 @@ def _service(seed: int) -> tuple[SceneService, dict[str, int], list[str]]:
         robot = load_robot(name)
         model = robot_to_dict(robot)
         model["name"] = f"r{i}"
-        svc.handle(P.AddRobot(model, rng.normal(scale=0.3, size=robot.n), 1.0))
+        renamed = robot_from_dict(model, name)
+        svc.handle(
+            P.OperationCall.of("add_robot", renamed, rng.normal(scale=0.3, size=robot.n), stamp=1.0)
+        )
         robots[f"r{i}"] = robot.n
         for link in robot.link_names[2 : 2 + 2 + seed % 3]:
             obj = f"r{i}_{link}"
@@ -337,7 +340,7 @@ def test_the_binary_tick_answers_exactly_as_the_full_protocol(seed: int) -> None
 def test_a_tick_is_refused_like_the_full_query(crane: Robot) -> None:
     """Bad content in a tick gets the full protocol's typed error, field included."""
     svc = SceneService()
-    svc.handle(P.AddRobot(robot_to_dict(crane), np.zeros(crane.n), 1.0))
+    svc.handle(P.OperationCall.of("add_robot", crane, np.zeros(crane.n), stamp=1.0))
     svc.handle(P.AddObject("part", box_points((1, 1, 1), 50, 1), None, crane.name, "link_2"))
     svc.handle(P.AddObject("probe", box_points((1, 1, 1), 50, 2), np.eye(4), dynamic=True))
     svc.handle(P.OperationCall.of("watch", "part", "probe", 1.0, kind="custom"))

@@ -12,7 +12,6 @@ import pytest
 from numpy.typing import NDArray
 
 from reachwise.distance import Scene
-from reachwise.io.robot_file import robot_to_dict
 from reachwise.kinematics.robot import Robot
 from reachwise.server import protocol as P
 from reachwise.server.counters import Metrics
@@ -28,7 +27,7 @@ def _both(crane: Robot, clouds: dict[str, NDArray[np.float64]]) -> tuple[SceneSe
     """The crane scene on a service and, as the reference, in process."""
     svc = SceneService(clock=lambda: 1000.0)
     local = Scene()
-    svc.handle(P.AddRobot(robot_to_dict(crane), crane_q(crane, 0), 1.0))
+    svc.handle(P.OperationCall.of("add_robot", crane, crane_q(crane, 0), stamp=1.0))
     local.add_robot(crane, crane_q(crane, 0), stamp=1.0)
     for link in LINKS:
         svc.handle(P.AddObject(link, clouds[link], None, crane.name, link))

@@ -31,7 +31,6 @@ import reachwise.server.protocol as P
 from reachwise.benchmarks._harness import BenchReport, time_interleaved
 from reachwise.benchmarks.distance import environment_points, part_points
 from reachwise.benchmarks.server_setup import ENV_X, LINKS, MARGIN, crane_q
-from reachwise.io.robot_file import robot_to_dict
 from reachwise.kinematics.robot import Robot
 from reachwise.server.client.results import ServerSceneResult
 from reachwise.server.service import SceneService
@@ -51,7 +50,7 @@ STAGES = (
 
 def _service(robot: Robot) -> SceneService:
     svc = SceneService()
-    svc.handle(P.AddRobot(robot_to_dict(robot), crane_q(robot, 0), 0.0))
+    svc.handle(P.OperationCall.of("add_robot", robot, crane_q(robot, 0), stamp=0.0))
     part = part_points(1000, seed=1)
     for link in LINKS:
         svc.handle(P.AddObject(link, part, None, robot.name, link))

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
+from typing import Annotated
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -45,7 +46,7 @@ from reachwise.distance.engine import STRATEGIES, StrategyName
 from reachwise.distance.index import cloud_index
 from reachwise.distance.ingest import CloudIngest, ready_cloud
 from reachwise.distance.pairs import PAIR_KINDS, PairKind, PairResult, WatchedPair
-from reachwise.distance.scene_ops import scene_change
+from reachwise.distance.scene_ops import ArrayShape, scene_change
 from reachwise.distance.scene_plan import SceneContents, make_plan
 from reachwise.distance.scene_state import SceneState, positive_length
 from reachwise.distance.scene_types import (
@@ -58,7 +59,7 @@ from reachwise.distance.scene_types import (
     SceneObject,
     SceneResult,
 )
-from reachwise.errors import InputError, UnknownName, check_choice
+from reachwise.errors import InputError, NameTaken, UnknownName, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.kinematics.fk import fk_all_into
 
@@ -152,31 +153,35 @@ class Scene(SceneState):
         their pairs' objects: each answered on the cloud in use, without waiting."""
         return self._during_build
 
+    @scene_change
     def add_robot(
-        self, robot: RobotLike, q: ArrayLike | None = None, *, stamp: float | None = None
+        self,
+        robot: RobotLike,
+        q: Annotated[ArrayLike, ArrayShape((None,))] | None = None,
+        *,
+        stamp: float | None = None,
     ) -> None:
         """Register ``robot`` under ``robot.name``, optionally with its joint state
-        measured at ``stamp``."""
+        ``q`` (any array-like of floats) measured at ``stamp``. Through the collision
+        server a robot travels as a :class:`~reachwise.kinematics.robot.Robot`'s YAML
+        mapping."""
         if not isinstance(robot, RobotLike):
             raise InputError("robot", "", "needs name, link_names and fk_all(q)")
         if robot.name in self._robots:
-            raise InputError("scene", f"robot {robot.name!r}", "already registered")
+            raise NameTaken("scene", "robot", f"robot {robot.name!r} is already registered")
+        arr = None if q is None else _joint_values(robot, q)  # checked before any change
+        if arr is not None:
+            self._q_stamp[robot.name] = self._stamp(stamp, f"robot {robot.name!r}")
         self._robots[robot.name] = robot
-        self._q[robot.name] = None
+        self._q[robot.name] = arr
         self._frame_row[robot.name] = self._arrays.add_frames(len(robot.link_names))
         self._plan = None
-        if q is not None:
-            self.set_joints(robot.name, q, stamp=stamp)
 
     def set_joints(self, robot: str, q: ArrayLike, *, stamp: float | None = None) -> None:
         """The joint state of ``robot`` (one value per non-fixed joint), measured at
         ``stamp`` (s; default: the scene's clock, or unknown)."""
-        self._robot(robot)
-        arr = np.array(q, dtype=np.float64, copy=True).reshape(-1)
-        if not np.isfinite(arr).all():
-            raise InputError(f"robot {robot!r}", "q", "contains NaN or inf")
+        arr = _joint_values(self._robot(robot), q)
         t = self._stamp(stamp, f"robot {robot!r}")
-        arr.setflags(write=False)
         self._q[robot] = arr
         self._q_stamp[robot] = t
 
@@ -185,6 +190,12 @@ class Scene(SceneState):
         replaced, never changed, by the next one), or None before the first."""
         self._robot(robot)
         return self._q[robot]
+
+    def joint_stamp(self, robot: str) -> float:
+        """When the latest joint state of ``robot`` was measured (s; NaN: unknown or
+        none yet)."""
+        self._robot(robot)
+        return self._q_stamp.get(robot, math.nan)
 
     def add_object(
         self,
@@ -428,6 +439,21 @@ class Scene(SceneState):
         """Stop the cloud-ingestion worker (a remote scene disconnects here); a scene
         that is garbage-collected stops it too."""
         self._stop_ingest()
+
+
+def _joint_values(robot: RobotLike, q: ArrayLike) -> NDArray[np.float64]:
+    """``q`` as a fresh, read-only vector of finite joint values, one per joint variable
+    of ``robot`` when it says how many (``n``)."""
+    n = getattr(robot, "n", None)  # a RobotLike need not say
+    arr = np.array(q, dtype=np.float64, copy=True).reshape(-1)
+    if n is not None and arr.shape != (n,):
+        raise InputError(
+            f"robot {robot.name!r}", "q", f"has {n} joint variables; got {arr.size} values"
+        )
+    if not np.isfinite(arr).all():
+        raise InputError(f"robot {robot.name!r}", "q", "contains NaN or inf")
+    arr.setflags(write=False)
+    return arr
 
 
 __all__ = [

@@ -76,7 +76,8 @@ class RemoteOperations(Protocol):
 @dataclass(frozen=True)
 class ArrayShape:
     """What an array argument or result must be on the wire, given as
-    ``Annotated[NDArray[np.float64], ArrayShape((4, 4))]``: its ``shape`` (None: any
+    ``Annotated[NDArray[np.float64], ArrayShape((4, 4))]`` (or ``Annotated[ArrayLike,
+    ...]`` for an argument that takes any array-like): its ``shape`` (None: any
     length) and whether every value must be ``finite``. An array hint without it takes
     any shape of up to four dimensions, NaN and inf included."""
 

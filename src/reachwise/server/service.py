@@ -9,8 +9,8 @@ scene side; :mod:`reachwise.server.transport` puts it on the wire.
 :class:`SceneService` — the scene behind the wire (:class:`reachwise.distance.Scene`):
 validated requests in (:mod:`reachwise.server.protocol`), replies or typed errors out.
 The *initialization phase* of P-V Table 1 (robots, clouds and their spatial indices,
-pair rules) happens in ``add_robot``, ``add_object`` and the scene operations that
-change the scene (``watch*``, :mod:`reachwise.distance.scene_ops`); the *calculation
+pair rules) happens in ``add_object`` and the scene operations that change the scene
+(``add_robot``, ``watch*``, :mod:`reachwise.distance.scene_ops`); the *calculation
 phase* in ``set_joints`` (link poses by forward kinematics on the server), ``set_pose``
 and ``query``; ``clear`` empties the scene (a simulator that owns it starts each run
 from an empty one). With a state directory every change of the initialization phase is
@@ -59,7 +59,6 @@ from reachwise._version import __version__
 from reachwise.distance._common import check_pose
 from reachwise.distance.engine import StrategyName
 from reachwise.errors import InputError
-from reachwise.io.robot_file import robot_from_dict
 from reachwise.server.answering import SceneAnswering
 from reachwise.server.handover import BLOCK_LIMIT, CLOUD_INTERVAL, CloudHandover
 from reachwise.server.persistence import LIVE_INTERVAL
@@ -105,7 +104,6 @@ class SceneService(SceneAnswering, CloudHandover):
             P.Hello: self._hello,
             P.Health: self._health,
             P.Metrics: self._metrics,
-            P.AddRobot: self._add_robot,
             P.AddObject: self._add_object,
             P.ReplaceCloud: self._replace_cloud,
             P.SetJoints: self._set_joints,
@@ -203,32 +201,6 @@ class SceneService(SceneAnswering, CloudHandover):
         return reply
 
     # ------------------------------------------------------------------ initialization phase
-    def _add_robot(self, req: P.AddRobot) -> P.Reply:
-        try:
-            robot = robot_from_dict(req.robot, "robot")
-        except InputError as exc:
-            field = f"body.robot.{exc.field}" if exc.field else "body.robot"
-            raise wire_error(P.ErrorCode.INVALID, field, exc.reason) from None
-        P.check_name(robot.name, "body.robot.name")  # addressable by every later request
-        with self.lock:
-            if robot.name in self._robots:
-                raise wire_error(
-                    P.ErrorCode.EXISTS,
-                    "body.robot.name",
-                    f"robot {robot.name!r} is already registered",
-                )
-            if req.q is not None:
-                self._check_q(robot, req.q, "body.q")
-            self.scene.add_robot(robot)
-            self._adopt()
-            if req.q is not None:
-                self._store_joints(
-                    robot.name, req.q, self.clock() if req.stamp is None else req.stamp
-                )
-            manifest = self._manifest()
-        self._persist(manifest)
-        return P.RobotReply(robot.name, robot.link_names, robot.n)
-
     def _add_object(self, req: P.AddObject) -> P.Reply:
         with self.lock:
             if req.name in self._meta:

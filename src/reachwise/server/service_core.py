@@ -32,7 +32,7 @@ from reachwise.distance.engine import STRATEGIES, StrategyName
 from reachwise.distance.index import cloud_index
 from reachwise.distance.ingest import CloudIngest
 from reachwise.distance.scene import OnLink, PoseSource, Runtime, Scene
-from reachwise.errors import InputError, UnknownName, check_choice
+from reachwise.errors import InputError, NameTaken, UnknownName, check_choice
 from reachwise.geometry.cloud import PointCloud
 from reachwise.io.robot_file import robot_to_dict
 from reachwise.kinematics.robot import Robot
@@ -61,6 +61,8 @@ def protocol_error_of(exc: Exception, op: str) -> P.ProtocolError:
         return exc
     if isinstance(exc, UnknownName):
         return wire_error(P.ErrorCode.UNKNOWN_ID, exc.field or exc.source, str(exc))
+    if isinstance(exc, NameTaken):
+        return wire_error(P.ErrorCode.EXISTS, exc.field or exc.source, exc.reason)
     if isinstance(exc, InputError):
         return wire_error(P.ErrorCode.INVALID, exc.field or exc.source, str(exc))
     log.error("request %s failed: %s", op, P.failure_text(exc), exc_info=exc)
@@ -173,6 +175,12 @@ class ServiceCore:
         robots = self.scene.robots
         self._robots = {k: r for k, r in robots.items() if isinstance(r, Robot)}
         self._models = {k: self._models.get(k) or robot_to_dict(r) for k, r in self._robots.items()}
+        for name in self._robots.keys() - self._joints.keys():  # added with its joints
+            q = self.scene.joint_state(name)
+            if q is not None:
+                stamp = self.scene.joint_stamp(name)
+                self._joints[name] = (q, self.clock() if math.isnan(stamp) else stamp)
+                self._live_dirty = True
         objects = self.scene.objects
         meta = {}
         for name, obj in objects.items():

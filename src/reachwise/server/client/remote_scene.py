@@ -77,7 +77,6 @@ from reachwise.distance.engine import STRATEGIES, StrategyName
 from reachwise.distance.scene import (
     Fixed,
     OnLink,
-    RobotLike,
     Runtime,
     Scene,
     SceneLike,
@@ -87,7 +86,6 @@ from reachwise.distance.scene import (
 from reachwise.distance.scene_queries import describe, object_poses
 from reachwise.errors import CloudError, InputError, check_choice
 from reachwise.geometry.cloud import PointCloud
-from reachwise.io.robot_file import robot_to_dict
 from reachwise.kinematics.robot import Robot
 from reachwise.server.client.client_base import SETUP_DEADLINE, TICK_DEADLINE
 from reachwise.server.client.errors import ServerError, ServerUnavailable
@@ -225,25 +223,6 @@ class SceneClient(RemoteQueries):
             return self._mirror.pairs
         return describe(self).pairs
 
-    def add_robot(
-        self,
-        robot: RobotLike,
-        q: ArrayLike | None = None,
-        *,
-        stamp: float | None = None,
-        deadline: float | None = None,
-    ) -> None:
-        """Register ``robot`` (sent as its YAML mapping), optionally with its joints."""
-        if not isinstance(robot, Robot):
-            raise InputError(
-                "robot", "", "a collision server needs a reachwise Robot (sent as its YAML mapping)"
-            )
-        qa = None if q is None else _vector(q, robot.name)
-        t = None if qa is None else (self.clock() if stamp is None else float(stamp))
-        self._setup(P.AddRobot(robot_to_dict(robot), qa, t), P.RobotReply, deadline)
-        if self._mirror is not None:
-            self._mirror.add_robot(robot, qa, stamp=t)
-
     def set_joints(
         self,
         robot: str,
@@ -370,6 +349,7 @@ class SceneClient(RemoteQueries):
     # the wire
     describe = describe
     clear = Scene.clear
+    add_robot = Scene.add_robot
     watch = Scene.watch
     unwatch = Scene.unwatch
     watch_self = Scene.watch_self

@@ -100,15 +100,6 @@ class MetricsReply(Reply):
 
 
 @dataclass(frozen=True)
-class RobotReply(Reply):
-    """A registered robot: its frame names (``link_0`` … ``tool``) and joint count."""
-
-    name: Name
-    links: tuple[Name, ...]
-    dof: Count
-
-
-@dataclass(frozen=True)
 class ObjectReply(Reply):
     """An object after ``add_object`` (``version`` 0) or ``replace_cloud`` (the version
     the server gave the handed-over cloud: 1, 2, … per object): its point count."""
@@ -307,7 +298,6 @@ REPLIES: dict[str, type[Reply]] = {
     "hello": HelloReply,
     "health": HealthReply,
     "metrics": MetricsReply,
-    "add_robot": RobotReply,
     "add_object": ObjectReply,
     "replace_cloud": ObjectReply,
     "set_joints": Ack,

@@ -41,7 +41,6 @@ from reachwise.server.protocol.fields import (
 )
 from reachwise.server.protocol.typed import (
     Name,
-    Stamp,
     decode_fields,
     decode_value,
     encode_fields,
@@ -108,17 +107,6 @@ class Metrics(Request):
     """Request counts, error counts and the query latency histograms."""
 
     OP: ClassVar[str] = "metrics"
-
-
-@dataclass(frozen=True, eq=False)
-class AddRobot(Request):
-    """Register a robot (its YAML mapping), optionally with its joint state ``q``."""
-
-    OP: ClassVar[str] = "add_robot"
-    STRUCTURAL: ClassVar[bool] = True
-    robot: dict[str, Any]
-    q: Annotated[NDArray[np.float64], ArrayShape((None,))] | None = None
-    stamp: Stamp | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -403,7 +391,6 @@ REQUESTS: dict[str, type[Request]] = {
         Hello,
         Health,
         Metrics,
-        AddRobot,
         AddObject,
         ReplaceCloud,
         SetJoints,

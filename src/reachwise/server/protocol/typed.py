@@ -42,6 +42,7 @@ import numpy as np
 import reachwise.distance.scene_memories
 import reachwise.distance.scene_queries  # noqa: F401
 from reachwise.distance.scene_ops import OPERATIONS, ArrayShape, SceneOperation
+from reachwise.distance.scene_types import RobotLike
 from reachwise.errors import InputError
 from reachwise.io.robot_file import robot_from_dict, robot_to_dict
 from reachwise.kinematics.robot import Robot
@@ -106,6 +107,14 @@ def _is_array(hint: Any) -> bool:
     return typing.get_origin(hint) is np.ndarray or hint is np.ndarray
 
 
+def _shaped(hint: Any) -> bool:
+    """Whether ``hint`` carries an :class:`ArrayShape`: an array on the wire, whatever
+    array-like (``ArrayLike``) the function takes."""
+    return typing.get_origin(hint) is typing.Annotated and any(
+        isinstance(m, ArrayShape) for m in hint.__metadata__
+    )
+
+
 def _strip(hint: Any) -> Any:
     """``hint`` without ``Annotated`` metadata."""
     while typing.get_origin(hint) is typing.Annotated:
@@ -145,11 +154,17 @@ def decode_fields(cls: type[_T], r: Reader) -> _T:
 
 def encode_value(value: Any, hint: Any) -> Any:
     """``value`` (of type ``hint``) as plain msgpack data."""
+    if value is not None and _shaped(hint):  # an array-like given as an array
+        return encode_array(np.asarray(value, dtype=np.float64))
     hint = _strip(hint)
     origin = typing.get_origin(hint)
     if value is None or hint is Any:
         return value
-    if hint is Robot:
+    if hint is Robot or hint is RobotLike:
+        if not isinstance(value, Robot):
+            raise InputError(
+                "robot", "", "a collision server needs a reachwise Robot (sent as its YAML mapping)"
+            )
         return robot_to_dict(value)
     if hasattr(hint, "wire"):
         return value.wire()
@@ -194,7 +209,7 @@ def decode_value(raw: Any, hint: Any, where: str) -> Any:
     :class:`ProtocolError` naming ``where`` (or the path below it)."""
     if typing.get_origin(hint) is typing.Annotated:
         for m in hint.__metadata__:
-            if isinstance(m, ArrayShape) and _is_array(_strip(hint)):
+            if isinstance(m, ArrayShape):
                 return check_array(raw, where, shape=m.shape, finite=m.finite)
             if m == "name" and _strip(hint) is str:
                 return check_name(raw, where)
@@ -249,7 +264,7 @@ def decode_value(raw: Any, hint: Any, where: str) -> Any:
         return out if origin is list else tuple(out)
     if origin is dict and typing.get_args(hint)[1] is Any:
         return check_model(raw, where)
-    if hint is Robot:
+    if hint is Robot or hint is RobotLike:
         return _decode_robot(raw, where)
     if origin is dict:
         entries = check_map(raw, where)
@@ -272,10 +287,12 @@ def _decode_robot(raw: Any, where: str) -> Robot:
     """A robot sent as its YAML mapping; what the model gets wrong is ``invalid`` at
     the field below ``where`` that :func:`robot_from_dict` names."""
     try:
-        return robot_from_dict(check_model(raw, where), "robot")
+        robot = robot_from_dict(check_model(raw, where), "robot")
     except InputError as exc:
         field = f"{where}.{exc.field}" if exc.field else where
         raise ProtocolError(ErrorCode.INVALID, field, exc.reason) from None
+    check_name(robot.name, f"{where}.name")  # addressable by every later request
+    return robot
 
 
 def operation(name: object, where: str) -> SceneOperation:
