@@ -25,10 +25,7 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
-import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -44,10 +41,9 @@ from reachwise.benchmarks.server_setup import (
     bench_priority,
     crane_q,
 )
-from reachwise.benchmarks.server_stream import CAMERA, _control_loop
+from reachwise.benchmarks.server_stream import CAMERA, _control_loop, with_camera
 from reachwise.distance.scene_memories import add_memory, watch_memory
 from reachwise.distance.scene_memory import MemoryConfig
-from reachwise.io.atomic import atomic_write
 from reachwise.io.robot_file import load_robot
 from reachwise.kinematics.robot import Robot
 from reachwise.server.client import SceneClient
@@ -95,32 +91,19 @@ _CAMERA = """
 import json, sys, time
 from pathlib import Path
 from reachwise.benchmarks.server_memory import INTRINSICS, POSE, depth_frame
-from reachwise.benchmarks.server_stream import CAMERA
+from reachwise.benchmarks.server_stream import CAMERA, paced_calls
 from reachwise.distance.scene_memories import fuse_depth
 from reachwise.io.atomic import atomic_write
 from reachwise.server.client import SceneClient
 ep, work, rate, count = sys.argv[1], Path(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4])
 frames = [depth_frame(k) for k in range(count)]
-calls, failures = [], []
 with SceneClient(ep, setup_deadline=30.0) as c:
     fuse_depth(c, CAMERA, frames[0], POSE, INTRINSICS, time.monotonic())
     atomic_write(work / "camera-ready", b"1")
-    start = time.perf_counter()
-    k = 0
-    while not (work / "camera-stop").exists() and time.perf_counter() - start < 600:
-        delay = start + k / rate - time.perf_counter()
-        if delay > 0:
-            time.sleep(delay)
-        t0 = time.perf_counter()
-        try:
-            fuse_depth(c, CAMERA, frames[k % count], POSE, INTRINSICS, time.monotonic())
-            calls.append((time.perf_counter() - t0) * 1e6)
-        except Exception as exc:
-            failures.append(f"{type(exc).__name__}: {exc}")
-        k += 1
-    span = time.perf_counter() - start
-atomic_write(work / "camera.json", json.dumps(
-    {"calls_us": calls, "failures": failures, "span_s": span}))
+    report = paced_calls(work, rate, lambda k: fuse_depth(
+        c, CAMERA, frames[k % count], POSE, INTRINSICS, time.monotonic()))
+del report["results"]
+atomic_write(work / "camera.json", json.dumps(report))
 """
 
 
@@ -163,28 +146,9 @@ def _stream(
     ``rep``."""
     work = server.workdir
     idle = _control_loop(server.endpoint, robot, query_hz, seconds, priority)
-    args = [server.endpoint, str(work), str(stream_hz), "6"]
-    cam = subprocess.Popen([sys.executable, "-c", _CAMERA, *args])
-    try:
-        end = time.monotonic() + 120.0
-        while not (work / "camera-ready").exists():
-            if cam.poll() is not None or time.monotonic() > end:
-                raise RuntimeError("the camera process did not start")
-            time.sleep(0.02)
-        times, lost, reasons, seen, ages, regressions = _control_loop(
-            server.endpoint,
-            robot,
-            query_hz,
-            seconds,
-            priority,
-        )
-    finally:
-        atomic_write(work / "camera-stop", b"1")
-        try:
-            cam.wait(timeout=120.0)
-        except subprocess.TimeoutExpired:
-            cam.kill()
-            cam.wait()
+    times, lost, reasons, seen, ages, regressions = with_camera(
+        server, robot, _CAMERA, [str(stream_hz), "6"], query_hz, seconds, wait_s=120.0
+    )
     report = json.loads((work / "camera.json").read_text())
     calls = np.asarray(report["calls_us"], dtype=np.float64)
     rep.add_samples("idle_query", idle[0])

@@ -25,6 +25,8 @@ import math
 import subprocess
 import sys
 import time
+from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -37,7 +39,14 @@ from reachwise.kinematics.robot import Robot
 from reachwise.runtime.realtime import realtime_settings
 from reachwise.server.client import SceneClient
 
-__all__ = ["CAMERA", "LOST_DEADLINE", "camera_frame", "stream"]
+__all__ = [
+    "CAMERA",
+    "LOST_DEADLINE",
+    "camera_frame",
+    "paced_calls",
+    "stream",
+    "with_camera",
+]
 
 #: The streamed object's name.
 CAMERA = "camera"
@@ -64,18 +73,31 @@ def camera_frame(points: int, k: int, seed: int = 5) -> NDArray[np.float32]:
 #: The camera process: hands over frames at its rate until told to stop; writes what it
 #: saw as JSON. Arguments: endpoint, workdir, points, rate (Hz), frames to cycle.
 _CAMERA = """
-import json, sys, time
+import json, sys
 from pathlib import Path
-from reachwise.benchmarks.server_stream import CAMERA, camera_frame
+from reachwise.benchmarks.server_stream import CAMERA, camera_frame, paced_calls
 from reachwise.io.atomic import atomic_write
 from reachwise.server.client import SceneClient
 ep, work = sys.argv[1], Path(sys.argv[2])
 n, rate, count = int(sys.argv[3]), float(sys.argv[4]), int(sys.argv[5])
 frames = [camera_frame(n, k) for k in range(count)]
-calls, versions, failures = [], [], []
 with SceneClient(ep, setup_deadline=5.0) as c:
     c.replace_cloud(CAMERA, frames[0])
     atomic_write(work / "camera-ready", b"1")
+    report = paced_calls(work, rate, lambda k: c.replace_cloud(CAMERA, frames[k % count]))
+report["versions"] = report.pop("results")
+atomic_write(work / "camera.json", json.dumps(report))
+"""
+
+
+def paced_calls(work: Path, rate: float, call: Callable[[int], object]) -> dict[str, Any]:
+    """A camera process's schedule: ``call(k)`` for k = 0, 1, … at ``rate`` Hz (absolute
+    schedule) until ``work/camera-stop`` appears (or 600 s pass). Returns its report:
+    each call's round trip (``calls_us``), what each returned (``results``), the failures
+    (``failures``) and the time spent (``span_s``)."""
+    calls: list[float] = []
+    results: list[object] = []
+    failures: list[str] = []
     start = time.perf_counter()
     k = 0
     while not (work / "camera-stop").exists() and time.perf_counter() - start < 600:
@@ -84,15 +106,13 @@ with SceneClient(ep, setup_deadline=5.0) as c:
             time.sleep(delay)
         t0 = time.perf_counter()
         try:
-            versions.append(c.replace_cloud(CAMERA, frames[k % count]))
+            results.append(call(k))
             calls.append((time.perf_counter() - t0) * 1e6)
-        except Exception as exc:
+        except Exception as exc:  # a failed call is counted and reported, the stream goes on
             failures.append(f"{type(exc).__name__}: {exc}")
         k += 1
     span = time.perf_counter() - start
-atomic_write(work / "camera.json", json.dumps(
-    {"calls_us": calls, "versions": versions, "failures": failures, "span_s": span}))
-"""
+    return {"calls_us": calls, "results": results, "failures": failures, "span_s": span}
 
 
 def stream(
@@ -119,7 +139,7 @@ def stream(
     idle = _control_loop(server.endpoint, robot, query_hz, seconds, server.priority)
     before = _handling(server.endpoint)
     camera = [str(points), str(stream_hz), str(frames)]
-    loop = _with_camera(server, robot, camera, query_hz, seconds)
+    loop = with_camera(server, robot, _CAMERA, camera, query_hz, seconds)
     after = _handling(server.endpoint)
     cam_report = json.loads((work / "camera.json").read_text())
     settings = {
@@ -152,15 +172,22 @@ def stream(
 _Loop = tuple[NDArray[np.float64], int, list[str], set[int], NDArray[np.float64], int]
 
 
-def _with_camera(
-    server: ServerProcess, robot: Robot, camera: list[str], query_hz: float, seconds: float
+def with_camera(
+    server: ServerProcess,
+    robot: Robot,
+    script: str,
+    camera: list[str],
+    query_hz: float,
+    seconds: float,
+    wait_s: float = 60.0,
 ) -> _Loop:
-    """The control loop while a camera process (:data:`_CAMERA`, its arguments after the
-    endpoint and folder: ``camera``) streams into ``server``; the camera is told to stop
-    and awaited after the loop, its report left in ``camera.json``."""
+    """The control loop while a camera process (the Python source ``script``, e.g.
+    :data:`_CAMERA`; its arguments after the endpoint and folder: ``camera``) streams
+    into ``server``; the camera is told to stop and awaited (``wait_s`` s, then killed)
+    after the loop, its report left in ``camera.json``."""
     work = server.workdir
     args = [server.endpoint, str(work), *camera]
-    cam = subprocess.Popen([sys.executable, "-c", _CAMERA, *args])
+    cam = subprocess.Popen([sys.executable, "-c", script, *args])
     try:
         end = time.monotonic() + 120.0
         while not (work / "camera-ready").exists():
@@ -171,7 +198,7 @@ def _with_camera(
     finally:
         atomic_write(work / "camera-stop", b"1")
         try:
-            cam.wait(timeout=60.0)
+            cam.wait(timeout=wait_s)
         except subprocess.TimeoutExpired:
             cam.kill()
             cam.wait()
