@@ -63,16 +63,11 @@ HELD_NONE = np.uint8(0)
 HELD_OBSTACLE = np.uint8(1)
 HELD_FREE = np.uint8(2)
 
-#: The compiler's options for every kernel here: numpy's error model (a division by zero
-#: gives inf or NaN, as in numpy, instead of a check before every division that keeps
-#: LLVM from vectorising a loop) and the fast-math flags that keep NaN and inf
-#: semantics (no ``nnan``/``ninf``: NaN is a pixel without a return).
-_JIT = {
-    "cache": True,
-    "nogil": True,
-    "error_model": "numpy",
-    "fastmath": {"nsz", "arcp", "contract", "afn", "reassoc"},
-}
+#: The fast-math flags of every kernel here, which keep NaN and inf semantics (no
+#: ``nnan``/``ninf``: NaN is a pixel without a return). The kernels also take numpy's
+#: error model: a division by zero gives inf or NaN, as in numpy, instead of a check
+#: before every division that keeps LLVM from vectorising a loop.
+_FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 
 _W_U1_3D = types.Array(types.uint8, 3, "C")
 _W_F8_3D = types.Array(types.float64, 3, "C")
@@ -103,7 +98,7 @@ def tile_levels(height: int, width: int) -> tuple[int, int, int]:
     return max(nty, ntx).bit_length(), nty, ntx
 
 
-@njit(_SIG_PREPARE, **_JIT)
+@njit(_SIG_PREPARE, cache=True, nogil=True, error_model="numpy", fastmath=_FASTMATH)
 def prepare_frame(depth, body, near, far, code, tiles):  # type: ignore[no-untyped-def]
     """One pass over the pixels: the ``code`` image (above) of the returns within
     ``[near, far]`` (and > 0), and the per-tile bounds the brick tests of
@@ -178,7 +173,7 @@ _ALL_SHADOW = 2  # every centre at or behind its pixel's surface, within the sha
 _EACH = 3  # decide voxel by voxel
 
 
-@njit(**_JIT)
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FASTMATH)
 def _brick_test(lo3, ext, view, tiles, rules, W, H):  # type: ignore[no-untyped-def]
     """Decide a brick of voxels ``lo3 .. lo3 + ext`` at once (``_SKIP``, ``_ALL_FREE``,
     ``_ALL_SHADOW``) or voxel by voxel (``_EACH``). ``view`` rows: the camera
@@ -280,7 +275,7 @@ def _brick_test(lo3, ext, view, tiles, rules, W, H):  # type: ignore[no-untyped-
     return _EACH
 
 
-@njit(**_JIT)
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FASTMATH)
 def _apply(decision, whole, lo3, ext, state, freed_at, freed_block, held, code, view, rules, W, H):  # type: ignore[no-untyped-def]
     """Apply a brick test's ``decision`` to its voxels (voxel by voxel for ``_EACH``);
     returns how many of them projected onto a pixel with a return. The voxels lie in
@@ -368,7 +363,7 @@ def _apply(decision, whole, lo3, ext, state, freed_at, freed_block, held, code, 
     return seen
 
 
-@njit(_SIG_PROJECT, **_JIT)
+@njit(_SIG_PROJECT, cache=True, nogil=True, error_model="numpy", fastmath=_FASTMATH)
 def project_frame(state, freed_at, freed_block, held, code, tiles, camera, pose_cw, grid, rules):  # type: ignore[no-untyped-def]
     """Free and shadow marks of one frame (module docstring) from its ``code`` image and
     ``tiles`` (:func:`prepare_frame`); ``rules`` = [band, shadow, t, hold, farthest
@@ -442,13 +437,13 @@ _SIG_MARK = types.int64(
 )
 
 
-@njit(**_JIT, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
 def _cell(f):  # type: ignore[no-untyped-def]
     """``floor(f)`` for ``f`` ≥ −1, −1 below (clamped to an int32: branch-free)."""
     return np.int32(min(max(f, -1.0), 2.0e9) + 1.0) - 1
 
 
-@njit(_SIG_MARK, **_JIT)
+@njit(_SIG_MARK, cache=True, nogil=True, error_model="numpy", fastmath=_FASTMATH)
 def mark_points(state, seen_at, held, code, camera, pose_wc, grid, t):  # type: ignore[no-untyped-def]
     """Mark the voxel of every scene pixel's point (``code`` > 0, :func:`prepare_frame`)
     occupied at time ``t``, its brick flagged in ``held``
