@@ -254,6 +254,25 @@ def test_scene_errors() -> None:
     assert scene.query_all().pairs == ()
 
 
+def test_an_added_clouds_stamp_is_its_measurement_time() -> None:
+    """``add_object``'s ``stamp``: +inf by default (does not age), NaN (unknown) or a
+    time, carried by the answers' ``cloud_stamps`` until a new cloud replaces it; a
+    stamp that is no time, inf or NaN is refused."""
+    scene = Scene()
+    scene.add_object("cad", np.zeros((1, 3)))
+    scene.add_object("seen", np.ones((1, 3)), stamp=math.nan)
+    scene.add_object("scan", np.ones((1, 3)), stamp=2.5)
+    stamps = scene.query_all().cloud_stamps
+    assert stamps["cad"] == math.inf and math.isnan(stamps["seen"]) and stamps["scan"] == 2.5
+    scene.replace_cloud("seen", np.ones((2, 3)), block=True, stamp=3.0)
+    assert scene.query_all().cloud_stamps["seen"] == 3.0
+    for bad in (-math.inf, "now", True):
+        with pytest.raises(InputError, match="stamp"):
+            scene.add_object("bad", np.zeros((1, 3)), stamp=bad)  # type: ignore[arg-type]
+    assert "bad" not in scene.objects
+    scene.close()
+
+
 @pytest.mark.parametrize("larger", ["a", "b"])
 def test_pair_query_used_by_the_scene_is_warm_started(larger: str) -> None:
     """An exact tie shows the warm start: two points of one cloud at exactly the same

@@ -154,11 +154,12 @@ def test_fused_frames_answer_within_the_inflation_and_a_box_gone_is_freed() -> N
 
 
 def test_the_memory_object_ages_with_its_newest_frame() -> None:
+    """Before its first frame the memory's age is unknown (NaN): stale under
+    ``max_cloud_age`` at any time; then it is its newest frame's age."""
     scene = memory_scene()
     with_box, _ = frames()
-    fuse_depth(scene, "memory", with_box, POSE, INTRINSICS, 10.0)
     res = scene.query_all()
-    assert res.cloud_stamps["memory"] == 10.0
+    assert math.isnan(res.cloud_stamps["memory"])  # nothing seen yet
     safety = SafetyConfig(dt=0.01, max_cloud_age=0.05)
 
     def check(now: float) -> bool:
@@ -166,6 +167,11 @@ def test_the_memory_object_ages_with_its_newest_frame() -> None:
             1, now, None, now, safety, cloud_stamp=res.cloud_stamps["memory"], cloud="memory"
         ).ok
 
+    assert not check(0.0) and not check(10.0)
+    assert check_data(1, 1.0, None, 1.0, SafetyConfig(), cloud_stamp=math.nan).ok  # no bound
+    fuse_depth(scene, "memory", with_box, POSE, INTRINSICS, 10.0)
+    res = scene.query_all()
+    assert res.cloud_stamps["memory"] == 10.0
     assert check(10.04)
     assert not check(10.06)  # older than max_cloud_age: stale
     fuse_depth(scene, "memory", with_box, POSE, INTRINSICS, 10.06)

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from reachwise.benchmarks.server import ServerProcess
+from reachwise.control.safety import SafetyConfig, check_data
 from reachwise.distance.scene import Scene
 from reachwise.distance.scene_memories import (
     add_memory,
@@ -45,7 +46,7 @@ from ..distance.test_scene_memories import (
     slider_scene,
     wall_distances,
 )
-from .conftest import HANG_GUARD
+from .conftest import HANG_GUARD, start_server
 from .described import described
 
 CONFIG = MemoryConfig(voxel=0.03, shadow_depth=0.4)
@@ -207,3 +208,45 @@ def test_a_state_directory_keeps_the_memory_watched_and_unknown(tmp_path: Path) 
     ref = svc.handle(P.Query(stamp=6.0))
     assert isinstance(rows, P.QueryReply) and isinstance(ref, P.QueryReply)
     assert rows.rows[0, 0] == pytest.approx(ref.rows[0, 0], abs=1e-12)
+
+
+def _fresh(res: object, now: float) -> bool:
+    """Whether a controller with ``max_cloud_age`` 0.5 s takes the memory's cloud of
+    the answer ``res`` at ``now`` (s): the rule of ``control.safety.check_data``."""
+    stamp = res.cloud_stamps["memory"]  # type: ignore[attr-defined]
+    safety = SafetyConfig(dt=0.01, max_cloud_age=0.5)
+    return check_data(1, now, None, now, safety, cloud_stamp=stamp, cloud="memory").ok
+
+
+def test_a_restarted_servers_memory_is_stale_until_its_first_frame(tmp_path: Path) -> None:
+    """A real server with a state directory: the memory is stale under
+    ``max_cloud_age`` until its first frame, fresh after it; restarted, the server's
+    memory has seen nothing (its map is not kept), so its age is unknown again — stale
+    however soon the restart came — until the next frame, after which it is fresh."""
+    state = ("--state", str(tmp_path / "state"))
+    with_box = frames()[0]
+    first = start_server(tmp_path / "first", extra=state)
+    try:
+        with SceneClient(first.endpoint, deadline=HANG_GUARD, setup_deadline=HANG_GUARD) as c:
+            _build(c)
+            res = c.query_all()
+            assert res.valid and math.isnan(res.cloud_stamps["memory"])
+            assert not _fresh(res, 0.0)  # nothing seen yet
+            fuse_depth(c, "memory", with_box, POSE, INTRINSICS, 3.0)
+            res = c.query_all()
+            assert res.cloud_stamps["memory"] == 3.0 and _fresh(res, 3.1)
+            assert not _fresh(res, 3.6)  # the checker catches an old frame
+    finally:
+        assert first.stop() == 0, (first.workdir / "server.log").read_text()
+    again = start_server(tmp_path / "again", extra=state)
+    try:
+        with SceneClient(again.endpoint, deadline=HANG_GUARD, setup_deadline=HANG_GUARD) as c:
+            assert [p.b for p in c.describe().pairs] == ["memory"]  # restored
+            res = c.query_all()
+            assert res.valid and math.isnan(res.cloud_stamps["memory"])
+            assert not _fresh(res, 3.1)  # the last frame's time would pass: unknown does not
+            fuse_depth(c, "memory", with_box, POSE, INTRINSICS, 8.0)
+            res = c.query_all()
+            assert res.cloud_stamps["memory"] == 8.0 and _fresh(res, 8.1)
+    finally:
+        assert again.stop() == 0, (again.workdir / "server.log").read_text()

@@ -28,6 +28,7 @@ computation; without one those times are NaN ("unknown").
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Callable, Mapping
 from typing import Annotated
 
@@ -206,15 +207,25 @@ class Scene(SceneState):
         robot: str | None = None,
         link: str | None = None,
         dynamic: bool = False,
+        stamp: float = math.inf,
     ) -> SceneObject:
         """Add a cloud. With ``robot`` and ``link`` it is attached to that link and
         ``pose`` is its fixed offset from the link frame; with ``dynamic=True`` its
         world pose is set at run time (``pose`` is the initial one); else ``pose`` is a
-        fixed world pose. ``None`` means identity. The cloud's index is built now."""
+        fixed world pose. ``None`` means identity. The cloud's index is built now.
+
+        ``stamp`` (s) is when the cloud was measured: +inf (the default) for a cloud
+        that does not age (a CAD part, a map), NaN for one whose time is unknown — its
+        age counts as unknown, so a controller with ``SafetyConfig.max_cloud_age``
+        treats it as stale until :meth:`replace_cloud` hands over a stamped one."""
         if not isinstance(name, str) or not name:
             raise InputError("scene", "object name", "must be a non-empty string")
         if name in self._objects:
             raise InputError("scene", f"object {name!r}", "already exists")
+        if isinstance(stamp, bool) or not isinstance(stamp, numbers.Real) or stamp == -math.inf:
+            raise InputError(
+                "scene", f"object {name!r}", f"stamp must be a time in s, inf or NaN, got {stamp!r}"
+            )
         c = as_cloud(cloud, name)
         P = check_pose(pose, f"pose of {name!r}").copy()
         source: PoseSource
@@ -240,7 +251,7 @@ class Scene(SceneState):
         self._slot[name] = self._arrays.add_object(index, P, row)
         self._plan = None
         self._issued[name] = 0
-        self._set_version(name, 0, math.inf)
+        self._set_version(name, 0, float(stamp))
         return obj
 
     def set_pose(self, name: str, pose: ArrayLike, *, stamp: float | None = None) -> None:

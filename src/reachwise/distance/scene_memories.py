@@ -12,7 +12,9 @@ index built already (:meth:`SceneMemory.obstacle_cloud
 nothing, and it is stamped with the newest frame's capture time, so the object's age is
 the age of that frame and ``SafetyConfig.max_cloud_age`` applies to it as to a camera's
 cloud. While the memory holds no obstacle, the object is one point far above its box
-("nothing here": a cloud has a point); before the first frame that point does not age.
+("nothing here": a cloud has a point). Before its first frame a memory has seen nothing,
+so its object's time stamp is unknown (NaN): a controller with ``max_cloud_age`` treats
+it as stale, as a camera's cloud of unknown time, until a frame is fused.
 
 Every centre lies within :attr:`SceneMemory.inflation
 <reachwise.distance.scene_memory.SceneMemory.inflation>` (half a voxel's diagonal) of
@@ -32,11 +34,13 @@ a memory and watching against it change the scene's rules (``scene_change``); a 
 only replaces the memory object's cloud, as a streamed cloud does, so the server neither
 persists nor re-sends its layout per frame. A server's state directory does not keep a
 memory's map: after a restart the memory is there with its setup and its watched pairs
-(:func:`memory_setups`), every voxel unknown (never free) until frames come.
+(:func:`memory_setups`), every voxel unknown (never free) and its age unknown (stale
+under ``max_cloud_age``) until frames come.
 """
 
 from __future__ import annotations
 
+import math
 import threading
 import weakref
 from collections.abc import Mapping, Sequence
@@ -177,11 +181,12 @@ def add_memory(
     """Add a scene memory of the world box ``lower`` … ``upper`` (m) fusing frames
     under ``config`` (default :class:`~reachwise.distance.scene_memory.MemoryConfig`),
     and the object ``name`` that holds its obstacles; returns the memory's inflation
-    (m), what pairs against it add to their margin."""
+    (m), what pairs against it add to their margin. Until the first frame is fused the
+    object's time stamp is unknown (NaN): the memory has seen nothing yet."""
     if name in scene.objects:
         raise InputError("scene", f"object {name!r}", "already exists")
     memory = SceneMemory(lower, upper, config)
-    scene.add_object(name, memory_cloud(memory, name=name))
+    scene.add_object(name, memory_cloud(memory, name=name), stamp=math.nan)
     box = (np.array(lower, dtype=np.float64), np.array(upper, dtype=np.float64))
     _memories(scene)[name] = _Held(memory, *box)
     return memory.inflation
