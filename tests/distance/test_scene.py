@@ -13,7 +13,7 @@ from reachwise import PointCloud
 from reachwise.distance import PairQuery, Scene, closest_points
 from reachwise.distance.index import INDICES
 from reachwise.distance.scene import RobotLike
-from reachwise.errors import InputError, UnknownName
+from reachwise.errors import InputError, NameTaken, UnknownName
 
 
 def _rz(q: float) -> NDArray[np.float64]:
@@ -225,14 +225,15 @@ def test_scene_errors() -> None:
         scene.add_object("x", np.zeros((1, 3)), robot="ghost", link="link_0")
     robot = FakeChain("arm", (0.5,))
     scene.add_robot(robot)
-    with pytest.raises(InputError, match="already registered"):
+    with pytest.raises(NameTaken, match="already registered"):
         scene.add_robot(robot)
     with pytest.raises(UnknownName, match="'arm': link: unknown link 'link_9'; valid: link_0, "):
         scene.add_object("x", np.zeros((1, 3)), robot="arm", link="link_9")
     scene.add_object("x", np.zeros((1, 3)), robot="arm", link="link_1")
     scene.add_object("y", np.ones((1, 3)))
-    with pytest.raises(InputError, match="already exists"):
+    with pytest.raises(NameTaken, match="already exists") as taken:
         scene.add_object("y", np.ones((1, 3)))
+    assert isinstance(taken.value, InputError) and taken.value.field == "name"
     with pytest.raises(InputError, match="not set at run time"):
         scene.set_pose("y", np.eye(4))
     with pytest.raises(UnknownName, match="unknown object 'z'; valid: x, y"):

@@ -24,7 +24,7 @@ from reachwise.distance.scene_memories import (
     watch_memory,
 )
 from reachwise.distance.scene_memory import STATES, MemoryConfig
-from reachwise.errors import InputError, UnknownName
+from reachwise.errors import InputError, NameTaken, UnknownName
 from reachwise.geometry.depth_camera import DepthCamera, Intrinsics
 from reachwise.kinematics.robot import Joint, Robot
 
@@ -197,8 +197,12 @@ def test_bad_frames_and_names_are_typed_errors_naming_the_field() -> None:
     with pytest.raises(UnknownName) as unknown:
         fuse_depth(scene, "memroy", with_box, POSE, INTRINSICS, 1.0)
     assert "memory" in str(unknown.value)
-    with pytest.raises(InputError, match="already exists"):
-        add_memory(scene, "probe", LOWER, UPPER)
+    for taken in ("probe", "memory"):  # an object's name, a memory's
+        with pytest.raises(NameTaken, match="already exists") as err:
+            add_memory(scene, taken, LOWER, UPPER)
+        assert isinstance(err.value, InputError) and err.value.field == "name"
+    with pytest.raises(NameTaken):
+        scene.add_object("memory", PROBE)
     with pytest.raises(InputError) as err:
         add_memory(scene, "other", UPPER, LOWER)
     assert err.value.field == "upper"

@@ -161,6 +161,13 @@ def test_bad_frames_through_the_server_are_typed_errors_naming_the_field(
     with pytest.raises(ServerInputError) as info:
         fuse_depth(client, "memroy", with_box, POSE, INTRINSICS, 1.0)
     assert info.value.code == P.ErrorCode.UNKNOWN_ID and "'memory'" in str(info.value)
+    for taken in ("memory", "probe"):  # a memory's name, an object's: EXISTS
+        with pytest.raises(ServerInputError) as info:
+            add_memory(client, taken, LOWER, UPPER, CONFIG)
+        assert info.value.code == P.ErrorCode.EXISTS and info.value.field == "name"
+    with pytest.raises(ServerInputError) as info:
+        client.add_object("memory", PROBE)
+    assert info.value.code == P.ErrorCode.EXISTS and info.value.field.endswith("name")
     res = client.query_all()  # nothing of the bad frames was fused
     assert res.valid and res.get("probe", "memory").result.distance == math.inf
 

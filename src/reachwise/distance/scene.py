@@ -217,11 +217,12 @@ class Scene(SceneState):
         ``stamp`` (s) is when the cloud was measured: +inf (the default) for a cloud
         that does not age (a CAD part, a map), NaN for one whose time is unknown — its
         age counts as unknown, so a controller with ``SafetyConfig.max_cloud_age``
-        treats it as stale until :meth:`replace_cloud` hands over a stamped one."""
+        treats it as stale until :meth:`replace_cloud` hands over a stamped one. A name
+        in use raises :class:`~reachwise.errors.NameTaken` (an ``InputError``)."""
         if not isinstance(name, str) or not name:
             raise InputError("scene", "object name", "must be a non-empty string")
         if name in self._objects:
-            raise InputError("scene", f"object {name!r}", "already exists")
+            raise NameTaken("scene", "name", f"object {name!r} already exists")
         if isinstance(stamp, bool) or not isinstance(stamp, numbers.Real) or stamp == -math.inf:
             raise InputError(
                 "scene", f"object {name!r}", f"stamp must be a time in s, inf or NaN, got {stamp!r}"

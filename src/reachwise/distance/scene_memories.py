@@ -60,7 +60,7 @@ from reachwise.distance.scene_ops import (
     staged_operation,
 )
 from reachwise.distance.scene_types import OnLink
-from reachwise.errors import InputError, UnknownName
+from reachwise.errors import InputError, NameTaken, UnknownName
 from reachwise.geometry.body_pieces import (
     DOP26,
     body_pixels,
@@ -181,10 +181,11 @@ def add_memory(
     """Add a scene memory of the world box ``lower`` … ``upper`` (m) fusing frames
     under ``config`` (default :class:`~reachwise.distance.scene_memory.MemoryConfig`),
     and the object ``name`` that holds its obstacles; returns the memory's inflation
-    (m), what pairs against it add to their margin. Until the first frame is fused the
+    (m), what pairs against it add to their margin; a name in use raises
+    :class:`~reachwise.errors.NameTaken`. Until the first frame is fused the
     object's time stamp is unknown (NaN): the memory has seen nothing yet."""
     if name in scene.objects:
-        raise InputError("scene", f"object {name!r}", "already exists")
+        raise NameTaken("scene", "name", f"object {name!r} already exists")
     memory = SceneMemory(lower, upper, config)
     scene.add_object(name, memory_cloud(memory, name=name), stamp=math.nan)
     box = (np.array(lower, dtype=np.float64), np.array(upper, dtype=np.float64))
