@@ -41,7 +41,7 @@ from reachwise.benchmarks.server_setup import (
     bench_priority,
     crane_q,
 )
-from reachwise.benchmarks.server_stream import CAMERA, _control_loop, with_camera
+from reachwise.benchmarks.server_stream import CAMERA, control_loop, with_camera
 from reachwise.distance.scene_memories import add_memory, watch_memory
 from reachwise.distance.scene_memory import MemoryConfig
 from reachwise.io.robot_file import load_robot
@@ -145,7 +145,7 @@ def _stream(
     """The control loop idle, then while the camera process fuses; the figures into
     ``rep``."""
     work = server.workdir
-    idle = _control_loop(server.endpoint, robot, query_hz, seconds, priority)
+    idle = control_loop(server.endpoint, robot, query_hz, seconds, priority)
     times, lost, reasons, seen, ages, regressions = with_camera(
         server, robot, _CAMERA, [str(stream_hz), "6"], query_hz, seconds, wait_s=120.0
     )

@@ -42,7 +42,9 @@ from reachwise.server.client import SceneClient
 __all__ = [
     "CAMERA",
     "LOST_DEADLINE",
+    "LoopFigures",
     "camera_frame",
+    "control_loop",
     "paced_calls",
     "stream",
     "with_camera",
@@ -136,7 +138,7 @@ def stream(
         setup.add_object(CAMERA, camera_frame(points, 0), dynamic=False)
         setup.watch_environment(robot.name, MARGIN, [CAMERA])
     # the same loop on the same scene without the camera first: the machine's own tails
-    idle = _control_loop(server.endpoint, robot, query_hz, seconds, server.priority)
+    idle = control_loop(server.endpoint, robot, query_hz, seconds, server.priority)
     before = _handling(server.endpoint)
     camera = [str(points), str(stream_hz), str(frames)]
     loop = with_camera(server, robot, _CAMERA, camera, query_hz, seconds)
@@ -166,10 +168,10 @@ def stream(
         rep.notes.append(f"streaming: failed hand-overs, first: {cam_report['failures'][:3]}")
 
 
-#: What :func:`_control_loop` returns: query times (µs), lost replies, their first
+#: What :func:`control_loop` returns: query times (µs), lost replies, their first
 #: reasons, the camera versions seen, the camera cloud's age per answer (µs) and
 #: version regressions.
-_Loop = tuple[NDArray[np.float64], int, list[str], set[int], NDArray[np.float64], int]
+LoopFigures = tuple[NDArray[np.float64], int, list[str], set[int], NDArray[np.float64], int]
 
 
 def with_camera(
@@ -180,7 +182,7 @@ def with_camera(
     query_hz: float,
     seconds: float,
     wait_s: float = 60.0,
-) -> _Loop:
+) -> LoopFigures:
     """The control loop while a camera process (the Python source ``script``, e.g.
     :data:`_CAMERA`; its arguments after the endpoint and folder: ``camera``) streams
     into ``server``; the camera is told to stop and awaited (``wait_s`` s, then killed)
@@ -194,7 +196,7 @@ def with_camera(
             if cam.poll() is not None or time.monotonic() > end:
                 raise RuntimeError("the camera process did not start")
             time.sleep(0.02)
-        return _control_loop(server.endpoint, robot, query_hz, seconds, server.priority)
+        return control_loop(server.endpoint, robot, query_hz, seconds, server.priority)
     finally:
         atomic_write(work / "camera-stop", b"1")
         try:
@@ -206,8 +208,8 @@ def with_camera(
 
 def _stream_figures(
     rep: BenchReport,
-    idle: _Loop,
-    loop: _Loop,
+    idle: LoopFigures,
+    loop: LoopFigures,
     handling: tuple[NDArray[np.float64], NDArray[np.int64]],
     cam_report: dict[str, Any],
     settings: dict[str, float],
@@ -262,9 +264,9 @@ def _upper_edge(edges: NDArray[np.float64], counts: NDArray[np.int64], q: float)
     return float(edges[k]) if k < edges.size else math.inf
 
 
-def _control_loop(
+def control_loop(
     endpoint: str, robot: Robot, rate_hz: float, seconds: float, priority: int | None = None
-) -> _Loop:
+) -> LoopFigures:
     """The controller: query times (µs), lost replies, their first reasons, the camera
     versions seen, the camera cloud's age per answer (µs) and version regressions. It
     runs as a real-time loop does (:func:`realtime_settings`: no full collection of the
@@ -283,8 +285,8 @@ def _control_loop(
 
 def _ticks(
     client: SceneClient, robot: Robot, start: float, period: float, warm: int, n: int
-) -> _Loop:
-    """The timed ticks of :func:`_control_loop`."""
+) -> LoopFigures:
+    """The timed ticks of :func:`control_loop`."""
     times = np.empty(n)
     ages = np.empty(n)
     lost = 0
