@@ -112,6 +112,33 @@ def test_the_kernel_equals_the_plain_reference(seed: int, frames: int) -> None:
         assert np.array_equal(fast.freed_at.reshape(-1), freed)
 
 
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), frames=st.integers(1, 3))
+def test_float32_metres_and_uint16_millimetres_fuse_as_their_values(seed: int, frames: int) -> None:
+    """A camera's own pixel types, read without a float64 copy: a float32 image (NaN: no
+    return) and a uint16 image in millimetres (``depth_scale=0.001``, 0: no return) fuse
+    as the plain reference fuses their values in metres."""
+    rng = np.random.default_rng(seed)
+    cfg = MemoryConfig(voxel=0.1, shadow_depth=0.3, memory_s=1.0, free_hold_s=0.05)
+    f4, u2, slow = (SceneMemory(LOWER, UPPER, cfg) for _ in range(3))
+    slow_u2 = SceneMemory(LOWER, UPPER, cfg)
+    freed, freed_u2 = np.full(slow.state.size, -np.inf), np.full(slow.state.size, -np.inf)
+    for f in range(frames):
+        depth, body, K, T = random_frame(rng)
+        d32 = depth.astype(np.float32)
+        mm = np.nan_to_num(np.round(depth * 1000.0), nan=0.0).astype(np.uint16)
+        metres = np.where(mm > 0, mm * 0.001, np.nan)
+        f4.integrate(d32, T, K, t=0.04 * f, body=body)
+        u2.integrate(mm, T, K, t=0.04 * f, body=body, depth_scale=0.001)
+        reference_update(slow, freed, d32.astype(np.float64), body, K, T, 0.04 * f)
+        reference_update(slow_u2, freed_u2, metres, body, K, T, 0.04 * f)
+        assert np.array_equal(f4.state, slow.state)
+        assert np.array_equal(f4.freed_at.reshape(-1), freed)
+        assert np.array_equal(u2.state, slow_u2.state)
+        assert np.array_equal(u2.freed_at.reshape(-1), freed_u2)
+    assert np.count_nonzero(u2.state == OCC) > 0
+
+
 @settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1))
 def test_observed_points_are_occupied_and_space_before_them_free(seed: int) -> None:
@@ -282,6 +309,9 @@ def test_bad_inputs_are_typed_errors() -> None:
         mem.integrate(np.ones((10, 10)), np.eye(4) * 2, K, t=0.0)
     with pytest.raises(InputError, match="body"):
         mem.integrate(np.ones((10, 10)), np.eye(4), K, t=0.0, body=np.zeros((3, 3), bool))
+    for scale in (0.0, -0.001, math.nan):
+        with pytest.raises(InputError, match="depth_scale"):
+            mem.integrate(np.ones((10, 10), np.uint16), np.eye(4), K, t=0.0, depth_scale=scale)
     rot = np.eye(4)
     rot[:3, :3] = Rotation.from_rotvec([0.1, 0.2, 0.3]).as_matrix()
     mem.integrate(np.ones((10, 10)), rot, K, t=0.0)  # a valid call

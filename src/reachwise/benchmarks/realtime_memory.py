@@ -54,7 +54,8 @@ def _memory_loop(quick: bool, handover: Handover) -> BenchReport:
     pose, f = realtime.camera_pose()
     w, h = realtime.CAMERA_SIZE
     view = ViewIntrinsics(f, f, 0.5 * w - 0.5, 0.5 * h - 0.5, 0.2, 10.0)
-    depths = [realtime.camera_depth(k) for k in range(realtime.FRAMES)]
+    # float32 metres, as a depth camera (32FC1) gives them: fused without a float64 copy
+    depths = [realtime.camera_depth(k).astype(np.float32) for k in range(realtime.FRAMES)]
     memory = SceneMemory(*CELL, MemoryConfig(voxel=0.03))
     memory.integrate(depths[0], pose, view, 0.0)
     fuse_us: list[float] = []

@@ -87,7 +87,20 @@ _RO_F8_4D = types.Array(types.float64, 4, "C", readonly=True)
 # on the robot lies there else 0.0] over the 2**level x 2**level tiles of TILE x TILE
 # pixels from tile (ty, tx) on (a sparse table: any rectangle of tiles is the union of
 # a few such squares)
-_SIG_PREPARE = types.float64(_RO_F8_2D, _RO_B1_2D, types.float64, types.float64, _W_F4_2D, _W_F8_4D)
+# depth: the sensor's image as it comes, float64 or float32 metres or uint16 units of
+# ``scale`` metres (millimetres: 0.001), one compiled version each
+_SIG_PREPARE = [
+    types.float64(
+        types.Array(pixel, 2, "C", readonly=True),
+        types.float64,
+        _RO_B1_2D,
+        types.float64,
+        types.float64,
+        _W_F4_2D,
+        _W_F8_4D,
+    )
+    for pixel in (types.float64, types.float32, types.uint16)
+]
 
 
 def tile_levels(height: int, width: int) -> tuple[int, int, int]:
@@ -99,10 +112,12 @@ def tile_levels(height: int, width: int) -> tuple[int, int, int]:
 
 
 @njit(_SIG_PREPARE, cache=True, nogil=True, error_model="numpy", fastmath=_FASTMATH)
-def prepare_frame(depth, body, near, far, code, tiles):  # type: ignore[no-untyped-def]
-    """One pass over the pixels: the ``code`` image (above) of the returns within
-    ``[near, far]`` (and > 0), and the per-tile bounds the brick tests of
-    :func:`project_frame` use; returns the farthest return (0.0 when there is none)."""
+def prepare_frame(depth, scale, body, near, far, code, tiles):  # type: ignore[no-untyped-def]
+    """One pass over the pixels: the ``code`` image (above) of the returns
+    ``depth · scale`` (m) within ``[near, far]`` (and > 0), and the per-tile bounds the
+    brick tests of :func:`project_frame` use; returns the farthest return (0.0 when
+    there is none). ``depth`` is read in the sensor's own pixel type (float64, float32,
+    uint16): no copy of the frame precedes this pass."""
     H, W = depth.shape
     L, nty, ntx = tiles.shape[0], tiles.shape[1], tiles.shape[2]
     for ty in range(nty):
@@ -116,7 +131,7 @@ def prepare_frame(depth, body, near, far, code, tiles):  # type: ignore[no-untyp
         ty = r // TILE
         for c in range(W):
             tx = c // TILE
-            d = depth[r, c]
+            d = np.float64(depth[r, c]) * scale
             if d > 0.0 and d >= near and d <= far:
                 if d > dmax:
                     dmax = d

@@ -95,6 +95,8 @@ __all__ = [
 _SRC = "scene memory"
 #: Most voxels one memory may hold (about 140 MB of state).
 MAX_VOXELS = 8_000_000
+#: The depth pixel types read as they come (:meth:`SceneMemory.integrate`).
+_PIXEL_TYPES = (np.dtype(np.float64), np.dtype(np.float32), np.dtype(np.uint16))
 #: The state codes of :attr:`SceneMemory.state`.
 STATES = {
     "unknown": int(UNKNOWN),
@@ -274,14 +276,21 @@ class SceneMemory:
         intrinsics: ViewIntrinsics,
         t: float,
         body: ArrayLike | None = None,
+        *,
+        depth_scale: float = 1.0,
     ) -> None:
-        """Fuse one ``depth`` image (``(height, width)``, m along the optical axis, NaN or
-        0 where there is no return) taken at time ``t`` (s) by a camera at ``pose``
-        (4 × 4, optical frame → world) with ``intrinsics``; ``body`` marks the pixels
-        that saw the robot: their depth, when given, is the robot's, and frees only the
-        space in front of it; they never mark anything occupied or shadow (the robot
-        never enters its own map, and what it hides keeps what was seen before)."""
-        frame = self.prepare(depth, pose, intrinsics, t, body)
+        """Fuse one ``depth`` image (``(height, width)``, along the optical axis in units
+        of ``depth_scale`` m, NaN or 0 where there is no return) taken at time ``t`` (s)
+        by a camera at ``pose`` (4 × 4, optical frame → world) with ``intrinsics``;
+        ``body`` marks the pixels that saw the robot: their depth, when given, is the
+        robot's, and frees only the space in front of it; they never mark anything
+        occupied or shadow (the robot never enters its own map, and what it hides keeps
+        what was seen before).
+
+        The image is read in the sensor's own pixel type when it is float32 or float64
+        metres (``32FC1``) or uint16 (``16UC1`` millimetres: ``depth_scale=0.001``),
+        without a float64 copy; other types are converted to float64 first."""
+        frame = self.prepare(depth, pose, intrinsics, t, body, depth_scale=depth_scale)
         self.project(frame)
         self.mark(frame)
 
@@ -292,12 +301,16 @@ class SceneMemory:
         intrinsics: ViewIntrinsics,
         t: float,
         body: ArrayLike | None = None,
+        *,
+        depth_scale: float = 1.0,
     ) -> PreparedFrame:
         """The first of :meth:`integrate`'s three passes (same arguments): the frame
         checked and read once into the form the other two take (:class:`PreparedFrame`).
         :meth:`integrate` is ``prepare``, :meth:`project`, :meth:`mark`; apart, they are
         timed one by one (``reachwise bench memory``)."""
-        z = np.ascontiguousarray(depth, dtype=np.float64)
+        z = np.asarray(depth)
+        z = np.ascontiguousarray(z if z.dtype in _PIXEL_TYPES else z.astype(np.float64))
+        scale = _positive(depth_scale, "depth_scale")
         if z.ndim != 2 or z.size == 0:
             raise InputError(_SRC, "depth", f"expected a (height, width) image, got {z.shape}")
         near, far = float(intrinsics.near), float(intrinsics.far)
@@ -327,7 +340,7 @@ class SceneMemory:
         zv, mv = z.view(), mask.view()  # read-only views: the caller's arrays keep their flags
         zv.flags.writeable = False
         mv.flags.writeable = False
-        dmax = prepare_frame(zv, mv, near, far, code, tiles)
+        dmax = prepare_frame(zv, scale, mv, near, far, code, tiles)
         rules = np.array([cfg.surface_band, cfg.shadow_depth, tt, cfg.free_hold_s, dmax])
         for a in (code, tiles, camera, cw, T, rules):
             a.setflags(write=False)
