@@ -150,10 +150,10 @@ class RankedRow:
     candidate: Candidate
 
 
-def _sort_key(c: Candidate, key: RankKey) -> tuple[float | str, ...]:
-    m = c.measures
-    if m is None:  # pragma: no cover - infeasible ones are sorted separately
-        raise InputError("rank", c.name, "no measures")
+def order_figures(m: Measures, key: RankKey) -> tuple[float, ...]:
+    """The figures designs are ordered by, each lower-is-better: the key (a value not
+    taken, NaN or infinite, the worst), then mean, GCI, KCI (higher first), link length
+    and prismatic joints (lower first)."""
     v = m.value(key)
     return (
         -RANK_KEYS[key] * (v if math.isfinite(v) else -RANK_KEYS[key] * math.inf),
@@ -162,8 +162,14 @@ def _sort_key(c: Candidate, key: RankKey) -> tuple[float | str, ...]:
         -m.kci,
         m.length,
         m.prismatic,
-        c.name,
     )
+
+
+def _sort_key(c: Candidate, key: RankKey) -> tuple[float | str, ...]:
+    m = c.measures
+    if m is None:  # pragma: no cover - infeasible ones are sorted separately
+        raise InputError("rank", c.name, "no measures")
+    return (*order_figures(m, key), c.name)
 
 
 def rank(candidates: Sequence[Candidate], key: RankKey = "mean") -> tuple[RankedRow, ...]:

@@ -12,9 +12,8 @@ from numpy.typing import NDArray
 
 from reachwise.errors import InputError
 from reachwise.kinematics.robot import Robot
-from reachwise.synthesis.objectives import OBJECTIVES
 from reachwise.synthesis.problem import SynthesisProblem
-from reachwise.synthesis.rank import Candidate, RankedRow, RankKey, best_run_index
+from reachwise.synthesis.rank import Candidate, RankedRow, RankKey, order_figures
 from reachwise.synthesis.rank import rank as rank_candidates
 from reachwise.synthesis.sweep.config import ROUND_FULL, SweepConfig
 from reachwise.synthesis.sweep.items import ItemResult
@@ -25,7 +24,7 @@ from reachwise.tasks.task import Task
 @dataclass(frozen=True, eq=False)
 class RoundTable:
     """The ranked table of one round: rows (``rank.RankedRow``) and, per topology, its
-    runs and the index of its best run (``rank.best_run_index``)."""
+    runs and the index of its best run (:func:`best_run`)."""
 
     round: int
     task_points: int
@@ -76,15 +75,47 @@ def _finite_or_none(v: float) -> float | None:
     return float(v) if math.isfinite(v) else None
 
 
-def _key_costs(runs: Sequence[ItemResult], key: RankKey) -> list[float] | None:
-    """With an objective as the rank key, a topology's best run is the best by it."""
-    if key not in OBJECTIVES:
-        return None
-    out = []
-    for r in runs:
-        v = r.measures.value(key) if r.measures is not None else math.nan
-        out.append(-OBJECTIVES[key] * v if math.isfinite(v) else math.inf)
-    return out
+#: Relative difference below which two figures of runs count as equal when a topology's
+#: best run is chosen: rounding noise (a sum in another order, another BLAS kernel) moves a
+#: figure by far less, a different design by far more.
+SAME_FIGURE = 1e-9
+
+
+def _close(a: float, b: float) -> bool:
+    if not (math.isfinite(a) and math.isfinite(b)):
+        return a == b
+    return abs(a - b) <= SAME_FIGURE * max(abs(a), abs(b))
+
+
+def _figures(r: ItemResult, key: RankKey, feasible: bool) -> tuple[float, ...]:
+    if feasible and r.measures is not None:
+        return order_figures(r.measures, key)
+    return (r.e_obj if math.isfinite(r.e_obj) else math.inf,)
+
+
+def best_run(runs: Sequence[ItemResult], key: RankKey) -> int:
+    """Index of a topology's best run (the run its row reports), independent of the order
+    the runs arrived in and of rounding noise in their figures.
+
+    Most task points reached first. Among runs that reach every point, the best by the
+    rank key, then mean, GCI, KCI (higher first), link length and prismatic joints
+    (lower first): the figures the sweep ranks topologies by (``rank.order_figures``).
+    The pose error ``e_obj`` is not compared there: a converged run's error is rounding
+    noise (about 1e-13) that any change in summation order reorders. Among runs that
+    miss points, the smallest ``e_obj``. Figures within a relative :data:`SAME_FIGURE`
+    are equal; a tie goes to the lowest run number.
+    """
+    if not runs:
+        raise InputError("sweep", "runs", "no run")
+    most = max(r.n_reached for r in runs)
+    tied = sorted((r for r in runs if r.n_reached == most), key=lambda r: r.run)
+    feasible = all(r.feasible for r in tied)
+    figures = [_figures(r, key, feasible) for r in tied]
+    pick = list(range(len(tied)))
+    for j in range(len(figures[0])):
+        low = min(figures[i][j] for i in pick)
+        pick = [i for i in pick if _close(figures[i][j], low)]
+    return runs.index(tied[pick[0]])
 
 
 def round_table(results: Sequence[ItemResult], round: int, key: RankKey) -> RoundTable:
@@ -94,8 +125,7 @@ def round_table(results: Sequence[ItemResult], round: int, key: RankKey) -> Roun
         if r.round == round:
             by.setdefault(r.topology, []).append(r)
     runs = {k: tuple(sorted(v, key=lambda r: r.run)) for k, v in sorted(by.items())}
-    best = {k: best_run_index([r.n_reached for r in v], [r.e_obj for r in v],
-                              _key_costs(v, key)) for k, v in runs.items()}  # fmt: skip
+    best = {k: best_run(v, key) for k, v in runs.items()}
     cands = []
     points = 0
     for k, v in runs.items():
