@@ -463,24 +463,29 @@ def mark_points(state, seen_at, held, code, camera, pose_wc, grid, t):  # type: 
     """Mark the voxel of every scene pixel's point (``code`` > 0, :func:`prepare_frame`)
     occupied at time ``t``, its brick flagged in ``held``
     (:func:`~reachwise.distance._memory_collect.collect_ordered`); returns the number
-    of points that fell inside the grid. Per image row, the voxel indices of all its
-    pixels are found first in a branch-free pass (which the compiler vectorises), then
-    the voxels marked."""
+    of points that fell inside the grid. Per image row, the flat index of every pixel's
+    voxel (−1 for a pixel without a scene point or outside the grid) and of its brick
+    are found first in a branch-free pass (which the compiler vectorises), then the
+    voxels marked, each once per run of pixels that share it: neighbouring pixels
+    mostly do."""
     fx, fy, cx, cy = camera[0], camera[1], camera[2], camera[3]
     ox, oy, oz, vox = grid[0], grid[1], grid[2], grid[3]
     inv_vox = 1.0 / vox
     H, W = code.shape
     nx, ny, nz = state.shape
+    hy, hz = held.shape[1], held.shape[2]
     R = pose_wc[:3, :3]
     tw = pose_wc[:3, 3]
+    flat_state = state.reshape(-1)
+    flat_seen = seen_at.reshape(-1)
+    flat_held = held.reshape(-1)
     xs = np.empty(W)
     for c in range(W):
         xs[c] = (c - cx) / fx
-    ci = np.empty(W, dtype=np.int32)
-    cj = np.empty(W, dtype=np.int32)
-    ck = np.empty(W, dtype=np.int32)
+    voxel = np.empty(W, dtype=np.int64)
+    brick = np.empty(W, dtype=np.int64)
     marked = 0
-    li = lj = lk = -1  # the last voxel marked: neighbouring pixels mostly share one
+    last = -1  # the last voxel marked
     for r in range(H):
         yr = (r - cy) / fy
         # world position of the ray's unit-depth point for this row, per column step
@@ -488,20 +493,23 @@ def mark_points(state, seen_at, held, code, camera, pose_wc, grid, t):  # type: 
         by = R[1, 1] * yr + R[1, 2]
         bz = R[2, 1] * yr + R[2, 2]
         for c in range(W):
-            d = max(np.float64(code[r, c]), 0.0)  # NaN or the robot's: any cell, unused
+            v = np.float64(code[r, c])
+            d = max(v, 0.0)  # NaN or the robot's: any cell, not marked
             xc = xs[c]
-            ci[c] = _cell(((R[0, 0] * xc + bx) * d + tw[0] - ox) * inv_vox)
-            cj[c] = _cell(((R[1, 0] * xc + by) * d + tw[1] - oy) * inv_vox)
-            ck[c] = _cell(((R[2, 0] * xc + bz) * d + tw[2] - oz) * inv_vox)
+            i = np.int64(_cell(((R[0, 0] * xc + bx) * d + tw[0] - ox) * inv_vox))
+            j = np.int64(_cell(((R[1, 0] * xc + by) * d + tw[1] - oy) * inv_vox))
+            k = np.int64(_cell(((R[2, 0] * xc + bz) * d + tw[2] - oz) * inv_vox))
+            inside = (v > 0.0) & (i >= 0) & (i < nx) & (j >= 0) & (j < ny) & (k >= 0) & (k < nz)
+            voxel[c] = ((i * ny + j) * nz + k) if inside else -1
+            brick[c] = ((i // BRICK) * hy + j // BRICK) * hz + k // BRICK
         for c in range(W):
-            if not code[r, c] > 0.0:
+            f = voxel[c]
+            if f < 0:
                 continue
-            i, j, k = ci[c], cj[c], ck[c]
-            if 0 <= i < nx and 0 <= j < ny and 0 <= k < nz:
-                marked += 1
-                if i != li or j != lj or k != lk:
-                    state[i, j, k] = OCCUPIED
-                    seen_at[i, j, k] = t
-                    held[i // BRICK, j // BRICK, k // BRICK] = HELD_OBSTACLE
-                    li, lj, lk = i, j, k
+            marked += 1
+            if f != last:
+                flat_state[f] = OCCUPIED
+                flat_seen[f] = t
+                flat_held[brick[c]] = HELD_OBSTACLE
+                last = f
     return marked
