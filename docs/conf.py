@@ -44,7 +44,10 @@ autodoc_member_order = "bysource"
 # scenario's specs, the scene's arrays) that are not part of the public API, and
 # nitpicky mode would have to resolve each. Docstrings state types and units.
 autodoc_typehints = "none"
-autodoc_default_options = {"members": True, "undoc-members": True, "show-inheritance": False}
+# No "show-inheritance" key: autodoc turns a flag option on when its key is present,
+# whatever the value ("show-inheritance": False rendered "Bases: ..." under every
+# class). Without it, bases are shown only where a directive asks (:show-inheritance:).
+autodoc_default_options = {"members": True, "undoc-members": True}
 autoclass_content = "class"
 
 nitpicky = True
@@ -57,6 +60,7 @@ nitpick_ignore_regex = [
     ("py:.*", r"(pathlib\.)?Path|os\.PathLike|collections\.abc\..*|typing\..*|concurrent\..*"),
     ("py:.*", r"threading\..*|sqlite3\..*|logging\..*|types\..*|enum\..*|io\..*|datetime\..*"),
     ("py:.*", r"difflib\..*"),
+    ("py:.*", r"rosbags(\..*)?"),
     ("py:class", r"(float|int|str|bool|bytes|object|dict|list|tuple|set|frozenset|None)"),
     ("py:class", r"(Callable|Iterable|Iterator|Sequence|Mapping|Any|Literal|Self|TypeVar)"),
 ]

@@ -1,6 +1,6 @@
 """A live view attached to a running simulation.
 
-:class:`LiveRun` runs :func:`reachwise.sim.simulate.simulate` with an ``on_tick``
+:class:`LiveRun` runs :func:`reachwise.simulate` with an ``on_tick``
 hook that pushes each tick's ``q`` and the scene's answer (``res.pairs[i].result``,
 ``point_a``/``point_b`` in world frame: the closest-point lines) to the browser, at
 most ``fps`` times per second, paced at ``speed`` × real time (0: as fast as it
@@ -38,7 +38,7 @@ class LiveStopped(Exception):
 
 class LiveRun:
     """A simulation shown while it runs (see the module doc). ``on_tick`` is the hook
-    for :func:`reachwise.sim.simulate.simulate`; :meth:`start` runs it in a thread."""
+    for :func:`reachwise.simulate`; :meth:`start` runs it in a thread."""
 
     def __init__(
         self,

@@ -4,7 +4,7 @@ A simulation log keeps the robots' joints and the moving objects' poses, not the
 map: the map depends on every frame fused since the start. :class:`MemoryReplay` fuses
 the frames again, in the order the simulation delivered them (delivery tick, then the
 camera's place in the scenario, then the frame number: what
-:meth:`~reachwise.sim.sensors.DepthSensor.step` does each tick), each rendered from the
+``reachwise.sim.sensors.DepthSensor.step`` does each tick), each rendered from the
 state at its capture (the robots' logged joints then). So the map shown at a tick is the
 map the controller queried at that tick.
 

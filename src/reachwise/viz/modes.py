@@ -44,7 +44,7 @@ __all__ = [
 
 
 def robot_clouds(robot: Robot, points: int | None = None) -> tuple[dict[str, Any], str]:
-    """Link clouds of ``robot`` (:func:`reachwise.io.robot_clouds.link_clouds`), or
+    """Link clouds of ``robot`` (:func:`reachwise.link_clouds`), or
     none and the reason when its geometry cannot be read (the skeleton remains)."""
     from reachwise.io.robot_clouds import link_clouds
 

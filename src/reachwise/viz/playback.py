@@ -1,13 +1,13 @@
 """Simulations in the viewer: the scene of a scenario and the playback of a log
 (the live view is :mod:`reachwise.viz.live`).
 
-:class:`SimScene` draws a built :class:`~reachwise.sim.world.World`: every robot
+:class:`SimScene` draws a built ``reachwise.sim.world.World``: every robot
 (the scene's link clouds — watched links in orange — plus light clouds of its other
 links, the skeleton, the tool frame), the environment clouds, the goals (red until
 reached, then green) and the closest-point lines of the watched pairs (thesis §3.1,
 P-V Fig. 4: red within the collision margin ρ_O, amber in the monitored band). A depth
 camera's live cloud is its environment cloud, replaced as frames arrive (each frame
-rendered again from the state at its capture, :mod:`reachwise.sim.sensors`); an object
+rendered again from the state at its capture, ``reachwise.sim.sensors``); an object
 only the cameras see (``scene: false``) is drawn as grey points on its true surface.
 A scene memory fed by cameras is rebuilt from their frames
 (:class:`~reachwise.viz.memory_replay.MemoryReplay`) and drawn as its occupied (red),

@@ -7,8 +7,8 @@ kinematic model and the results, so it can be tested without a browser:
   ``Robot.fk_all(q)`` (base, link_1 … link_N, tool — the stick figures of P-I Fig. 5);
 - task-point colours by status, after P-I Fig. 4 (green: full pose reached; blue:
   position only; yellow: orientation only; red: neither), the same colours as
-  :mod:`reachwise.report.plots`;
-- closest-point lines of the watched pairs of a :class:`~reachwise.distance.scene.SceneResult`
+  ``reachwise.report.plots``;
+- closest-point lines of the watched pairs of a :class:`~reachwise.distance.SceneResult`
   (``point_a``–``point_b`` in world frame, thesis §3.1 / P-V Fig. 4);
 - tool paths, tool axes, clouds coloured by height, a tunnel wireframe, a camera that
   frames the content, slider ranges for joints without finite limits.
@@ -228,7 +228,7 @@ COLOUR_WORDS = {
 }
 
 
-#: Colours of a scene memory's voxels by state (:mod:`reachwise.distance.scene_memory`).
+#: Colours of a scene memory's voxels by state (``reachwise.distance.scene_memory``).
 MEMORY_RGB: dict[str, tuple[int, int, int]] = {
     "occupied": (230, 70, 50),
     "shadow": (130, 80, 200),

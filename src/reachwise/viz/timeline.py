@@ -55,7 +55,7 @@ class Timeline:
 
     def add_controls(self, step: float, order: int = 5) -> None:
         """The Playback folder: play button, time slider (``step`` s), speed, loop and
-        a status line (:attr:`status`)."""
+        a status line (its ``status``)."""
         gui = self.viewer.server.gui
         start, end = float(self.times[0]), float(self.times[-1])
         with self.viewer.add_gui(gui.add_folder("Playback", order=order)):

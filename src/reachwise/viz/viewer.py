@@ -18,7 +18,7 @@ a folder holds several results (:func:`serve_results`):
   scenario's clouds, the goals turning green when reached, the tool paths and the
   closest-point lines of the watched pairs at each tick
   (:class:`reachwise.viz.playback.Playback`);
-- a live view of a running simulation (:class:`reachwise.viz.playback.LiveRun`).
+- a live view of a running simulation (:class:`reachwise.viz.live.LiveRun`).
 
 Ctrl-C in :meth:`Viewer.wait` stops the server (its port and threads are freed).
 """

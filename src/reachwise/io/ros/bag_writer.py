@@ -6,7 +6,7 @@ play`` and RViz on ROS 1 read), one ending in ``.mcap`` an MCAP bag, anything el
 sqlite3 bag; the two ROS 2 kinds are bag folders (``metadata.yaml`` beside the storage
 file) that ``ros2 bag play`` and Foxglove read. :class:`~reachwise.io.ros.bag.Recording`
 reads all three. An existing path is never overwritten. Messages are ROS 2 Humble
-types, or ROS 1 Noetic types in a ROS 1 bag, made by :attr:`BagWriter.factory`
+types, or ROS 1 Noetic types in a ROS 1 bag, made by ``BagWriter.factory``
 (:class:`~reachwise.io.ros.messages.MessageFactory`) with the same calls.
 """
 

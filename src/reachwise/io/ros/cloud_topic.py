@@ -4,7 +4,7 @@ A ``sensor_msgs/PointCloud2`` or a depth ``sensor_msgs/Image`` (with the
 ``sensor_msgs/CameraInfo`` of its camera) becomes points in the replay's fixed frame,
 moved along the transform tree at the message's header stamp. A depth image, and an
 organized PointCloud2 (``height`` > 1), come as a cloud already indexed over the
-Z-order of their pixels (:func:`~reachwise.distance.index.index_of_ordered`: no sort,
+Z-order of their pixels (``reachwise.distance.index.index_of_ordered``: no sort,
 exact like any index of the distance layer), which the scene then takes as it is.
 """
 
@@ -90,7 +90,7 @@ class CloudTopic:
         """The message's points in ``frame`` and their stamp (s). A depth image's, and
         an organized PointCloud2's (``height`` > 1), come as a cloud already indexed
         over its pixels' Z-order (no sort:
-        :func:`~reachwise.distance.index.index_of_ordered`), which the scene takes as
+        ``reachwise.distance.index.index_of_ordered``), which the scene takes as
         it is."""
         T, stamp = self.pose(msg, t, tree, frame)
         if self.msgtype == POINTCLOUD2:

@@ -5,11 +5,11 @@ millimetres with 0 for "no return", and ``32FC1``, float metres with NaN for "no
 return" (0, negatives and infinities count as no return too). Rows are ``step`` bytes
 apart (a row may be padded), in big-endian order when ``is_bigendian``.
 
-The camera is the pinhole of :class:`~reachwise.geometry.depth_camera.Intrinsics` with
+The camera is the pinhole of ``reachwise.geometry.depth_camera.Intrinsics`` with
 ``CameraInfo.k = [f_x, 0, c_x, 0, f_y, c_y, 0, 0, 1]`` (ROS 1: ``K``); pixel ``(u, v)``
 of depth ``z`` is the point ``z · ((u − c_x)/f_x, (v − c_y)/f_y, 1)`` in the camera's
 optical frame (``z`` forward, ``x`` right, ``y`` down), the back-projection of
-:meth:`~reachwise.geometry.depth_camera.DepthCamera.points`. The image must be
+``reachwise.geometry.depth_camera.DepthCamera.points``. The image must be
 rectified (``image_rect``); its size must be the CameraInfo's.
 """
 
@@ -140,7 +140,7 @@ class DepthProjector:
     in the Z-order of the pixel coordinates (bits of ``u`` and ``v`` interleaved), with
     each point's code in that order: neighbouring pixels stay together, so a tree
     can be built over the points as they come, without sorting them
-    (:func:`reachwise.distance.index.index_of_ordered`). It reads the stored pixels
+    (``reachwise.distance.index.index_of_ordered``). It reads the stored pixels
     directly (one compiled pass: decode, drop the invalid, project, sum for the
     centroid)."""
 

@@ -24,7 +24,7 @@ _ROS2_ONLY = frozenset({"texture_resource", "texture", "uv_coordinates", "mesh_f
 
 class MessageFactory:
     """Builds messages from arrays with the classes of ``store`` (a typestore: ROS 2, or
-    ROS 1 ``ros1_noetic``, whose types differ in a few fields, see :meth:`_new`)."""
+    ROS 1 ``ros1_noetic``, whose types differ in a few fields, see ``_new``)."""
 
     def __init__(self, store: Any) -> None:
         self.types = store.types

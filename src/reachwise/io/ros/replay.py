@@ -2,10 +2,10 @@
 
 :func:`replay_recording` drives a :class:`~reachwise.distance.scene.Scene` from a
 recording in the recording's own order and time: the robot's joint states as they come
-(each one a :meth:`~reachwise.distance.scene.Scene.set_joints` and, at most every
-``every`` seconds of recording time, one :meth:`~reachwise.distance.scene.Scene.query_all`,
+(each one a :meth:`~reachwise.distance.Scene.set_joints` and, at most every
+``every`` seconds of recording time, one :meth:`~reachwise.distance.Scene.query_all`,
 a *frame*), and each cloud topic's messages decoded to points in the fixed frame and
-handed over with :meth:`~reachwise.distance.scene.Scene.replace_cloud`. Messages
+handed over with :meth:`~reachwise.distance.Scene.replace_cloud`. Messages
 received at the same time are taken clouds first, then joint states, so a frame counts
 every cloud received at or before its time (bag formats keep such ties in different
 orders). By default the hand-over blocks, so every frame uses the newest cloud
@@ -78,7 +78,7 @@ class ReplaySpec:
     each frame then uses the newest cloud received), the pace ``rate`` (a multiple of
     the recording's speed; None: as fast as possible), the scene's ``voxel`` thinning
     (m, or None) and the TF ``tf_tolerance`` (s). With ``memory`` (a
-    :class:`~reachwise.distance.scene_memory.MemoryConfig`) the depth-image topics are
+    ``reachwise.distance.scene_memory.MemoryConfig``) the depth-image topics are
     fused into one scene memory of the box ``memory_box`` (lower and upper corner, m,
     in ``frame``) instead of replacing a cloud each: the scene object ``memory``, the
     occupied and shadow voxels' centres, paired with every link."""
@@ -225,7 +225,7 @@ def replay_recording(
     stamp, points)`` is called with each cloud handed to the scene (its object: the
     topic, or ``memory``; its stamp, s; its points in the fixed frame, read-only), e.g.
     to keep them for a viewer; ``on_memory(stamp, memory)`` after each depth frame
-    fused into the scene memory (the :class:`~reachwise.distance.scene_memory.SceneMemory`
+    fused into the scene memory (the ``reachwise.distance.scene_memory.SceneMemory``
     itself, to read, not to change)."""
     matcher = JointMatcher(robot_joint_names(robot))
     with Recording(bag) as rec:

@@ -13,7 +13,8 @@ _NEEDED = ("rosbags", "ros", "reading and writing ROS bags")
 
 
 def rosbags_module(name: str) -> ModuleType:
-    """``rosbags.<name>`` (e.g. ``"highlevel"``), or :class:`MissingDependency`."""
+    """``rosbags.<name>`` (e.g. ``"highlevel"``), or
+    :class:`~reachwise.errors.MissingDependency`."""
     import importlib
 
     try:
