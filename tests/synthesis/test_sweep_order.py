@@ -14,6 +14,9 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import threading
+from collections.abc import Callable
+from concurrent.futures import Executor, Future
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -23,8 +26,18 @@ import pytest
 
 from reachwise.results.sweep_store import SweepStore
 from reachwise.synthesis.rank import Measures, RankKey
-from reachwise.synthesis.sweep import ItemResult, MemoryStore, round_table
+from reachwise.synthesis.sweep import (
+    ItemResult,
+    MemoryStore,
+    SweepConfig,
+    SweepEvent,
+    WorkItem,
+    round_table,
+    run_sweep,
+)
 from reachwise.synthesis.sweep.tables import SAME_FIGURE, best_run
+from reachwise.synthesis.topology import Topology, topologies_from_specs
+from reachwise.tasks.task import Task
 
 
 def _run(
@@ -158,3 +171,92 @@ def test_stores_written_in_any_order_give_the_same_table(kind: str, tmp_path: Pa
         assert _records(back) == ref
         if isinstance(store, SweepStore):
             store.close()
+
+
+# ---- a pool that hands runs back in a forced order ----------------------------------------------
+class ForcedOrder(Executor):
+    """An executor that hands each round's runs back in a chosen order, one at a time.
+
+    It computes nothing: a submitted batch is answered with the stored results of a
+    reference sweep (the same runs). Once all ``rounds[i]`` batches of a round are
+    submitted, a feeder thread completes them in ``order(n)``, each only after the sweep
+    has stored the previous one (its ``item`` events, passed to :meth:`stored`): the
+    arrival order is exactly the forced one, by synchronization alone.
+    """
+
+    def __init__(
+        self,
+        reference: dict[tuple[str, int, int], ItemResult],
+        rounds: list[int],
+        order: Callable[[int], list[int]],
+    ) -> None:
+        self._ref = reference
+        self._rounds = rounds
+        self._order = order
+        self._submitted: list[tuple[Future[list[ItemResult]], list[WorkItem]]] = []
+        self._cond = threading.Condition()
+        self._stored = 0
+        self.arrivals: list[tuple[str, int, int]] = []
+        threading.Thread(target=self._feed, daemon=True).start()
+
+    def submit(self, fn: Any, /, *args: Any, **kwargs: Any) -> Future[Any]:
+        f: Future[list[ItemResult]] = Future()
+        with self._cond:
+            self._submitted.append((f, list(args[0])))
+            self._cond.notify_all()
+        return f
+
+    def stored(self, e: SweepEvent) -> None:
+        if e.kind == "item" and e.result is not None:
+            with self._cond:
+                self.arrivals.append(e.result.key)
+                self._stored += 1
+                self._cond.notify_all()
+
+    def _wait(self, ready: Callable[[], bool]) -> None:
+        with self._cond:
+            self._cond.wait_for(ready)
+
+    def _feed(self) -> None:
+        start = 0
+        for n in self._rounds:
+            self._wait(lambda k=start + n: len(self._submitted) >= k)  # type: ignore[misc]
+            for i in self._order(n):
+                f, items = self._submitted[start + i]
+                with self._cond:
+                    after = self._stored + len(items)
+                f.set_result([self._ref[(it.topology, it.round, it.run)] for it in items])
+                self._wait(lambda k=after: self._stored >= k)  # type: ignore[misc]
+            start += n
+
+
+def _tasks() -> tuple[Task, list[Topology]]:
+    from tests.synthesis.test_sweep import generated_task
+
+    return generated_task(k=12)[0], topologies_from_specs(["RRPRRR", "RRRRRR", "PRRRRR"])
+
+
+def test_a_pool_handing_runs_back_in_any_order_gives_the_same_sweep() -> None:
+    """A two-round sweep whose runs arrive reversed, interleaved or shuffled gives the
+    in-process sweep's tables (both rounds, which topologies advanced, best runs)."""
+    task, topos = _tasks()
+    cfg = SweepConfig(subset=6, top=2, runs=2)
+    ref_store = MemoryStore()
+    ref = run_sweep(task, topos, cfg, workers=0, store=ref_store)
+    assert ref.round1 is not None
+    stored = {r.key: r for r in ref_store.results(ref.sweep_id)}
+    rounds = [len(topos) * cfg.runs, len(ref.advanced) * cfg.runs]
+    rng = np.random.default_rng(3)
+    orders: list[Callable[[int], list[int]]] = [
+        lambda n: list(range(n))[::-1],
+        lambda n: list(range(1, n, 2)) + list(range(0, n, 2)),  # every run 1 before run 0
+        lambda n: [int(i) for i in rng.permutation(n)],
+    ]
+    for order in orders:
+        ex = ForcedOrder(stored, rounds, order)
+        res = run_sweep(task, topos, cfg, executor=ex, on_event=ex.stored)
+        assert len(ex.arrivals) == sum(rounds)
+        assert res.advanced == ref.advanced
+        assert res.final.best == ref.final.best and res.round1 is not None
+        assert res.round1.best == ref.round1.best
+        assert json.dumps(res.table()) == json.dumps(ref.table())
