@@ -1,13 +1,27 @@
 """The clearance-aware start of the synthesis: one IK start per branch cell of the
-wide revolute joints, and per pose the branch whose bodies keep the clearance."""
+wide revolute joints, per pose the branch whose bodies keep the clearance, and the
+number of solves of a clearance run (``SolverOptions.clearance_starts``)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
+import pytest
 
 from reachwise import load_robot, load_task
-from reachwise.synthesis.init import beta_designs, branch_starts, seed_joints, seed_joints_clear
+from reachwise.errors import InputError
+from reachwise.synthesis.init import (
+    beta_designs,
+    branch_starts,
+    initial_guess,
+    seed_joints,
+    seed_joints_clear,
+)
 from reachwise.synthesis.problem import SynthesisProblem
+from reachwise.synthesis.solver_options import SolverOptions
+from reachwise.synthesis.solvers import solve_dls
+from reachwise.synthesis.starts import served, solve_from_starts
 from reachwise.synthesis.synthesize import clearance_setup
 from tests.synthesis.test_synthesis_clearance import _plans, brute_force_clearance
 
@@ -56,3 +70,41 @@ def test_clearance_aware_start_keeps_more_poses_clear() -> None:
     (reach_only, clear_only), (reach_aware, clear_aware) = counts
     assert reach_aware >= reach_only
     assert clear_aware > clear_only
+
+
+def test_clearance_starts_is_the_number_of_solves_of_a_run() -> None:
+    """``SolverOptions.clearance_starts``: by default a clearance run that does not
+    converge is the one solve from the reach-only start; with 2 it also solves from the
+    clearance-aware start of the stream ``(seed, 1)`` and keeps the solve that serves
+    more poses (each solve recomputed here on its own)."""
+    task = _plans(load_task("tunnel-87"), ("P01",))
+    template = load_robot("sb60")
+    model, kept, _ = clearance_setup(template, task, task.envelope, CLEARANCE)
+    assert model is not None
+    problem = SynthesisProblem(template, kept)
+    seed, sets = 3, 2
+    one = SolverOptions(max_iter=3)  # too few iterations to converge: the restart's case
+    two = replace(one, clearance_starts=2)
+    assert one.clearance_starts == 1
+
+    rng = np.random.default_rng(seed)
+    first = solve_dls(problem, initial_guess(problem, rng, sets).z, one, kept.envelope, rng, model)
+    rng = np.random.default_rng((seed, 1))
+    aware = initial_guess(problem, rng, sets, clearance=model)
+    second = solve_dls(problem, aware.z, two, kept.envelope, rng, model)
+    assert not first.converged
+
+    single = solve_from_starts(problem, seed, sets, one, kept.envelope, model)
+    assert np.array_equal(single.outcome.z, first.z)
+    both = solve_from_starts(problem, seed, sets, two, kept.envelope, model)
+    n1, n2 = served(problem, first, model), served(problem, second, model)
+    lower = second.cost_history[-1] < first.cost_history[-1]
+    keep_second = second.converged or n2 > n1 or (n2 == n1 and lower)
+    assert np.array_equal(both.outcome.z, second.z if keep_second else first.z)
+    assert served(problem, both.outcome, model) == max(n1, n2) or second.converged
+
+
+def test_clearance_starts_must_be_a_positive_integer() -> None:
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(InputError, match="clearance_starts"):
+            SolverOptions(clearance_starts=bad)  # type: ignore[arg-type]

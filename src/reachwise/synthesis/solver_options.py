@@ -12,6 +12,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from reachwise.errors import InputError
 from reachwise.kinematics.dls import EPSILON_SOLVER, LAMBDA_MAX
 from reachwise.synthesis.problem import Evaluation, SynthesisProblem
 
@@ -32,7 +33,10 @@ class SolverOptions:
     ``epsilon``: the damping schedule (``reachwise.kinematics.dls``);
     ``stationary_decrease`` and ``stationary_gradient``: when a run with clearance terms
     (or any run, with ``stationary_without_clearance``) has found a constrained
-    stationary point of its merit (``solvers.solve_dls``)."""
+    stationary point of its merit (``solvers.solve_dls``); ``clearance_starts``: the
+    solves of one run with clearance terms at most, the first from the reach-only start
+    and each further one, while none converges, from a clearance-aware start
+    (``starts.solve_from_starts``). A run without clearance terms solves once."""
 
     max_iter: int = 1000
     lambda_max: float = LAMBDA_MAX
@@ -52,6 +56,14 @@ class SolverOptions:
     stationary_decrease: float = 1e-3
     stationary_gradient: float = 1e-2
     stationary_without_clearance: bool = False
+    clearance_starts: int = 1
+
+    def __post_init__(self) -> None:
+        starts = self.clearance_starts
+        if isinstance(starts, bool) or not isinstance(starts, (int, np.integer)):
+            raise InputError("SolverOptions", "clearance_starts", "must be an integer")
+        if starts < 1:
+            raise InputError("SolverOptions", "clearance_starts", f"must be >= 1, got {starts}")
 
 
 @dataclass(frozen=True)

@@ -5,12 +5,15 @@ the Beta-drawn designs by reach error, IK joints per pose). Without bodies, or w
 that solve converges, this is the run. With bodies to keep clear (a
 ``ClearanceModel``) a solve that does not converge ends at a local minimum of the
 merit where reach rows and clearance rows balance; which one depends on the start's
-design and on the IK branch of each pose. The run then restarts, up to
-``CLEARANCE_STARTS`` solves in all, from clearance-aware starts (``initial_guess`` with
+design and on the IK branch of each pose. With ``SolverOptions.clearance_starts`` above
+1 (default 1: one solve, as a reach-only run), the run then restarts, up to
+``clearance_starts`` solves in all, from clearance-aware starts (``initial_guess`` with
 the bodies: the design sets compared on reach error plus clearance excess, each pose
 on its clearest IK branch) drawn from streams of their own, and keeps the solve that
 serves the most poses (reached and clear), then the one with the lower merit. A run
-whose first solve converges is the run it was without the restarts.
+whose first solve converges is the run it was without the restarts. The restarts do
+what further runs (``synthesize``'s ``runs``, each from its own seed) also do, at the
+cost of a longer run; a single run that should try harder asks for them.
 """
 
 from __future__ import annotations
@@ -24,9 +27,6 @@ from reachwise.synthesis.init import InitialGuess, initial_guess
 from reachwise.synthesis.problem import SynthesisProblem
 from reachwise.synthesis.solver_options import SolveOutcome, SolverOptions, Workspace
 from reachwise.synthesis.solvers import solve_dls
-
-#: Solves of one clearance run at most: the reach-only start and the restarts.
-CLEARANCE_STARTS = 2
 
 
 @dataclass(frozen=True)
@@ -54,15 +54,17 @@ def solve_from_starts(
     clearance: ClearanceModel | None,
 ) -> StartedSolve:
     """The run's solve by the damped least squares (module docstring): the reach-only
-    start from ``seed``'s stream and, with ``clearance``, clearance-aware restarts from
-    the streams ``(seed, 1)``, ``(seed, 2)``, … until one converges."""
+    start from ``seed``'s stream and, with ``clearance``, up to
+    ``options.clearance_starts − 1`` clearance-aware restarts from the streams
+    ``(seed, 1)``, ``(seed, 2)``, … until one converges."""
+    starts = (options or SolverOptions()).clearance_starts
     rng = np.random.default_rng(seed)
     start = initial_guess(problem, rng, init_sets)
     best = StartedSolve(start, solve_dls(problem, start.z, options, workspace, rng, clearance))
     if clearance is None:
         return best
     best_served = served(problem, best.outcome, clearance)
-    for attempt in range(1, CLEARANCE_STARTS):
+    for attempt in range(1, starts):
         if best.outcome.converged:
             break
         rng = np.random.default_rng((seed, attempt))

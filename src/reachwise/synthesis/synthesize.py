@@ -199,7 +199,7 @@ def run_once(
     keep: Sequence[str] | None = None,
 ) -> RunResult:
     """One run: Beta/IK initialization from ``seed``, one solve (with ``clearance``, up
-    to ``starts.CLEARANCE_STARTS`` from clearance-aware restarts) and, with an
+    to ``options.clearance_starts`` in all, from clearance-aware restarts) and, with an
     ``objective`` (weights) and every pose reached, the null-space improvement, which
     never makes an index in ``keep`` worse than at the reach-only design (``None``:
     ``keep.default_keep``, the KCI when the GCI is weighted). With
