@@ -14,6 +14,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import re
 import threading
 from collections.abc import Callable
 from concurrent.futures import Executor, Future
@@ -24,9 +25,12 @@ from typing import Any
 import numpy as np
 import pytest
 
+from reachwise._version import source_fingerprint, tree_fingerprint
+from reachwise.errors import InputError
 from reachwise.results.sweep_store import SweepStore
 from reachwise.synthesis.rank import Measures, RankKey
 from reachwise.synthesis.sweep import (
+    ROUND_FULL,
     ItemResult,
     MemoryStore,
     SweepConfig,
@@ -196,7 +200,9 @@ class ForcedOrder(Executor):
         self._submitted: list[tuple[Future[list[ItemResult]], list[WorkItem]]] = []
         self._cond = threading.Condition()
         self._stored = 0
-        self.arrivals: list[tuple[str, int, int]] = []
+        self._closed = False
+        self.arrivals: list[tuple[str, int, int]] = []  # as the sweep stored them
+        self.handed: list[tuple[str, int, int]] = []  # as this executor handed them back
         threading.Thread(target=self._feed, daemon=True).start()
 
     def submit(self, fn: Any, /, *args: Any, **kwargs: Any) -> Future[Any]:
@@ -213,20 +219,31 @@ class ForcedOrder(Executor):
                 self._stored += 1
                 self._cond.notify_all()
 
-    def _wait(self, ready: Callable[[], bool]) -> None:
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        """Let the feeder end (a sweep that stopped early stores nothing more)."""
         with self._cond:
-            self._cond.wait_for(ready)
+            self._closed = True
+            self._cond.notify_all()
+
+    def _wait(self, ready: Callable[[], bool]) -> bool:
+        """Wait for ``ready``; ``False`` when shut down first."""
+        with self._cond:
+            self._cond.wait_for(lambda: self._closed or ready())
+            return not self._closed
 
     def _feed(self) -> None:
         start = 0
         for n in self._rounds:
-            self._wait(lambda k=start + n: len(self._submitted) >= k)  # type: ignore[misc]
+            if not self._wait(lambda k=start + n: len(self._submitted) >= k):  # type: ignore[misc]
+                return
             for i in self._order(n):
                 f, items = self._submitted[start + i]
                 with self._cond:
                     after = self._stored + len(items)
+                    self.handed += [(it.topology, it.round, it.run) for it in items]
                 f.set_result([self._ref[(it.topology, it.round, it.run)] for it in items])
-                self._wait(lambda k=after: self._stored >= k)  # type: ignore[misc]
+                if not self._wait(lambda k=after: self._stored >= k):  # type: ignore[misc]
+                    return
             start += n
 
 
@@ -255,8 +272,49 @@ def test_a_pool_handing_runs_back_in_any_order_gives_the_same_sweep() -> None:
     for order in orders:
         ex = ForcedOrder(stored, rounds, order)
         res = run_sweep(task, topos, cfg, executor=ex, on_event=ex.stored)
-        assert len(ex.arrivals) == sum(rounds)
+        assert ex.arrivals == ex.handed and len(ex.arrivals) == sum(rounds)
         assert res.advanced == ref.advanced
         assert res.final.best == ref.final.best and res.round1 is not None
         assert res.round1.best == ref.round1.best
         assert json.dumps(res.table()) == json.dumps(ref.table())
+
+
+def test_a_run_from_other_code_is_refused_not_stored() -> None:
+    """A worker that imported another checkout (or other libraries) is named with what
+    differs, and its run is not stored: the sweep would not be reproducible."""
+    task, topos = _tasks()
+    cfg = SweepConfig(runs=1)
+    ref_store = MemoryStore()
+    ref = run_sweep(task, topos[:2], cfg, workers=0, store=ref_store)
+    stored = {r.key: r for r in ref_store.results(ref.sweep_id)}
+    assert {r.versions["source"] for r in stored.values()} == {source_fingerprint()}
+    odd = (topos[0].name, ROUND_FULL, 0)  # the first run submitted, and handed back
+    stored[odd] = replace(stored[odd], versions={**stored[odd].versions, "source": "0" * 16})
+    ex = ForcedOrder(stored, [len(stored)], lambda n: list(range(n)))
+    store = MemoryStore()
+    with pytest.raises(
+        InputError, match=re.escape(f"run 0 of '{odd[0]}'") + ".*source 0{16}"
+    ) as err:
+        run_sweep(task, topos[:2], cfg, executor=ex, store=store, on_event=ex.stored)
+    ex.shutdown()
+    assert source_fingerprint() in str(err.value)
+    assert store.results(ref.sweep_id) == []
+
+
+def test_the_source_fingerprint_follows_every_file(tmp_path: Path) -> None:
+    """An edit, a new file or a rename changes the fingerprint; other files do not."""
+    import reachwise
+
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "a.py").write_text("x = 1\n")
+    (tmp_path / "sub" / "b.py").write_text("y = 2\n")
+    (tmp_path / "notes.txt").write_text("not code")
+    base = tree_fingerprint(tmp_path)
+    (tmp_path / "notes.txt").write_text("changed")
+    assert tree_fingerprint(tmp_path) == base
+    (tmp_path / "sub" / "b.py").write_text("y = 3\n")
+    edited = tree_fingerprint(tmp_path)
+    assert edited != base
+    (tmp_path / "sub" / "b.py").rename(tmp_path / "sub" / "c.py")
+    assert tree_fingerprint(tmp_path) not in (base, edited)
+    assert source_fingerprint() == tree_fingerprint(Path(reachwise.__file__).parent)

@@ -17,7 +17,7 @@ from dataclasses import astuple, dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from reachwise._version import __version__
+from reachwise._version import __version__, source_fingerprint
 from reachwise.errors import ReachwiseError
 from reachwise.kinematics.robot import Robot
 from reachwise.synthesis.objectives import evaluate_terms
@@ -113,15 +113,22 @@ def _same_measures(a: Measures | None, b: Measures | None) -> bool:
 
 
 def versions() -> dict[str, str]:
-    """Versions the results were computed with (stored per item)."""
+    """Versions the results were computed with (stored per item): reachwise, its source
+    (``source_fingerprint``), numpy, scipy and Python."""
     import scipy
 
     return {
         "reachwise": __version__,
+        "source": source_fingerprint(),
         "numpy": np.__version__,
         "scipy": scipy.__version__,
         "python": platform.python_version(),
     }
+
+
+#: The source this process imported, hashed when the sweep's items are first loaded: in a
+#: worker, when it unpickles its first item; later edits do not change what it runs.
+source_fingerprint()
 
 
 def run_item(item: WorkItem) -> ItemResult:

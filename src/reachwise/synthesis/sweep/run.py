@@ -168,6 +168,25 @@ def _work_items(
     return todo, left
 
 
+def _check_versions(res: ItemResult, own: dict[str, str]) -> None:
+    """Refuse a run computed with other code or libraries than this sweep's process (a
+    checkout changed while the workers started, a cluster worker with another numpy):
+    its design would differ from the one this sweep reproduces. Nothing of it is stored."""
+    if res.versions == own:
+        return
+    diff = ", ".join(
+        f"{k} {res.versions.get(k, '?')} (sweep: {own.get(k, '?')})"
+        for k in sorted(set(own) | set(res.versions))
+        if res.versions.get(k) != own.get(k)
+    )
+    raise InputError(
+        "sweep",
+        f"run {res.run} of {res.topology!r} (round {res.round}) from {res.worker or '?'}",
+        f"computed with other code or libraries than this sweep: {diff}; its result would "
+        "not be reproducible. Rerun the sweep on one checkout (finished runs are stored)",
+    )
+
+
 def _run_round(
     store: ResultStore,
     sid: str,
@@ -184,8 +203,11 @@ def _run_round(
     counts[1] += len(topologies) * cfg.runs - len(todo)
     emit(SweepEvent("round", round, total=len(topologies), done=finished))
 
+    own = versions()
+
     def accept(res: ItemResult) -> None:
         nonlocal finished
+        _check_versions(res, own)
         store.write(sid, res)
         counts[0] += 1
         emit(SweepEvent("item", round, topology=res.topology, result=res))
