@@ -144,6 +144,35 @@ def test_pareto_writes_the_front_and_links_every_design(tmp_path: Path) -> None:
     assert (out / "pareto" / "front.csv").is_file()
 
 
+def test_pareto_without_a_reaching_run_says_why_and_fails(tmp_path: Path) -> None:
+    """A pose 6 m beyond the others: no run reaches every pose, so no sweep can start.
+    The runs are written, the command names the pose the best run missed and what it
+    missed, the report says the same, and the exit code is 1."""
+    from reachwise.io.task_file import save_task
+    from reachwise.tasks.task import Task
+
+    task = load_task("tunnel-87").subset(np.arange(0, 87, 9), name="tunnel-10")
+    P = task.positions.copy()
+    P[-1] += np.array([6.0, 0.0, 0.0])
+    far = Task.from_arrays("far", P, rotations=task.rotations, dims=6, names=task.names)
+    path = tmp_path / "far.yaml"
+    save_task(far, path)
+    out = tmp_path / "out"
+    res = runner.invoke(
+        app,
+        ["synth", "--task", str(path), "--robot", "sb60", "--runs", "1", "--no-tunnel",
+         "--pareto", "gci,size", "--points", "3", "--out", str(out), "--no-figures"],
+    )  # fmt: skip
+    assert res.exit_code == 1, res.output
+    text = " ".join(res.output.split())  # the console wraps long lines
+    best = json.loads((out / "summary.json").read_text())["best"]
+    assert "no Pareto sweep" in text and f"serves {best['reached']}/10" in text
+    assert best["reached"] < 10 and f"{far.names[-1]} (position" in text
+    assert (out / "design.yaml").is_file() and not (out / "pareto").exists()
+    html = (out / "report.html").read_text()
+    assert 'id="pareto"' in html and "no Pareto sweep" in html
+
+
 def test_bad_objectives_are_input_errors(tmp_path: Path) -> None:
     task = str(small_task(tmp_path))
     for args, words in (

@@ -159,6 +159,8 @@ def synth(
 
     Ctrl-C (once or more) ends the current run, writes the runs finished before it and
     exits with 130; during --pareto it ends the sweep and keeps the runs' files.
+    --pareto with no run that reaches every pose writes the runs, says why no front
+    was made (the poses the best run missed) and exits with 1.
     """
     from reachwise.cli.interrupts import deferred_interrupts
 
@@ -194,6 +196,9 @@ def synth(
         _print(result, data)
     if data["interrupted"]:
         raise typer.Exit(130)
+    if "pareto_error" in data:  # asked for a front and got none: an error, files written
+        Console(stderr=True).print(f"[red]{data['pareto_error']}")
+        raise typer.Exit(1)
 
 
 def _problem(
@@ -295,7 +300,9 @@ def _write(
             extra.append(section)
     report = write_synthesis_report(result, folder, pngs, extra)
     data = summary(result)
-    if front is not None:
+    if front is not None and "error" in front:
+        data["pareto_error"] = front["error"]
+    elif front is not None:
         data["pareto"] = front
     data["interrupted"] = interrupts.requested
     data["out"] = str(folder)
@@ -339,14 +346,16 @@ def _pareto(
     ``folder/pareto/``, the report section, and the data for the summary. ``stop`` is
     called between the sweep's solves; it may raise to end the sweep, nothing written."""
     from reachwise.report.design import pareto_figure, pareto_section
+    from reachwise.report.html import section
     from reachwise.report.png import save_png
     from reachwise.results.pareto_out import write_pareto
     from reachwise.synthesis.pareto import pareto_sweep
 
     best = result.best
     if not best.reached.all():
-        Console(stderr=True).print("no run reaches every pose: no Pareto sweep")
-        return None, None
+        return {"error": no_sweep_reason(result)}, section(
+            f"Pareto front: {names[0]} vs {names[1]}", no_sweep_reason(result), id="pareto"
+        )
     prob = result.problem
     if not quiet:
         Console(stderr=True).print(f"Pareto sweep {names[0]}/{names[1]}: {points} weightings")
@@ -361,6 +370,36 @@ def _pareto(
     if fig is not None:
         save_png(fig, folder / "pareto" / "front.png", dpi=110)
     return data, pareto_section(front, data, fig)
+
+
+def no_sweep_reason(result: Any, listed: int = 8) -> str:
+    """Why ``--pareto`` made no front: the sweep starts from a run's design that
+    reaches every pose (and, with bodies, keeps every watched pair the clearance
+    apart there), and no run did. Names the best run, how many poses it served and
+    the poses it missed, each with what it missed (position, orientation, clearance:
+    the smallest term and its pair)."""
+    best = result.best
+    K = len(best.reached)
+    clear = result.clearance
+    lost = {"full": [], "position": ["orientation"], "orientation": ["position"]}
+    missed = []
+    for i in [i for i, ok in enumerate(best.reached) if not ok][:listed]:
+        what = list(lost.get(best.status[i], ["position", "orientation"]))
+        if best.clearance is not None and best.clearance[i] < clear:
+            pair = "–".join(best.clearance_pairs[i]) if best.clearance_pairs else ""
+            what.append(f"clearance {best.clearance[i]:.3f} m < {clear:g} m {pair}".rstrip())
+        missed.append(f"{result.problem.task.names[i]} ({', '.join(what)})")
+    more = K - int(best.reached.sum()) - len(missed)
+    held = f", with every watched pair of bodies at least {clear:g} m apart" if clear > 0 else ""
+    return (
+        f"no Pareto sweep: it starts from a design that reaches every kept pose{held}, and "
+        f"none of the {len(result.runs)} runs did. The best (seed {best.seed}) serves "
+        f"{int(best.reached.sum())}/{K}; missed: {'; '.join(missed)}"
+        + (f"; and {more} more" if more > 0 else "")
+        + ". More --runs"
+        + (", or a smaller --clearance," if clear > 0 else "")
+        + " may give such a design; the runs are written."
+    )
 
 
 def _print(result: object, data: dict) -> None:  # type: ignore[type-arg]
