@@ -173,6 +173,27 @@ def test_pareto_without_a_reaching_run_says_why_and_fails(tmp_path: Path) -> Non
     assert 'id="pareto"' in html and "no Pareto sweep" in html
 
 
+def test_front_clearance_needs_a_sweep_and_a_clearance_it_keeps(tmp_path: Path) -> None:
+    """--front-clearance is refused before any run: without --pareto, without bodies
+    kept clear, at 0, or above --clearance (the start design would not keep it)."""
+    task = str(small_task(tmp_path))
+    for args, words in (
+        (["--clearance", "0.1", "--front-clearance", "0.05"], "needs --pareto"),
+        (["--clearance", "0", "--pareto", "gci,size", "--front-clearance", "0.05"], "--clearance"),
+        (["--clearance", "0.1", "--pareto", "clearance,size", "--front-clearance", "0"], "> 0"),
+        (["--clearance", "0.1", "--pareto", "clearance,size", "--front-clearance", "0.2"],
+         "at most --clearance 0.1"),
+    ):  # fmt: skip
+        out = tmp_path / "x"
+        res = runner.invoke(
+            app, ["synth", "--task", task, "--robot", "sb60", "--out", str(out), *args]
+        )
+        text = " ".join((res.output + str(res.exception or "")).split())
+        assert res.exit_code == 2, (args, text)
+        assert words in text and "front-clearance" in text, (args, text)
+        assert not out.exists()
+
+
 def test_bad_objectives_are_input_errors(tmp_path: Path) -> None:
     task = str(small_task(tmp_path))
     for args, words in (

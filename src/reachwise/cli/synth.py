@@ -112,6 +112,16 @@ class DesignObjective:
     )
     #: Weightings of the Pareto sweep.
     points: int = cli(typer.Option(8, "--points", min=2, help="Weightings of the --pareto sweep."))
+    #: The clearance every design of the sweep keeps (m); ``None``: ``--clearance``.
+    front_clearance: float | None = cli(
+        typer.Option(
+            None,
+            "--front-clearance",
+            help="Clearance every --pareto design keeps (m, > 0, at most --clearance; "
+            "default: --clearance). The sweep starts from a run solved at --clearance; "
+            "a lower value gives it room to trade clearance both ways.",
+        )
+    )
 
 
 @dataclass(frozen=True)
@@ -142,6 +152,7 @@ class SynthesisOutput:
         "keep",
         "pareto",
         "points",
+        "front_clearance",
         "min_length",
         "clearance",
         "json_out",
@@ -178,6 +189,7 @@ def synth(
         )
         if names is not None:
             weights = {}  # the sweep starts from the reach-only design
+        front_bodies = _front_bodies(goal, names, bodies[0])
         done = _runs(
             problem, starts.runs, starts.seed, solver_name, workspace, weights, interrupts,
             output.json_out, bodies[0], kept,
@@ -186,8 +198,8 @@ def synth(
             Console(stderr=True).print("interrupted before the first run finished: nothing written")
             raise typer.Exit(130)
         data = _write(
-            problem, done, solver_name, weights, (names, goal.points), workspace, output,
-            interrupts, bodies,
+            problem, done, solver_name, weights, (names, goal.points, front_bodies), workspace,
+            output, interrupts, bodies,
         )  # fmt: skip
     result = data.pop("_result")
     if output.json_out:
@@ -265,12 +277,12 @@ def _runs(
 
 def _write(
     problem: Any, done: list[Any], solver: Any, weights: dict[str, float],
-    sweep: tuple[tuple[str, str] | None, int], workspace: Any, output: SynthesisOutput,
+    sweep: tuple[tuple[str, str] | None, int, Any], workspace: Any, output: SynthesisOutput,
     interrupts: Interrupts, bodies: tuple[Any, tuple[Any, ...]] = (None, ()),
 ) -> dict[str, Any]:  # fmt: skip
     """Write the finished runs (and, if not interrupted, the Pareto sweep of
-    ``sweep = (objective names, weightings)``) into ``output.out``; the summary data
-    (with the result under ``_result``)."""
+    ``sweep = (objective names, weightings, the bodies' model the sweep keeps)``) into
+    ``output.out``; the summary data (with the result under ``_result``)."""
     from reachwise.report.synthesis import save_synthesis_figures, write_synthesis_report
     from reachwise.results.synthesis_out import summary, write_synthesis
     from reachwise.synthesis.synthesize import result_of
@@ -278,7 +290,7 @@ def _write(
     result = result_of(problem, done, solver, weights, bodies[1], bodies[0])
     folder = write_synthesis(result, output.out)
     pngs = save_synthesis_figures(result, folder) if output.figures else False
-    names, points = sweep
+    names, points, front_bodies = sweep
     extra = []
     front = None
     if names is not None and not interrupts.requested:
@@ -292,7 +304,7 @@ def _write(
                 output.figures,
                 output.json_out,
                 interrupts.check,
-                bodies[0],
+                front_bodies,
             )
         except KeyboardInterrupt:
             section = None
@@ -309,6 +321,28 @@ def _write(
     data["report"] = str(report)
     data["_result"] = result
     return data
+
+
+def _front_bodies(goal: DesignObjective, names: tuple[str, str] | None, model: Any) -> Any:
+    """The bodies' model every design of the sweep keeps: the runs' (``--clearance``),
+    or one at ``--front-clearance`` (> 0, at most the runs' clearance, so the start
+    design keeps it)."""
+    fc = goal.front_clearance
+    if fc is None:
+        return model
+    hint = "--front-clearance"
+    if names is None:
+        raise typer.BadParameter("needs --pareto", param_hint=hint)
+    if model is None or model.clearance <= 0:
+        raise typer.BadParameter("needs bodies kept clear (--clearance > 0)", param_hint=hint)
+    if not 0 < fc <= model.clearance:
+        raise typer.BadParameter(
+            f"must be > 0 and at most --clearance {model.clearance:g} m, got {fc:g}",
+            param_hint=hint,
+        )
+    from reachwise.synthesis.clearance import ClearanceModel
+
+    return ClearanceModel(model.robot, model.envelope, fc)
 
 
 def _pareto_names(text: str) -> tuple[str, str]:
