@@ -45,6 +45,34 @@ def eps_beats(v: np.ndarray, j: int, i: int, tol: float, scale: np.ndarray) -> b
     return bool(not np.all(np.abs(d) <= tol) and np.all(d >= -tol) and np.any(d > tol))
 
 
+def brute_force_front_extent(v: np.ndarray) -> np.ndarray:
+    """The range of each column over the rows that no other row beats exactly (at
+    least as good in both, better in one): the unit of the front's tolerance."""
+    s = v * SENSES
+    keep = [
+        i for i in range(len(v))
+        if not any(np.all(s[j] >= s[i]) and np.any(s[j] > s[i]) for j in range(len(v)))
+    ]  # fmt: skip
+    return extent(v[keep])
+
+
+def test_the_unit_is_the_fronts_extent_not_the_sweeps(robot: Robot) -> None:
+    """A far design that the front dominates (found late) does not widen the unit: two
+    front designs 2 % of the front's extent apart stay two designs, where measured on
+    the extent of every reaching design (five times wider) they would be one."""
+    rows = np.array([
+        [0.50, 0.50],  # the front: three designs over an extent of 0.1 × 0.1
+        [0.502, 0.502],  # 2 % of the front's extent from the first
+        [0.60, 0.60],
+        [0.0, 1.0],  # far and dominated: the sweep's extent is 0.6 × 0.5
+    ])  # fmt: skip
+    marked = classify(points(robot, rows), NAMES, same=0.01)
+    assert [p.dominated for p in marked] == [False, False, False, True]
+    assert brute_force_front_extent(rows).tolist() == pytest.approx([0.1, 0.1])
+    # the sweep's extent would make 1 the twin of 0
+    assert np.all(np.abs(rows[1] - rows[0]) / extent(rows) <= 0.01)
+
+
 def test_a_twin_of_a_dominated_design_is_judged_on_its_own(robot: Robot) -> None:
     """A chain seen on tunnel-87 (every one of 18 reaching designs was marked): 2 is the
     twin of the earlier 1, 1 is ε-dominated by 3, 3 is the twin of the earlier 0, 0 is
@@ -85,7 +113,7 @@ def test_front_against_brute_force(robot: Robot, seed: int) -> None:
         if ok.size == 0:
             assert all(p.dominated for p in marked)
             continue
-        scale = extent(v[ok])
+        scale = brute_force_front_extent(v[ok])
         front = [i for i in ok if not marked[i].dominated]
         assert front, "an empty front from reaching designs"
         assert all(marked[i].dominated for i in range(m) if not reach[i])

@@ -26,7 +26,9 @@ With ``a`` the first objective and ``b`` the second:
    improvements.
 
 **When two designs are the same.** Objective values are compared in units of the
-front's extent (the range of each objective over the sweep's reaching designs). Two
+front's extent: the range of each objective over the sweep's reaching designs that no
+other reaching design dominates exactly (``front_extent``). A far, dominated design
+found late does not widen the unit, so it cannot merge or drop designs of the front. Two
 designs whose values differ by at most ``same`` (default 1 %) of that extent in both
 objectives are the same design for the front: of such twins, the first found that is
 not dominated is kept, the others are marked ``same_as`` it (a twin of a dominated
@@ -189,6 +191,16 @@ def extent(values: Array) -> Array:
     return np.asarray(np.maximum(span, np.maximum(1e-9 * np.abs(v).max(axis=0), 1e-300)))
 
 
+def front_extent(values: Array, senses: Sequence[int]) -> Array:
+    """``extent`` of the rows of ``values (m, k)`` that no other row dominates exactly
+    (at least as good in every column, better in one; ``senses`` as in ``dominated``):
+    the front's own range, whatever dominated designs lie around it."""
+    v = np.asarray(values, dtype=np.float64).reshape(-1, 2)
+    if len(v) == 0:
+        return extent(v)
+    return extent(v[~dominated(v, senses, tol=0.0, scale=np.ones(2), twins=False)])
+
+
 def classify(points: Sequence[ParetoPoint], names: tuple[str, str], same: float = SAME
              ) -> list[ParetoPoint]:  # fmt: skip
     """``points`` with ``dominated`` and ``same_as`` set (module docstring): designs that
@@ -207,7 +219,7 @@ def classify(points: Sequence[ParetoPoint], names: tuple[str, str], same: float 
     ok = [p for p in points if p.all_reached]
     vals = np.array([[p.values[a], p.values[b]] for p in ok]).reshape(-1, 2)
     senses = (OBJECTIVES[a], OBJECTIVES[b])
-    scale = extent(vals)
+    scale = front_extent(vals, senses)
     beaten = dominated(vals, senses, same, scale, twins=False) if ok else np.zeros(0, bool)
     flags: dict[int, bool] = {}
     twin: dict[int, int | None] = {}
