@@ -80,3 +80,60 @@ def test_unorganized_and_bad_dense_clouds_take_the_row_major_path() -> None:
     dense_with_nan = _message(rng, 4, 5, dense=True, nan=0.5)
     with pytest.raises(RecordingError, match="is_dense"):  # as the row-major decode says
         topic.points(dense_with_nan, 0.0, _tree(np.eye(4)), "cam")
+
+
+def _depth_frames(encoding: str, k: int) -> list[np.ndarray]:
+    """``k`` raw 48 × 64 depth images of a wall with a box in front of it, moving, with
+    no-return pixels: 0 for 16UC1 millimetres; NaN, 0, a negative and inf for 32FC1."""
+    rng = np.random.default_rng(7)
+    frames = []
+    for i in range(k):
+        z = np.full((48, 64), 2.2 - 0.1 * i)
+        z[10 + 2 * i : 30 + 2 * i, 20:40] = 1.1 + 0.05 * i
+        z += rng.uniform(-0.01, 0.01, z.shape)
+        holes = rng.random(z.shape) < 0.1
+        if encoding == "16UC1":
+            raw = np.round(z * 1000.0).astype(np.uint16)
+            raw[holes] = 0
+        else:
+            raw = z.astype(np.float32)
+            raw[holes] = rng.choice(np.array([np.nan, 0.0, -1.0, np.inf], np.float32), holes.sum())
+        frames.append(raw)
+    return frames
+
+
+@pytest.mark.parametrize("encoding", ["16UC1", "32FC1"])
+@pytest.mark.parametrize("big", [False, True])
+def test_a_depth_frame_is_fused_in_its_own_pixel_type_as_in_float64_metres(
+    encoding: str, big: bool
+) -> None:
+    """A 16UC1 and a 32FC1 depth image are fused from their own pixels (with the
+    depth_scale of their unit), and the memory after each frame is the one the float64
+    metres of the same image give (``depth_image_metres``, what the replay fused before):
+    same states, same times, same obstacles."""
+    from reachwise.distance.scene_memory import MemoryConfig, SceneMemory, ViewIntrinsics
+    from reachwise.io.ros.cloud_topic import IMAGE
+    from reachwise.io.ros.depth_image import depth_image_metres, depth_image_pixels
+    from tests.io.ros._messages import camera_info, depth_message
+
+    size = 2 if encoding == "16UC1" else 4
+    topic = CloudTopic("/depth", IMAGE, "/info")
+    topic.set_info(camera_info(64, 48, 50.0, 50.0, 32.0, 24.0))
+    lower, upper, config = (-1.5, -1.2, 0.0), (1.5, 1.2, 2.6), MemoryConfig(voxel=0.05)
+    fused, reference = SceneMemory(lower, upper, config), SceneMemory(lower, upper, config)
+    view = ViewIntrinsics(50.0, 50.0, 32.0, 24.0, 0.0, 1.0e3)
+    for i, raw in enumerate(_depth_frames(encoding, 4)):
+        t = 2.0 + 0.5 * i
+        msg = depth_message(raw, encoding, step=64 * size + 6, big=big, t=t)
+        pixels, scale = depth_image_pixels(msg)
+        assert pixels.dtype == raw.dtype and scale == (1e-3 if encoding == "16UC1" else 1.0)
+        obstacles, stamp = topic.fuse(fused, msg, t, TransformTree(), "cam")
+        assert stamp == pytest.approx(t)
+        reference.integrate(depth_image_metres(msg), np.eye(4), view, stamp)
+        np.testing.assert_array_equal(fused.state, reference.state)
+        np.testing.assert_array_equal(fused.seen_at, reference.seen_at)
+        np.testing.assert_array_equal(fused.freed_at, reference.freed_at)
+        expected = reference.obstacle_cloud(stamp, name="/depth")
+        assert expected is not None and isinstance(obstacles, PointCloud)
+        np.testing.assert_array_equal(obstacles.points, expected.points)
+    assert (fused.state != 0).sum() > 1000  # the frames saw something

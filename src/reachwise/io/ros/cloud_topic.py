@@ -22,7 +22,7 @@ from reachwise.geometry.cloud import PointCloud
 from reachwise.io.ros.depth_image import (
     DepthProjector,
     camera_from_info,
-    depth_image_metres,
+    depth_image_pixels,
     depth_points,
     pixel_z_order,
 )
@@ -139,12 +139,12 @@ class CloudTopic:
         none) and the image's stamp."""
         T, stamp = self.pose(msg, t, tree, frame)
         cam = self._projector(stamp).camera
-        z = depth_image_metres(msg, topic=self.topic)
+        z, scale = depth_image_pixels(msg, topic=self.topic)  # read as the camera sent it
         if z.shape != cam.shape:
             depth_points(msg, cam, topic=self.topic)  # raises the size error
         i = cam.intrinsics
         view = ViewIntrinsics(i.fx, i.fy, i.cx, i.cy, 0.0, _FAR)
-        memory.integrate(z, np.eye(4) if T is None else T, view, stamp)
+        memory.integrate(z, np.eye(4) if T is None else T, view, stamp, depth_scale=scale)
         cloud = memory.obstacle_cloud(stamp, name=self.topic)
         return (NOWHERE if cloud is None else cloud), stamp
 

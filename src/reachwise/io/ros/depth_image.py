@@ -32,6 +32,7 @@ __all__ = [
     "DepthProjector",
     "camera_from_info",
     "depth_image_metres",
+    "depth_image_pixels",
     "depth_points",
     "pixel_z_order",
 ]
@@ -73,6 +74,17 @@ def _raw_pixels(msg: Any, topic: str) -> tuple[NDArray[Any], bool]:
     if not px.isnative:
         raw = raw.astype(px.newbyteorder("="))
     return raw, code == "u2"
+
+
+def depth_image_pixels(msg: Any, *, topic: str = "Image") -> tuple[NDArray[Any], float]:
+    """The depth image of ``msg`` in its own pixel type, ``(height, width)`` (uint16 for
+    ``16UC1``/``mono16``, float32 for ``32FC1``; a view of the message's data, copied
+    only when big-endian), and the metres one unit of it stands for (0.001 or 1.0):
+    what :meth:`reachwise.distance.scene_memory.SceneMemory.integrate` reads with its
+    ``depth_scale``, without the float64 copy of :func:`depth_image_metres`. No return
+    is 0 (uint16) or a value not finite and > 0 (float32)."""
+    raw, millimetres = _raw_pixels(msg, topic)
+    return raw, (1e-3 if millimetres else 1.0)
 
 
 def depth_image_metres(msg: Any, *, topic: str = "Image") -> NDArray[np.float64]:
