@@ -39,6 +39,8 @@ def sample_requests(crane: Robot) -> list[P.Request]:
         P.OperationCall.of("add_robot", crane),
         P.AddObject("part", cloud, _pose(), "hiab-xs033", "link_2"),
         P.AddObject("probe", cloud, None, None, None, True),
+        P.AddObject("scan", cloud, None, stamp=2.5),
+        P.AddObject("seen", cloud, None, stamp=math.nan),  # unknown: travels as nil
         P.ReplaceCloud("environment", cloud),
         P.ReplaceCloud("camera", cloud.astype(np.float32), 2.5, True),
         P.SetJoints("hiab-xs033", np.linspace(0, 1, crane.n), 3.0),

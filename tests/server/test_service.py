@@ -172,6 +172,7 @@ def test_bad_input_gets_typed_errors_and_the_server_keeps_serving(
                 "body.link",
             ),
             (P.AddObject("p", np.ones((3, 3)), np.diag([1.0, 1, 2, 1])), E.INVALID, "body.pose"),
+            (P.AddObject("p", np.ones((3, 3)), stamp=-math.inf), E.INVALID, "body.stamp"),
             (P.OperationCall.of("watch", "link_2", "nothing", 0.1), E.UNKNOWN_ID, "object"),
             (
                 P.OperationCall.of("watch", "link_2", "link_2", 0.1),

@@ -19,6 +19,7 @@ The result convention (all strategies, thesis P-V Table 1 "no risk" exits includ
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -135,6 +136,16 @@ def check_pose(pose: ArrayLike | None, name: str) -> NDArray[np.float64]:
     Q = np.array(P, copy=True)
     Q[:3, :3] = U @ Vt
     return np.ascontiguousarray(Q)
+
+
+def check_added_stamp(stamp: float, name: str) -> float:
+    """The stamp (s) of object ``name``'s cloud as it is added: a time, +inf (does not
+    age) or NaN (unknown); -inf, a bool or a non-number is an InputError."""
+    if isinstance(stamp, bool) or not isinstance(stamp, numbers.Real) or stamp == -math.inf:
+        raise InputError(
+            "scene", f"object {name!r}", f"stamp must be a time in s, inf or NaN, got {stamp!r}"
+        )
+    return float(stamp)
 
 
 def check_margin(margin: float) -> float:

@@ -28,7 +28,6 @@ computation; without one those times are NaN ("unknown").
 from __future__ import annotations
 
 import math
-import numbers
 from collections.abc import Callable, Mapping
 from typing import Annotated
 
@@ -39,6 +38,7 @@ import reachwise.distance._batch as B
 import reachwise.distance.scene_rules as scene_rules
 from reachwise.distance._common import (
     as_cloud,
+    check_added_stamp,
     check_margin,
     check_pose,
 )
@@ -223,10 +223,7 @@ class Scene(SceneState):
             raise InputError("scene", "object name", "must be a non-empty string")
         if name in self._objects:
             raise NameTaken("scene", "name", f"object {name!r} already exists")
-        if isinstance(stamp, bool) or not isinstance(stamp, numbers.Real) or stamp == -math.inf:
-            raise InputError(
-                "scene", f"object {name!r}", f"stamp must be a time in s, inf or NaN, got {stamp!r}"
-            )
+        added = check_added_stamp(stamp, name)
         c = as_cloud(cloud, name)
         P = check_pose(pose, f"pose of {name!r}").copy()
         source: PoseSource
@@ -252,7 +249,7 @@ class Scene(SceneState):
         self._slot[name] = self._arrays.add_object(index, P, row)
         self._plan = None
         self._issued[name] = 0
-        self._set_version(name, 0, float(stamp))
+        self._set_version(name, 0, added)
         return obj
 
     def set_pose(self, name: str, pose: ArrayLike, *, stamp: float | None = None) -> None:

@@ -186,6 +186,7 @@ class SceneLike(Protocol):
         robot: str | None = None,
         link: str | None = None,
         dynamic: bool = False,
+        stamp: float = math.inf,
     ) -> SceneObject: ...
 
     def set_pose(self, name: str, pose: ArrayLike, *, stamp: float | None = None) -> None: ...

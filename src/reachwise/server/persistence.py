@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import logging
 import math
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -77,7 +78,7 @@ class ScenePersistence(ServiceCore):
                     robot=robot,
                     link=link,
                     version=meta.version,
-                    stamp=meta.stamp,
+                    stamp=_saved_stamp(meta.stamp),
                 )
             )
         memories = tuple(
@@ -199,11 +200,15 @@ class ScenePersistence(ServiceCore):
                     pose, stamp = np.array(ps.pose, dtype=np.float64), ps.stamp
                 runtime[o.name] = (check_pose(pose, o.name), stamp)
             dynamic = o.source == "runtime"
-            obj = scene.add_object(o.name, cloud, pose, robot=o.robot, link=o.link, dynamic=dynamic)
+            stamp_kept = math.nan if o.stamp == "unknown" else o.stamp
+            added_stamp = math.inf if o.version > 0 or stamp_kept is None else stamp_kept
+            obj = scene.add_object(
+                o.name, cloud, pose, robot=o.robot, link=o.link, dynamic=dynamic, stamp=added_stamp
+            )
             source = stamp_source(o.name, obj.source)
-            meta[o.name] = ObjectMeta(o.cloud, source, o.points, o.version, o.stamp)
+            meta[o.name] = ObjectMeta(o.cloud, source, o.points, o.version, stamp_kept)
             if o.version > 0:  # a handed-over cloud: its version and stamp go on
-                cloud_stamp = math.inf if o.stamp is None else o.stamp
+                cloud_stamp = math.inf if stamp_kept is None else stamp_kept
                 base[o.name] = o.version - scene.replace_cloud(
                     o.name, cloud, block=True, stamp=cloud_stamp
                 )
@@ -226,3 +231,11 @@ class ScenePersistence(ServiceCore):
             self._unsaved = {}
             self._adopt()  # the robots and the memories' objects
         old_scene.close()
+
+
+def _saved_stamp(stamp: float | None) -> float | Literal["unknown"] | None:
+    """A cloud's stamp as the state file keeps it: NaN (unknown) as ``"unknown"``, +inf
+    (does not age) as None."""
+    if stamp is None or stamp == math.inf:
+        return None
+    return "unknown" if math.isnan(stamp) else stamp

@@ -50,8 +50,10 @@ skip, never repeat).
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import reachwise.server.protocol as P
@@ -243,12 +245,15 @@ class SceneService(SceneAnswering, CloudHandover):
                         robot=req.robot,
                         link=req.link,
                         dynamic=req.dynamic,
+                        stamp=req.cloud_stamp,
                     )
                 except InputError as exc:
                     raise wire_error(P.ErrorCode.INVALID, "body.pose", exc.reason) from None
                 if req.dynamic:
                     self._runtime[req.name] = (check_pose(req.pose, "body.pose"), self.clock())
                 self._adopt({req.name: cloud_file})
+                if req.stamp != math.inf:  # the saved cloud ages from its stamp (None: unknown)
+                    self._meta[req.name] = replace(self._meta[req.name], stamp=req.cloud_stamp)
                 manifest = self._manifest()
         except BaseException:
             self._drop_file(cloud_file)

@@ -79,8 +79,8 @@ def unknown_error(kind: str, name: str, valid: Iterable[str], where: str) -> P.P
 @dataclass(frozen=True)
 class ObjectMeta:
     """What the server keeps beside the scene's object: its saved cloud (file, point
-    count, version and stamp; None: does not age) and whose time stamp its pose carries
-    (``("robot", name)``, ``("object", name)`` or None)."""
+    count, version and stamp; None: does not age, NaN: unknown) and whose time stamp
+    its pose carries (``("robot", name)``, ``("object", name)`` or None)."""
 
     cloud_file: str | None
     stamp_of: tuple[str, str] | None

@@ -85,8 +85,9 @@ class ObjectState(BaseModel):
     """A registered object: cloud file (in ``clouds/``), point count and pose source.
     ``pose`` is the world pose (``fixed``), the link offset (``link``) or the initial
     pose (``runtime``; the latest one is in ``live.json``). ``version`` and ``stamp``
-    are those of the saved cloud: 0 and None (does not age) for the cloud the object
-    was added with, else those of the handed-over cloud (``replace_cloud``)."""
+    are those of the saved cloud: 0 and the stamp the object was added with for the
+    cloud it was added with, else those of the handed-over cloud (``replace_cloud``);
+    a stamp is a time (s), None (does not age) or ``"unknown"`` (its age is unknown)."""
 
     model_config = _STRICT
     name: str = Field(min_length=1)
@@ -97,7 +98,7 @@ class ObjectState(BaseModel):
     robot: str | None = None
     link: str | None = None
     version: int = Field(default=0, ge=0)
-    stamp: float | None = None
+    stamp: float | Literal["unknown"] | None = None
 
 
 class PairState(BaseModel):

@@ -80,7 +80,7 @@ def depth_image_pixels(msg: Any, *, topic: str = "Image") -> tuple[NDArray[Any],
     """The depth image of ``msg`` in its own pixel type, ``(height, width)`` (uint16 for
     ``16UC1``/``mono16``, float32 for ``32FC1``; a view of the message's data, copied
     only when big-endian), and the metres one unit of it stands for (0.001 or 1.0):
-    what :meth:`reachwise.distance.scene_memory.SceneMemory.integrate` reads with its
+    what ``SceneMemory.integrate`` (``reachwise.distance.scene_memory``) reads with its
     ``depth_scale``, without the float64 copy of :func:`depth_image_metres`. No return
     is 0 (uint16) or a value not finite and > 0 (float32)."""
     raw, millimetres = _raw_pixels(msg, topic)

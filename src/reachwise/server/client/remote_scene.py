@@ -65,6 +65,7 @@ A client belongs to one thread (one REQ socket); give each thread its own.
 
 from __future__ import annotations
 
+import math
 import time
 from typing import TYPE_CHECKING, Any
 
@@ -72,7 +73,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 import reachwise.server.protocol as P
-from reachwise.distance._common import as_cloud, check_pose
+from reachwise.distance._common import as_cloud, check_added_stamp, check_pose
 from reachwise.distance.engine import STRATEGIES, StrategyName
 from reachwise.distance.scene import (
     Fixed,
@@ -288,20 +289,23 @@ class SceneClient(RemoteQueries):
         robot: str | None = None,
         link: str | None = None,
         dynamic: bool = False,
+        stamp: float = math.inf,
         deadline: float | None = None,
     ) -> SceneObject:
-        """Add a cloud (see :meth:`reachwise.distance.Scene.add_object`); the server
-        builds its index before it replies."""
+        """Add a cloud (see :meth:`reachwise.distance.Scene.add_object`) measured at
+        ``stamp`` (s, this client's clock, as :meth:`replace_cloud`'s; +inf, the
+        default: it does not age; NaN: unknown, stale under ``max_cloud_age``); the
+        server builds its index before it replies."""
         if not isinstance(name, str) or not name:
             raise InputError("scene", "object name", "must be a non-empty string")
+        added = check_added_stamp(stamp, name)
         c = as_cloud(cloud, name)
         pose_arr = check_pose(pose, f"pose of {name!r}").copy()
-        self._setup(
-            P.AddObject(name, c.points, pose_arr, robot, link, dynamic), P.ObjectReply, deadline
-        )
+        request = P.AddObject(name, c.points, pose_arr, robot, link, dynamic, added)
+        self._setup(request, P.ObjectReply, deadline)
         if self._mirror is not None:
             return self._mirror.add_object(
-                name, c, pose_arr, robot=robot, link=link, dynamic=dynamic
+                name, c, pose_arr, robot=robot, link=link, dynamic=dynamic, stamp=added
             )
         source: Fixed | OnLink | Runtime
         if robot is not None and link is not None:

@@ -7,6 +7,7 @@ bounded by the server's limits."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Annotated, Any, ClassVar, Self
@@ -113,7 +114,10 @@ class Metrics(Request):
 class AddObject(Request):
     """Add a cloud (P-V Table 1 initialization: its index is built once): fixed in world
     at ``pose``; on ``robot``'s ``link`` with ``pose`` its offset; or ``dynamic`` (pose
-    set at run time, ``pose`` the initial one)."""
+    set at run time, ``pose`` the initial one). ``stamp`` is when the cloud was measured
+    (s, the sender's clock): inf (the default, also when absent) for a cloud that does
+    not age, nil for an unknown time (the scene's NaN; NaN itself is no wire number, so
+    a NaN given here travels as nil)."""
 
     OP: ClassVar[str] = "add_object"
     STRUCTURAL: ClassVar[bool] = True
@@ -123,11 +127,25 @@ class AddObject(Request):
     robot: Name | None = None
     link: Name | None = None
     dynamic: bool = False
+    stamp: float | None = math.inf
+
+    def __post_init__(self) -> None:
+        if isinstance(self.stamp, float) and math.isnan(self.stamp):
+            object.__setattr__(self, "stamp", None)
+
+    @property
+    def cloud_stamp(self) -> float:
+        """The stamp as the scene takes it: NaN for an unknown time."""
+        return math.nan if self.stamp is None else self.stamp
 
     @classmethod
     def parse(cls, r: Reader, limits: Limits) -> Self:
         """The request as its hints check it, its cloud within ``limits``."""
         req = decode_fields(cls, r)
+        if req.stamp == -math.inf:
+            raise ProtocolError(
+                ErrorCode.INVALID, r.path("stamp"), "must be a time in s, inf or nil, got -inf"
+            )
         n = req.cloud.shape[0]
         if not 0 < n <= limits.max_cloud_points:
             raise ProtocolError(
