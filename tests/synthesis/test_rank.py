@@ -15,6 +15,7 @@ from reachwise.synthesis.rank import (
     Candidate,
     Measures,
     best_run_index,
+    first_best,
     link_length,
     measures,
     rank,
@@ -119,3 +120,31 @@ def test_best_run_is_the_rule_of_synthesize() -> None:
     assert best_run_index([1], [math.inf]) == 0
     with pytest.raises(InputError):
         best_run_index([], [])
+
+
+def test_runs_reaching_every_point_are_chosen_by_conditioning_not_by_rounding() -> None:
+    # two converged runs whose pose errors are rounding noise: the higher GCI wins, in
+    # either order of their errors (the e_obj rule flips with them)
+    cond = [(0.05, 0.01), (0.06, 0.005)]
+    assert best_run_index([7, 7], [2.8e-14, 2.9e-14], None, cond, 7) == 1
+    assert best_run_index([7, 7], [2.9e-14, 2.8e-14], None, cond, 7) == 1
+    assert best_run_index([7, 7], [2.8e-14, 2.9e-14]) == 0  # without conditioning: e_obj
+    # GCI equal up to rounding: KCI decides; both equal: the first run
+    same = [(0.05, 0.01), (0.05 * (1 + 1e-12), 0.02)]
+    assert best_run_index([7, 7], [1e-13, 2e-13], None, same, 7) == 1
+    assert best_run_index([7, 7], [2e-13, 1e-13], None, [(0.05, 0.01)] * 2, 7) == 0
+    # a run short of a point never wins on conditioning; short runs compare pose errors
+    assert best_run_index([6, 7], [0.0, 1e-13], None, [(0.9, 0.9), (0.01, 0.001)], 7) == 1
+    assert best_run_index([6, 6], [0.3, 0.1], None, [(0.9, 0.9), (0.01, 0.01)], 7) == 1
+    # a design objective still comes first; a figure that is not finite is the worst
+    assert best_run_index([7, 7], [1e-13] * 2, [0.5, -0.2], [(0.9, 0.9), (0.01, 0.01)], 7) == 1
+    assert best_run_index([7, 7], [0.0, 0.0], None, [(math.nan, 0.1), (0.01, 0.01)], 7) == 1
+
+
+def test_first_best_compares_figure_by_figure_with_rounding_equal() -> None:
+    assert first_best([(1.0, 5.0), (1.0 + 1e-12, 4.0)]) == 1  # first figures equal
+    assert first_best([(1.0, 5.0), (1.0 + 1e-6, 4.0)]) == 0  # a real difference decides
+    assert first_best([(2.0, 1.0), (2.0, 1.0)]) == 0  # a tie: the lowest index
+    assert first_best([(math.inf,), (3.0,)]) == 1
+    with pytest.raises(InputError):
+        first_best([])

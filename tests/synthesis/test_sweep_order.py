@@ -28,7 +28,7 @@ import pytest
 from reachwise._version import source_fingerprint, tree_fingerprint
 from reachwise.errors import InputError
 from reachwise.results.sweep_store import SweepStore
-from reachwise.synthesis.rank import Measures, RankKey
+from reachwise.synthesis.rank import SAME_FIGURE, Measures, RankKey
 from reachwise.synthesis.sweep import (
     ROUND_FULL,
     ItemResult,
@@ -39,7 +39,7 @@ from reachwise.synthesis.sweep import (
     round_table,
     run_sweep,
 )
-from reachwise.synthesis.sweep.tables import SAME_FIGURE, best_run
+from reachwise.synthesis.sweep.tables import best_run
 from reachwise.synthesis.topology import Topology, topologies_from_specs
 from reachwise.tasks.task import Task
 

@@ -186,13 +186,57 @@ def rank(candidates: Sequence[Candidate], key: RankKey = "mean") -> tuple[Ranked
     )
 
 
+#: Relative difference below which two figures of runs count as equal when the best
+#: run is chosen (:func:`first_best`): rounding noise (a sum in another order, another
+#: BLAS kernel) moves a figure by far less, a different design by far more.
+SAME_FIGURE = 1e-9
+
+
+def same_figure(a: float, b: float) -> bool:
+    """Whether two figures are equal within a relative :data:`SAME_FIGURE` (non-finite
+    ones only when identical)."""
+    if not (math.isfinite(a) and math.isfinite(b)):
+        return a == b
+    return abs(a - b) <= SAME_FIGURE * max(abs(a), abs(b))
+
+
+def first_best(figures: Sequence[tuple[float, ...]]) -> int:
+    """Index of the smallest of ``figures`` (tuples of one length, each figure
+    lower-is-better) compared figure by figure, figures within :data:`SAME_FIGURE`
+    equal; a tie goes to the lowest index. So rounding noise in a figure never decides
+    while a later figure can."""
+    if not figures:
+        raise InputError("rank", "runs", "no run")
+    pick = list(range(len(figures)))
+    for j in range(len(figures[0])):
+        low = min(figures[i][j] for i in pick)
+        pick = [i for i in pick if same_figure(figures[i][j], low)]
+    return pick[0]
+
+
 def best_run_index(
-    n_reached: Sequence[int], e_obj: Sequence[float], objective: Sequence[float] | None = None
+    n_reached: Sequence[int],
+    e_obj: Sequence[float],
+    objective: Sequence[float] | None = None,
+    conditioning: Sequence[tuple[float, float]] | None = None,
+    n_points: int | None = None,
 ) -> int:
-    """The best of a set of runs (the rule of ``synthesize`` and of the sweep): most
-    points reached, then the smallest weighted design ``objective`` (when given), then
-    the smallest pose error ``e_obj``, then the first."""
+    """The best of a set of runs (the rule of ``synthesize``): most points reached,
+    then the smallest weighted design ``objective`` (when given), then the smallest pose
+    error ``e_obj``, then the first. With ``conditioning`` ((GCI, KCI) per run, P-II
+    Eq. 38–39) and ``n_points``, runs that reach all ``n_points`` compare GCI, then KCI
+    (higher first) instead of ``e_obj``: a converged run's pose error is rounding noise
+    (about 1e-13) that any change in summation order or library reorders. Figures
+    within :data:`SAME_FIGURE` are equal (:func:`first_best`)."""
     if not n_reached:
         raise InputError("rank", "runs", "no run")
     obj = [0.0] * len(n_reached) if objective is None else list(objective)
-    return min(range(len(n_reached)), key=lambda i: (-n_reached[i], obj[i], e_obj[i], i))
+
+    def figures(i: int) -> tuple[float, ...]:
+        if conditioning is not None and n_reached[i] == n_points:
+            g, k = (v if math.isfinite(v) else -math.inf for v in conditioning[i])
+            return (-float(n_reached[i]), obj[i], 0.0, -g, -k)
+        e = e_obj[i] if math.isfinite(e_obj[i]) else math.inf
+        return (-float(n_reached[i]), obj[i], e, math.inf, math.inf)
+
+    return first_best([figures(i) for i in range(len(n_reached))])

@@ -14,6 +14,7 @@ parameter that ended at a bound.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal, get_args
@@ -22,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from reachwise.errors import InputError, check_choice
-from reachwise.kinematics.indices import lci
+from reachwise.kinematics.indices import gci, kci, lci
 from reachwise.kinematics.robot import Robot
 from reachwise.synthesis.bound_hits import BoundHit, bound_hits
 from reachwise.synthesis.clearance import ClearanceModel, Unservable, unservable_poses
@@ -408,6 +409,15 @@ def objective_costs(runs: Sequence[RunResult], weights: Mapping[str, float]) -> 
     return out
 
 
+def _conditioning(run: RunResult, n_points: int) -> tuple[float, float]:
+    """(GCI, KCI) of a run that reaches every point, P-II Eq. 38–39 (a figure that is
+    not finite, and a run short of a point, the worst)."""
+    if run.n_reached != n_points or len(run.lci_final) != n_points:
+        return (-math.inf, -math.inf)
+    g, k = gci(run.lci_final), kci(run.lci_final)
+    return (g if math.isfinite(g) else -math.inf, k if math.isfinite(k) else -math.inf)
+
+
 def result_of(
     problem: SynthesisProblem,
     runs: Sequence[RunResult],
@@ -421,7 +431,10 @@ def result_of(
         raise InputError("synthesize", "runs", "no finished run")
     weights = check_objective(objective, "synthesize")
     costs = objective_costs(runs, weights) if weights else None
-    best = best_run_index([r.n_reached for r in runs], [r.e_obj for r in runs], costs)
+    conditioning = [_conditioning(r, problem.K) for r in runs]
+    best = best_run_index(
+        [r.n_reached for r in runs], [r.e_obj for r in runs], costs, conditioning, problem.K
+    )
     notes = tuple(f"left out {u.name}: {u.reason}" for u in unservable)
     return SynthesisResult(
         problem, tuple(runs), best, solver, notes, weights, tuple(unservable),

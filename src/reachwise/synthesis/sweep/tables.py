@@ -13,7 +13,13 @@ from numpy.typing import NDArray
 from reachwise.errors import InputError
 from reachwise.kinematics.robot import Robot
 from reachwise.synthesis.problem import SynthesisProblem
-from reachwise.synthesis.rank import Candidate, RankedRow, RankKey, order_figures
+from reachwise.synthesis.rank import (
+    Candidate,
+    RankedRow,
+    RankKey,
+    first_best,
+    order_figures,
+)
 from reachwise.synthesis.rank import rank as rank_candidates
 from reachwise.synthesis.sweep.config import ROUND_FULL, SweepConfig
 from reachwise.synthesis.sweep.items import ItemResult
@@ -75,18 +81,6 @@ def _finite_or_none(v: float) -> float | None:
     return float(v) if math.isfinite(v) else None
 
 
-#: Relative difference below which two figures of runs count as equal when a topology's
-#: best run is chosen: rounding noise (a sum in another order, another BLAS kernel) moves a
-#: figure by far less, a different design by far more.
-SAME_FIGURE = 1e-9
-
-
-def _close(a: float, b: float) -> bool:
-    if not (math.isfinite(a) and math.isfinite(b)):
-        return a == b
-    return abs(a - b) <= SAME_FIGURE * max(abs(a), abs(b))
-
-
 def _figures(r: ItemResult, key: RankKey, feasible: bool) -> tuple[float, ...]:
     if feasible and r.measures is not None:
         return order_figures(r.measures, key)
@@ -102,20 +96,16 @@ def best_run(runs: Sequence[ItemResult], key: RankKey) -> int:
     (lower first): the figures the sweep ranks topologies by (``rank.order_figures``).
     The pose error ``e_obj`` is not compared there: a converged run's error is rounding
     noise (about 1e-13) that any change in summation order reorders. Among runs that
-    miss points, the smallest ``e_obj``. Figures within a relative :data:`SAME_FIGURE`
-    are equal; a tie goes to the lowest run number.
+    miss points, the smallest ``e_obj``. Figures within a relative
+    :data:`~reachwise.synthesis.rank.SAME_FIGURE` are equal; a tie goes to the lowest
+    run number (:func:`~reachwise.synthesis.rank.first_best`).
     """
     if not runs:
         raise InputError("sweep", "runs", "no run")
     most = max(r.n_reached for r in runs)
     tied = sorted((r for r in runs if r.n_reached == most), key=lambda r: r.run)
     feasible = all(r.feasible for r in tied)
-    figures = [_figures(r, key, feasible) for r in tied]
-    pick = list(range(len(tied)))
-    for j in range(len(figures[0])):
-        low = min(figures[i][j] for i in pick)
-        pick = [i for i in pick if _close(figures[i][j], low)]
-    return runs.index(tied[pick[0]])
+    return runs.index(tied[first_best([_figures(r, key, feasible) for r in tied])])
 
 
 def round_table(results: Sequence[ItemResult], round: int, key: RankKey) -> RoundTable:
