@@ -255,3 +255,48 @@ def test_depth_frames_fused_into_a_scene_memory(cell: Path) -> None:
     assert checked > 200
     with pytest.raises(InputError, match="memory_box"):
         ReplaySpec(joints="/j", clouds=("/c",), memory=config)
+
+
+def _millimetres(topic: str, msg: Any, t: float) -> Any:
+    """The cell's 32FC1 depth images as 16UC1 millimetres (0: no return)."""
+    if topic == "/depth/image":
+        z = msg.data.view("<f4").reshape(msg.height, msg.width)
+        mm = np.where(np.isfinite(z), np.round(np.nan_to_num(z) * 1000.0), 0.0).astype("<u2")
+        msg.encoding, msg.step = "16UC1", msg.width * 2
+        msg.data = mm.view(np.uint8).reshape(-1).copy()
+    return msg
+
+
+@pytest.mark.parametrize("encoding", ["32FC1", "16UC1"])
+def test_recorded_depth_is_fused_from_its_own_pixels_as_from_float64_metres(
+    tmp_path: Path, encoding: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A recorded 32FC1 and 16UC1 depth topic fused into a scene memory from the
+    images' own pixels gives the replay (every distance, point and stamp) that the same
+    images converted to float64 metres first give."""
+    from reachwise.distance.scene_memory import MemoryConfig
+    from reachwise.io.ros import cloud_topic
+    from reachwise.io.ros.depth_image import depth_image_metres
+
+    hook = _millimetres if encoding == "16UC1" else None
+    bag = _cell.write_cell(tmp_path / "depth.mcap", hook, seconds=0.5)
+    robot = _cell.panda()
+    spec = ReplaySpec(
+        joints="/joint_states",
+        clouds=("/depth/image",),
+        memory=MemoryConfig(voxel=0.05),
+        memory_box=((-1.0, -1.5, -1.0), (2.0, 1.5, 2.0)),
+        block=True,
+    )
+    clouds = _cell.link_clouds(robot)
+    own = replay_recording(bag, robot, spec, link_clouds=clouds)
+    monkeypatch.setattr(
+        cloud_topic,
+        "depth_image_pixels",
+        lambda msg, *, topic: (depth_image_metres(msg, topic=topic), 1.0),
+    )
+    metres = replay_recording(bag, robot, spec, link_clouds=clouds)
+    assert own.clouds == metres.clouds == {"/depth/image": 5}
+    assert np.isfinite(own.distance).sum() > 100  # the memory held obstacles
+    for field in ("distance", "cloud_stamp", "point_a", "point_b"):
+        np.testing.assert_array_equal(getattr(own, field), getattr(metres, field))
