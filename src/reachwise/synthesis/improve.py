@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from reachwise.synthesis.clearance import ClearanceModel
-from reachwise.synthesis.clearance_rows import clearance_barrier
+from reachwise.synthesis.clearance_rows import MOTION_BAND, clearance_barrier
 from reachwise.synthesis.keep import keep_barrier, kept_floors
 from reachwise.synthesis.linalg import BlockSystem, null_space_project, weighted
 from reachwise.synthesis.objectives import OBJECTIVES, Objective, Terms, size_columns
@@ -54,7 +54,8 @@ Array = NDArray[np.float64]
 @dataclass(frozen=True)
 class ImproveOptions:
     """Tuning of the null-space improvement (step sizes are fractions of each variable's
-    range; ``restore_tolerance`` is a fraction of the task tolerances)."""
+    range; ``restore_tolerance`` is a fraction of the task tolerances;
+    ``clearance_band`` (m) is how far above the clearance the bodies' barrier acts)."""
 
     max_iter: int = 500
     radius: float = 0.02
@@ -70,6 +71,7 @@ class ImproveOptions:
     active_band: float = 1e-3
     max_passes: int = 60
     keep_weight: float = 1.0
+    clearance_band: float = MOTION_BAND
 
 
 @dataclass(frozen=True)
@@ -128,7 +130,7 @@ def _walls(
     value, g, ok = _wall(problem, z, ws, opt)
     if clearance is None:
         return value, g, ok
-    v2, g2, ok2 = clearance_barrier(problem, z, clearance)
+    v2, g2, ok2 = clearance_barrier(problem, z, clearance, opt.clearance_band)
     return value + opt.workspace_weight * v2, g + opt.workspace_weight * g2, ok and ok2
 
 
