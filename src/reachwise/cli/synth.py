@@ -421,7 +421,7 @@ def no_sweep_reason(result: Any, listed: int = 8) -> str:
         what = list(lost.get(best.status[i], ["position", "orientation"]))
         if best.clearance is not None and best.clearance[i] < clear:
             pair = "–".join(best.clearance_pairs[i]) if best.clearance_pairs else ""
-            what.append(f"clearance {best.clearance[i]:.3f} m < {clear:g} m {pair}".rstrip())
+            what.append(f"clearance {best.clearance[i]:.4f} m < {clear:g} m {pair}".rstrip())
         missed.append(f"{result.problem.task.names[i]} ({', '.join(what)})")
     more = K - int(best.reached.sum()) - len(missed)
     held = f", with every watched pair of bodies at least {clear:g} m apart" if clear > 0 else ""
