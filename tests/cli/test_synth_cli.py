@@ -271,3 +271,36 @@ def test_a_task_that_leaves_the_design_free_is_warned_about(tmp_path: Path) -> N
     runs = (replace(run, design=moved, reach_design=None),)
     other = replace(result, runs=runs, best_index=0)
     assert names[0] not in other.unconstrained() and set(other.unconstrained()) < set(names)
+
+
+def test_clearance_starts_reach_every_run_and_bad_values_are_refused(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """--clearance-starts N is each run's SolverOptions.clearance_starts (the solves a
+    clearance run may take); below 1 it is refused before any run."""
+    import reachwise.synthesis.synthesize as synthesize
+
+    task = load_task("tunnel-87")
+    idx = [i for i, n in enumerate(task.names) if n.startswith("P01/")]
+    from reachwise.io.task_file import save_task
+
+    path = tmp_path / "t.yaml"
+    save_task(task.subset(idx, name="tunnel-p1"), path)
+    args = ["synth", "--task", str(path), "--robot", "sb60", "--clearance", "0.1",
+            "--no-figures", "--json"]  # fmt: skip
+    bad = runner.invoke(app, [*args, "--out", str(tmp_path / "x"), "--clearance-starts", "0"])
+    assert bad.exit_code == 2 and not (tmp_path / "x").exists(), bad.output
+    seen: list[int] = []
+    real = synthesize.run_once
+
+    def recording(*a: object, **kw: object) -> object:
+        options = kw.get("options")
+        seen.append(getattr(options, "clearance_starts", 1))
+        return real(*a, **kw)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(synthesize, "run_once", recording)
+    out = tmp_path / "out"
+    res = runner.invoke(app, [*args, "--out", str(out), "--runs", "2", "--clearance-starts", "3"])
+    assert res.exit_code == 0, res.output
+    assert seen == [3, 3]
+    assert json.loads(res.output)["task_points"] > 0

@@ -66,7 +66,7 @@ class DesignProblem:
 @dataclass(frozen=True)
 class MultiStart:
     """The solves: ``runs`` multi-start runs with ``solver`` (``dls`` or ``trf``), run
-    i seeded ``seed + i``."""
+    i seeded ``seed + i``, each with bodies solving up to ``clearance_starts`` times."""
 
     #: Multi-start runs.
     runs: int = cli(typer.Option(10, "--runs", min=1, help="Multi-start runs (own seeds)."))
@@ -74,6 +74,17 @@ class MultiStart:
     solver: str = cli(typer.Option("dls", "--solver", help="dls (thesis) or trf (scipy)."))
     #: Seed of the first run; run i uses seed + i.
     seed: int = cli(typer.Option(0, "--seed", help="Seed of the first run; run i uses seed+i."))
+    #: Solves per clearance run (``SolverOptions.clearance_starts``).
+    clearance_starts: int = cli(
+        typer.Option(
+            1,
+            "--clearance-starts",
+            min=1,
+            help="Solves per run with --clearance while none converges: the first from the "
+            "reach-only start, the others from starts that pick each pose's IK branch by "
+            "its bodies; the run keeps the one serving most poses.",
+        )
+    )
 
 
 @dataclass(frozen=True)
@@ -145,6 +156,7 @@ class SynthesisOutput:
         "runs",
         "solver",
         "seed",
+        "clearance_starts",
         "lock",
         "tunnel",
         "figures",
@@ -191,8 +203,8 @@ def synth(
             weights = {}  # the sweep starts from the reach-only design
         front_bodies = _front_bodies(goal, names, bodies[0])
         done = _runs(
-            problem, starts.runs, starts.seed, solver_name, workspace, weights, interrupts,
-            output.json_out, bodies[0], kept,
+            problem, starts, solver_name, workspace, weights, interrupts, output.json_out,
+            bodies[0], kept,
         )  # fmt: skip
         if not done:
             Console(stderr=True).print("interrupted before the first run finished: nothing written")
@@ -246,13 +258,17 @@ def _problem(
 
 
 def _runs(
-    problem: Any, runs: int, seed: int, solver: Any, workspace: Any,
+    problem: Any, starts: MultiStart, solver: Any, workspace: Any,
     weights: dict[str, float], interrupts: Interrupts, quiet: bool, clearance: Any = None,
     keep: tuple[str, ...] | None = None,
 ) -> list[Any]:  # fmt: skip
     """The multi-start runs ``seed, seed + 1, ...`` until ``runs`` are done or Ctrl-C:
     asked between the runs, as the compiled code inside one must not be interrupted."""
+    from reachwise.synthesis.solver_options import SolverOptions
     from reachwise.synthesis.synthesize import run_once
+
+    runs, seed = starts.runs, starts.seed
+    options = SolverOptions(clearance_starts=starts.clearance_starts)
 
     done = []
     with Progress(
@@ -265,8 +281,8 @@ def _runs(
                 if interrupts.requested:
                     break
                 r = run_once(
-                    problem, seed + i, solver, workspace=workspace, objective=weights,
-                    clearance=clearance, keep=keep,
+                    problem, seed + i, solver, options=options, workspace=workspace,
+                    objective=weights, clearance=clearance, keep=keep,
                 )  # fmt: skip
                 done.append(r)
                 bar.update(job, advance=1, description=f"run {i}: {r.n_reached}/{problem.K}")
