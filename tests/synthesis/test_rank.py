@@ -148,3 +148,20 @@ def test_first_best_compares_figure_by_figure_with_rounding_equal() -> None:
     assert first_best([(math.inf,), (3.0,)]) == 1
     with pytest.raises(InputError):
         first_best([])
+
+
+def test_a_run_with_an_undefined_lci_is_the_worst_not_an_error() -> None:
+    """``result_of``'s conditioning of a run: a NaN LCI (a Jacobian that is not finite)
+    ranks the run last among runs reaching every point instead of raising."""
+    from types import SimpleNamespace
+
+    from reachwise.synthesis.synthesize import _conditioning
+
+    good = SimpleNamespace(n_reached=3, lci_final=np.array([0.2, 0.1, 0.3]))
+    bad = SimpleNamespace(n_reached=3, lci_final=np.array([0.2, np.nan, 0.3]))
+    short = SimpleNamespace(n_reached=2, lci_final=np.array([0.2, 0.1, 0.3]))
+    assert _conditioning(good, 3) == pytest.approx((0.2, 0.1))  # type: ignore[arg-type]
+    assert _conditioning(bad, 3) == (-math.inf, -math.inf)  # type: ignore[arg-type]
+    assert _conditioning(short, 3) == (-math.inf, -math.inf)  # type: ignore[arg-type]
+    cond = [_conditioning(r, 3) for r in (bad, good)]  # type: ignore[arg-type]
+    assert best_run_index([3, 3], [1e-13, 1e-13], None, cond, 3) == 1

@@ -412,10 +412,10 @@ def objective_costs(runs: Sequence[RunResult], weights: Mapping[str, float]) -> 
 def _conditioning(run: RunResult, n_points: int) -> tuple[float, float]:
     """(GCI, KCI) of a run that reaches every point, P-II Eq. 38–39 (a figure that is
     not finite, and a run short of a point, the worst)."""
-    if run.n_reached != n_points or len(run.lci_final) != n_points:
+    v = np.asarray(run.lci_final, dtype=np.float64)
+    if run.n_reached != n_points or v.size != n_points or not np.isfinite(v).all():
         return (-math.inf, -math.inf)
-    g, k = gci(run.lci_final), kci(run.lci_final)
-    return (g if math.isfinite(g) else -math.inf, k if math.isfinite(k) else -math.inf)
+    return (gci(v), kci(v))
 
 
 def result_of(
