@@ -403,8 +403,9 @@ def _pareto(
 
     best = result.best
     if not best.reached.all():
-        return {"error": no_sweep_reason(result)}, section(
-            f"Pareto front: {names[0]} vs {names[1]}", no_sweep_reason(result), id="pareto"
+        reason = no_sweep_reason(result)
+        return {"error": reason}, section(
+            f"Pareto front: {names[0]} vs {names[1]}", reason, id="pareto"
         )
     prob = result.problem
     if not quiet:
