@@ -101,3 +101,41 @@ def test_a_brick_freed_whole_then_marked_is_written_again_when_freed_whole() -> 
     assert np.all(mem.freed_at == -np.inf)
     mem.restore(snap)
     assert np.all(mem.state == 1) and np.all(mem.freed_at == 4.0)
+
+
+def test_robot_pixels_free_whole_bricks_in_front_of_the_robot_and_shadow_none() -> None:
+    """A brick the robot's pixels alone cover is freed whole in front of the robot's
+    depth (its block stamped, as in front of a scene surface), and nothing at or behind
+    the robot's depth is shadowed; one pixel without a return under it, and the same
+    frame decides the blocks over it voxel by voxel (not stamped), with the same map.
+    After every frame the map equals the plain per-voxel update's."""
+    K = ViewIntrinsics(fx=40.0, fy=40.0, cx=23.5, cy=17.5, near=0.2, far=6.0)
+    T = np.eye(4)  # along world +z from the origin
+    lower, upper = [-0.2, -0.2, 1.0], [0.2, 0.2, 1.4]
+    cfg = MemoryConfig(voxel=0.05)
+    mem = SceneMemory(lower, upper, cfg)
+    slow = SceneMemory(lower, upper, cfg)
+    freed = np.full(slow.state.size, -np.inf)
+    robot = np.ones((36, 48), dtype=bool)
+
+    def fuse(depth: np.ndarray, t: float) -> None:
+        mem.integrate(depth, T, K, t=t, body=robot)
+        reference_update(slow, freed, depth, robot, K, T, t)
+        assert np.array_equal(mem.state, slow.state)
+        assert np.array_equal(mem.seen_at, slow.seen_at)
+        assert np.array_equal(mem.freed_at.reshape(-1), freed)
+
+    fuse(np.full((36, 48), 3.0), 0.0)  # the robot 3 m away fills the view
+    assert np.all(mem.state == 1) and np.all(mem._freed_block == 0.0)
+    near_robot = np.full((36, 48), 1.2)
+    fuse(near_robot, 1.0)  # the robot inside the cell: free before it, the rest kept
+    z = mem.origin[2] + (np.arange(mem.shape[2]) + 0.5) * cfg.voxel
+    in_front = z < 1.2 - cfg.surface_band - 0.02  # off-axis centres lie a little deeper
+    assert np.all(mem.freed_at[:, :, in_front] == 1.0)
+    assert np.all(mem.state == 1)  # behind the robot: free since 0.0, never shadowed
+    assert np.all(mem.freed_at[:, :, z > 1.2 + 0.02] == 0.0)
+    hole = np.full((36, 48), 3.0)
+    hole[17, 23] = np.nan
+    fuse(hole, 2.0)  # a pixel without a return: voxel by voxel, the same map
+    assert np.all(mem.state == 1) and 0 < np.count_nonzero(mem.freed_at < 2.0) < 16
+    assert not np.all(mem._freed_block == 2.0)  # the half-bricks over the hole

@@ -5,7 +5,7 @@ Three passes per depth frame, each over flat arrays:
 - :func:`prepare_frame` — one pass over the pixels: the frame as one ``code`` image
   (the return's depth, minus it where the pixel saw the robot, NaN without a return)
   and, per tile of ``TILE`` × ``TILE`` pixels, the nearest and farthest return and
-  whether a pixel without a return or on the robot lies in it, as a sparse table over
+  whether a pixel without a return (or else one on the robot) lies in it, as a sparse table over
   squares of 2**level tiles so that any rectangle of tiles is bounded by a few reads.
 - :func:`project_frame` — the projective update (nvblox's method, on the CPU): every
   voxel of the grid that a brick test cannot decide at once is projected into the depth
@@ -81,12 +81,18 @@ _RO_F4_2D = types.Array(types.float32, 2, "C", readonly=True)
 _W_F8_4D = types.Array(types.float64, 4, "C")
 _RO_F8_4D = types.Array(types.float64, 4, "C", readonly=True)
 
+#: The third channel of the tile table (:func:`prepare_frame`): the worst pixel under a
+#: tile — every pixel a scene return (0.0), a robot's return among them (``_ROBOT``),
+#: or a pixel without a return (``_NO_RETURN``); the maximum over tiles is the worst.
+_ROBOT = 1.0
+_NO_RETURN = 2.0
+
 # code: the frame's pixels as one image (float32): NaN where there is no return, the
 # depth (m) where the pixel saw the scene, minus the depth where it saw the robot.
-# tiles[level, ty, tx] = [nearest, farthest return, 1.0 when a pixel without a return or
-# on the robot lies there else 0.0] over the 2**level x 2**level tiles of TILE x TILE
-# pixels from tile (ty, tx) on (a sparse table: any rectangle of tiles is the union of
-# a few such squares)
+# tiles[level, ty, tx] = [nearest, farthest return (the robot's too), the worst pixel:
+# 0.0, _ROBOT or _NO_RETURN] over the 2**level x 2**level tiles of TILE x TILE pixels
+# from tile (ty, tx) on (a sparse table: any rectangle of tiles is the union of a few
+# such squares)
 # depth: the sensor's image as it comes, float64 or float32 metres or uint16 units of
 # ``scale`` metres (millimetres: 0.001), one compiled version each
 _SIG_PREPARE = [
@@ -141,12 +147,12 @@ def prepare_frame(depth, scale, body, near, far, code, tiles):  # type: ignore[n
                     tiles[0, ty, tx, 1] = d
                 if body[r, c]:
                     code[r, c] = -d
-                    tiles[0, ty, tx, 2] = 1.0
+                    tiles[0, ty, tx, 2] = max(tiles[0, ty, tx, 2], _ROBOT)
                 else:
                     code[r, c] = d
             else:
                 code[r, c] = nan
-                tiles[0, ty, tx, 2] = 1.0
+                tiles[0, ty, tx, 2] = _NO_RETURN
     for lv in range(1, L):
         h = 1 << (lv - 1)
         for ty in range(nty - 2 * h + 1):
@@ -272,20 +278,23 @@ def _brick_test(lo3, ext, view, tiles, rules, W, H):  # type: ignore[no-untyped-
     side = 1 << lv
     lo = np.inf
     hi = -np.inf
-    bad = False
+    mixed = 0.0
     for y in range(ty0, ty1 + 1, side):
         yy = min(y, ty1 - side + 1)
         for x in range(tx0, tx1 + 1, side):
             xx = min(x, tx1 - side + 1)
             lo = min(lo, tiles[lv, yy, xx, 0])
             hi = max(hi, tiles[lv, yy, xx, 1])
-            bad = bad or tiles[lv, yy, xx, 2] != 0.0
+            mixed = max(mixed, tiles[lv, yy, xx, 2])
     if zmin > hi + shadow:
         return _SKIP
-    if inside and not bad:
+    # a pixel without a return decides nothing: no whole-brick decision over one; a
+    # robot's pixel frees in front of the robot's depth (within lo) as a scene pixel
+    # does in front of its surface, but shadows nothing: no whole shadow over one
+    if inside and mixed < _NO_RETURN:
         if zmax < lo - band:
             return _ALL_FREE
-        if zmin >= hi - band and zmax <= lo + shadow:
+        if mixed == 0.0 and zmin >= hi - band and zmax <= lo + shadow:
             return _ALL_SHADOW
     return _EACH
 
