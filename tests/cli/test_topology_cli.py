@@ -96,6 +96,27 @@ def test_human_output_and_enumerate_list(tmp_path: Path) -> None:
     assert "<img" not in (tmp_path / "o" / "report.html").read_text()
 
 
+def test_a_resume_says_how_many_stored_runs_of_other_code_it_runs_again(tmp_path: Path) -> None:
+    """Runs stored by other code (here: versions without the source hash, as before it was
+    kept) are run again; the progress output and the summary say how many."""
+    db = tmp_path / "s.db"
+    args = ["--task", str(task_file(tmp_path, 12)), "--spec", "RRPRRR", "--runs", "2",
+            "--workers", "0", "--db", str(db), "--out", str(tmp_path / "o"),
+            "--no-figures"]  # fmt: skip
+    assert runner.invoke(app, args).exit_code == 0
+    con = sqlite3.connect(db)
+    with con:
+        con.execute("""UPDATE items SET versions = '{"reachwise": "0.1.0"}' WHERE run = 1""")
+    con.close()
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, res.output
+    text = " ".join(res.output.split())
+    assert f"1 runs stored in {db} were computed by other code or libraries" in text
+    assert "1 runs done now (1 of them replacing runs of other code), 1 found in" in text
+    res = runner.invoke(app, [*args, "--json"])
+    assert json.loads(res.output)["stale_items"] == 0 and "other code" not in res.output
+
+
 @pytest.mark.parametrize(
     ("extra", "match"),
     [([], "exactly one"), (["--set", "p2", "--spec", "RRR"], "exactly one"),

@@ -22,11 +22,14 @@ from reachwise.kinematics.robot import DesignSpace
 from reachwise.results.sweep_store import SweepStore
 from reachwise.synthesis.problem import SynthesisProblem
 from reachwise.synthesis.sweep import (
+    MemoryStore,
     SweepConfig,
     SweepEvent,
     SweepInterrupted,
     SweepResult,
     run_sweep,
+    template_fingerprint,
+    versions,
 )
 from reachwise.synthesis.topology import Topology, builtin_set, to_template, topologies_from_specs
 from reachwise.tasks.task import Task
@@ -161,6 +164,56 @@ def test_ctrl_c_stores_what_finished_and_resume_completes(
         res = run_sweep(gen, topos, cfg, workers=0, store=st)
         assert res.stored_items == stored and res.new_items == 6 - stored
         assert _table(res) == _table(two_round_reference)
+
+
+@pytest.mark.parametrize("kind", ["memory", "sqlite"])
+def test_resume_runs_again_the_runs_of_other_code_and_keeps_the_rest(
+    kind: str, tmp_path: Path
+) -> None:
+    """A store resumed at other sources (an edit, a landing), or written before runs kept
+    their source hash, holds runs this code need not reproduce: those are run again and
+    their rows replaced, the round's progress event says how many, and the runs of this
+    code are kept as stored. The stale rows carry a wrong design: the table is the one
+    this code computes."""
+    task = generated_task(k=12)[0]
+    topos = topologies_from_specs(["RRPRRR", "RRRRRR"])
+    cfg = SweepConfig(runs=2)
+    ref_store = MemoryStore()
+    ref = run_sweep(task, topos, cfg, workers=0, store=ref_store)
+    runs = [replace(r, worker="kept") for r in ref_store.results(ref.sweep_id)]
+    own = versions()
+    assert len(runs) == 4 and all(r.versions == own for r in runs)
+    older = {k: v for k, v in own.items() if k != "source"}
+    stale = {
+        runs[0].key: {**own, "source": "0" * 16},  # another checkout
+        runs[3].key: older,  # a store from before the source hash
+    }
+    store = MemoryStore() if kind == "memory" else SweepStore(tmp_path / "s.db")
+    store.open_sweep(
+        ref.sweep_id, {}, [(t.name, str(t.spec), template_fingerprint(t.template)) for t in topos]
+    )
+    for r in runs:
+        if r.key in stale:
+            r = replace(r, versions=stale[r.key], design=tuple(v + 1 for v in r.design))
+        assert store.write(ref.sweep_id, r)
+    events: list[SweepEvent] = []
+    res = run_sweep(task, topos, cfg, workers=0, store=store, on_event=events.append)
+    assert [e.stale for e in events if e.kind == "round"] == [2]
+    assert (res.new_items, res.stored_items, res.stale_items) == (2, 2, 2)
+    assert sorted(e.result.key for e in events if e.result is not None) == sorted(stale)
+    assert sorted(e.topology for e in events if e.kind == "topology") == sorted(
+        {k[0] for k in stale}
+    )
+    back = {r.key: r for r in store.results(ref.sweep_id)}
+    assert len(back) == 4 and all(r.versions == own for r in back.values())
+    for r in runs:
+        assert back[r.key].same_outcome(r)
+        assert (back[r.key].worker == "kept") == (r.key not in stale)
+    assert _table(res) == _table(ref)
+    again = run_sweep(task, topos, cfg, workers=0, store=store)
+    assert (again.new_items, again.stored_items, again.stale_items) == (0, 4, 0)
+    if isinstance(store, SweepStore):
+        store.close()
 
 
 # ---- executors ----------------------------------------------------------------------------------

@@ -206,7 +206,14 @@ class SweepOutput:
     (``json_out``) or a table on stdout."""
 
     #: SQLite results database (created or resumed).
-    db: Path = cli(typer.Option(..., "--db", help="SQLite results database (created or resumed)."))
+    db: Path = cli(
+        typer.Option(
+            ...,
+            "--db",
+            help="SQLite results database (created or resumed; stored runs of other code or "
+            "libraries are run again).",
+        )
+    )
     #: Report folder.
     out: Path = cli(typer.Option(..., "--out", help="Report folder."))
     #: Write PNG figures.
@@ -252,8 +259,11 @@ def topology(
     """Optimize many topologies and rank them by GCI, KCI and more (P-II Fig. 1, Table 2).
 
     Every finished run is stored in --db at once; running the same command again skips
-    what is done. Ctrl-C (once or more) stops submitting, waits for the running runs,
-    stores them and exits (130); a killed sweep loses nothing it stored.
+    what is done. A stored run computed by other code (another checkout or version of
+    reachwise, another numpy, scipy or Python) is run again and replaced, and the progress
+    output says how many: the table is always the one this code computes. Ctrl-C (once or
+    more) stops submitting, waits for the running runs, stores them and exits (130); a
+    killed sweep loses nothing it stored.
     """
     from dataclasses import replace
 
@@ -306,6 +316,11 @@ def _sweep(t: Any, topos: list[Any], cfg: Any, place: SweepPlace, output: SweepO
             if e.kind == "round":
                 label = "round 1 (subset)" if e.round == 1 else "round 2 (complete task)"
                 jobs[e.round] = bar.add_task("", total=e.total, completed=e.done, label=label)
+                if e.stale:
+                    console.print(
+                        f"{label}: {e.stale} runs stored in {output.db} were computed by other "
+                        "code or libraries; running them again"
+                    )
             elif e.kind == "topology":
                 bar.update(jobs[e.round], completed=e.done, description=e.topology[:40])
             elif e.kind == "item" and e.result is not None:
@@ -386,7 +401,8 @@ def _print(result: Any, data: dict[str, Any]) -> None:
         )
     console.print(tab)
     console.print(
-        f"{data['new_items']} runs done now, {data['stored_items']} found in {data['db']}; "
+        f"{data['new_items']} runs done now ({data['stale_items']} of them replacing runs "
+        f"of other code), {data['stored_items']} found in {data['db']}; "
         f"wrote {data['out']}/ (ranking.md, ranking.csv, ranking.json, designs/)"
     )
     console.print(f"report: {data['report']}")

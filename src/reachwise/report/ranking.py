@@ -139,6 +139,7 @@ def report_data(result: SweepResult) -> dict[str, Any]:
         "table": result.table(),
         "new_items": result.new_items,
         "stored_items": result.stored_items,
+        "stale_items": result.stale_items,
         "versions": versions(),
     }
 

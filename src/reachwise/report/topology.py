@@ -267,8 +267,9 @@ def _summary(result: SweepResult) -> Raw:
                 "ranked by": f"{cfg.rank_key} (GCI = mean LCI, P-II Eq. 38; KCI = worst "
                 "LCI, Eq. 39; mean = (GCI + KCI)/2)",
                 "advanced to the complete task": ", ".join(result.advanced) or "none",
-                "this invocation": f"{result.new_items} runs done now, {result.stored_items} "
-                "found in the results store",
+                "this invocation": f"{result.new_items} runs done now ({result.stale_items} "
+                f"replacing stored runs of other code), {result.stored_items} found in the "
+                "results store",
                 "sweep id": result.sweep_id,
             }
         ),

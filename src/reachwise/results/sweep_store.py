@@ -8,16 +8,19 @@ One database holds any number of sweeps, each identified by its fingerprint
 * ``topologies`` — per sweep, each topology's name, canonical spec and template hash
   (a resumed sweep whose template under a name changed is refused);
 * ``items`` — one row per finished run ``(sweep, topology, round, run)`` (the primary
-  key: a run can never be stored twice): seed, reach, objective, iterations, GCI, KCI,
-  mean, manipulability, link length, prismatic joints, the size/limits/bounds objectives
+  key: a run can never be stored twice; a run computed by other code, i.e. stored with
+  other ``versions``, is replaced when this code writes it): seed, reach, objective,
+  iterations, GCI, KCI, mean, manipulability, link length, prismatic joints, the
+  size/limits/bounds objectives
   (schema 2; a schema-1 database is upgraded in place), design (JSON), per-point status
   (JSON), the joint values of every task point (float64 BLOB), wall time, worker,
   versions, finish time, and the error text of a run that raised.
 
 Durability: WAL journal, ``synchronous=FULL``, one transaction per row, so a killed
 process (SIGKILL, power loss after the commit) loses nothing that was written and
-never leaves a partial row; a run written twice (two sweeps on one database) is kept
-once (``ON CONFLICT DO NOTHING``). Floats are stored as IEEE doubles (REAL, or JSON
+never leaves a partial row; a run written twice by the same code (two sweeps on one
+database) is kept once, and a run of other code is replaced (``ON CONFLICT DO UPDATE
+… WHERE`` the versions differ). Floats are stored as IEEE doubles (REAL, or JSON
 with round-trip ``repr``), so results read back bit-identical.
 """
 
@@ -239,7 +242,8 @@ class SweepStore:
         }
 
     def write(self, sweep_id: str, result: ItemResult) -> bool:
-        """Store one finished run in its own transaction; False if it was already there."""
+        """Store one finished run in its own transaction; False if it was already there
+        with the same versions (a row of other versions is replaced)."""
         q = np.ascontiguousarray(result.q, dtype="<f8")
         if q.ndim != 2:
             q = q.reshape(0, 0)
@@ -263,7 +267,9 @@ class SweepStore:
         )  # fmt: skip
         sql = (
             f"INSERT INTO items({', '.join(_COLUMNS)}) VALUES ({', '.join('?' * len(_COLUMNS))}) "
-            "ON CONFLICT(sweep_id, topology, round, run) DO NOTHING"
+            "ON CONFLICT(sweep_id, topology, round, run) DO UPDATE SET "
+            + ", ".join(f"{c} = excluded.{c}" for c in _COLUMNS[4:])
+            + " WHERE items.versions != excluded.versions"
         )
         with self._tx():
             cur = self._db.execute(sql, row)

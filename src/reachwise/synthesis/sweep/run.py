@@ -22,8 +22,9 @@ from reachwise.tasks.task import Task
 @dataclass(frozen=True)
 class SweepEvent:
     """Progress: ``kind`` is ``round`` (a round starts: ``total`` topologies, ``done``
-    already finished in the store), ``topology`` (a topology finished all its runs in
-    ``round``) or ``item`` (one run finished; ``result`` set)."""
+    already finished in the store, ``stale`` stored runs computed by other code or
+    libraries that this round runs again), ``topology`` (a topology finished all its runs
+    in ``round``) or ``item`` (one run finished; ``result`` set)."""
 
     kind: str
     round: int
@@ -31,6 +32,7 @@ class SweepEvent:
     done: int = 0
     topology: str = ""
     result: ItemResult | None = None
+    stale: int = 0
 
 
 class SweepInterrupted(KeyboardInterrupt):
@@ -56,6 +58,12 @@ def run_sweep(
     SQLite file); default a ``MemoryStore`` that lives as long as this call. Ctrl-C:
     pending items are cancelled, running ones are awaited and stored, then
     ``SweepInterrupted`` is raised.
+
+    Resuming keeps the stored runs computed by this code and these libraries (their
+    ``versions`` equal :func:`~reachwise.synthesis.sweep.items.versions` of this process)
+    and runs the others again, replacing their rows: a store written by another checkout,
+    another numpy or scipy, or before runs recorded their source hash gives the table this
+    code computes. The ``round`` event and ``SweepResult.stale_items`` say how many.
     """
     from reachwise.tasks.select import descriptive_subset
 
@@ -87,7 +95,7 @@ def run_sweep(
 
     owned = executor is None and workers != 0
     ex = process_pool(workers) if owned else executor
-    counts = [0, 0]  # items run now, items found in the store
+    counts = [0, 0, 0]  # items run now, items found in the store, stale items run again
     try:
         round1: RoundTable | None = None
         if subset is not None:
@@ -103,9 +111,7 @@ def run_sweep(
     finally:
         if owned and ex is not None:
             ex.shutdown(wait=True, cancel_futures=True)
-    return SweepResult(
-        sid, task, subset, cfg, by_name, round1, final, advanced, counts[0], counts[1]
-    )
+    return SweepResult(sid, task, subset, cfg, by_name, round1, final, advanced, *counts)
 
 
 def _table(store: ResultStore, sid: str, round: int, cfg: SweepConfig) -> RoundTable:
@@ -168,6 +174,25 @@ def _work_items(
     return todo, left
 
 
+def _stale_runs(
+    store: ResultStore,
+    sid: str,
+    round: int,
+    topologies: Sequence[Topology],
+    cfg: SweepConfig,
+    own: dict[str, str],
+) -> set[tuple[str, int]]:
+    """``(topology, run)`` of the round's stored runs computed with other code or libraries
+    than this process's (``versions`` differ, or lack the source hash, as in stores written
+    before it was kept): their designs need not be the ones this code finds."""
+    names = {t.name for t in topologies}
+    return {
+        (r.topology, r.run)
+        for r in store.results(sid, round)
+        if r.topology in names and r.run < cfg.runs and r.versions != own
+    }
+
+
 def _check_versions(res: ItemResult, own: dict[str, str]) -> None:
     """Refuse a run computed with other code or libraries than this sweep's process (a
     checkout changed while the workers started, a cluster worker with another numpy):
@@ -198,12 +223,13 @@ def _run_round(
     emit: Callable[[SweepEvent], None],
     counts: list[int],
 ) -> None:
-    todo, left = _work_items(store.done(sid, round), task, round, topologies, cfg)
+    own = versions()
+    stale = _stale_runs(store, sid, round, topologies, cfg, own)
+    todo, left = _work_items(store.done(sid, round) - stale, task, round, topologies, cfg)
     finished = len(topologies) - len(left)
     counts[1] += len(topologies) * cfg.runs - len(todo)
-    emit(SweepEvent("round", round, total=len(topologies), done=finished))
-
-    own = versions()
+    counts[2] += len(stale)
+    emit(SweepEvent("round", round, total=len(topologies), done=finished, stale=len(stale)))
 
     def accept(res: ItemResult) -> None:
         nonlocal finished

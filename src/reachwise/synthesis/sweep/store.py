@@ -24,8 +24,9 @@ class ResultStore(Protocol):
     ``open_sweep`` registers a sweep and its topologies ``(name, spec, template hash)``
     and refuses a topology whose template changed under its name; ``done`` lists the
     stored ``(topology, run)`` of a round; ``write`` stores one item (``False`` if it
-    was already there; a run is never stored twice); ``results`` returns the stored
-    items of a sweep, one round or all, ordered by round, topology, run.
+    was already there with the same ``versions``; a run is never stored twice: a run
+    stored with other versions, i.e. computed by other code, is replaced); ``results``
+    returns the stored items of a sweep, one round or all, ordered by round, topology, run.
     """
 
     def open_sweep(
@@ -63,7 +64,7 @@ class MemoryStore:
 
     def write(self, sweep_id: str, result: ItemResult) -> bool:
         key = (sweep_id, result.topology, int(result.round), int(result.run))
-        if key in self._items:
+        if key in self._items and self._items[key].versions == result.versions:
             return False
         self._items[key] = result
         return True

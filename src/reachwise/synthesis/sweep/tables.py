@@ -128,7 +128,9 @@ def round_table(results: Sequence[ItemResult], round: int, key: RankKey) -> Roun
 @dataclass(frozen=True, eq=False)
 class SweepResult:
     """A finished sweep: the tables of both rounds, which topologies advanced, and the
-    final table (round 2, the complete task)."""
+    final table (round 2, the complete task). ``new_items`` runs were done by this call,
+    ``stored_items`` were found in the store and kept, ``stale_items`` (of the new ones)
+    were in the store computed by other code or libraries and were run again."""
 
     sweep_id: str
     task: Task
@@ -140,6 +142,7 @@ class SweepResult:
     advanced: tuple[str, ...]
     new_items: int = 0
     stored_items: int = 0
+    stale_items: int = 0
 
     def ranked(self) -> list[str]:
         """Names of the feasible topologies of the final table, best first."""
