@@ -12,8 +12,10 @@ from reachwise.errors import InputError
 from reachwise.kinematics.indices import gci, kci, lci
 from reachwise.synthesis.rank import (
     RANK_KEYS,
+    SAME_FIGURE,
     Candidate,
     Measures,
+    best_first,
     best_run_index,
     first_best,
     link_length,
@@ -67,7 +69,7 @@ def test_rank_by_each_key_and_infeasible_unranked() -> None:
     order = {
         "gci": ["b", "a", "c"],
         "kci": ["c", "a", "b"],
-        "mean": ["a", "b", "c"],
+        "mean": ["b", "a", "c"],  # a's and b's mean 0.085 differ by rounding: GCI decides
         "manipulability": ["c", "a", "b"],
         "length": ["b", "c", "a"],
         "prismatic": ["b", "c", "a"],
@@ -94,6 +96,45 @@ def test_ties_are_broken_deterministically() -> None:
     # equal key, better mean wins
     c = [Candidate("p", 5, 5, _m(0.1, 0.01)), Candidate("q", 5, 5, _m(0.1, 0.09))]
     assert [r.candidate.name for r in rank(c, "gci")] == ["q", "p"]
+
+
+def _exact(g: float, k: float, mean: float, length: float = 5.0) -> Measures:
+    return Measures(g, k, mean, 1.0, length, 1)
+
+
+def test_figures_within_rounding_of_each_other_do_not_order_topologies() -> None:
+    """Two topologies whose key figure differs by rounding noise (1e-12 relative) are
+    ordered by the next figure, and with every figure equal within noise by the name,
+    as a topology's best run is chosen; a real difference (1e-6) still decides."""
+    for sign in (1.0, -1.0):
+        noisy = 0.05 * (1 + sign * 1e-12)
+        better_gci = Candidate("b", 5, 5, _exact(0.08, 0.02, 0.05))
+        worse_gci = Candidate("a", 5, 5, _exact(0.07, 0.03, noisy))
+        for cands in ([better_gci, worse_gci], [worse_gci, better_gci]):
+            assert [r.candidate.name for r in rank(cands, "mean")] == ["b", "a"]
+        # every figure equal up to noise: the name
+        z = Candidate("z", 5, 5, _exact(0.08 * (1 - sign * 1e-12), 0.02, noisy, 5.0 + 1e-11))
+        for cands in ([better_gci, z], [z, better_gci]):
+            assert [r.candidate.name for r in rank(cands, "mean")] == ["b", "z"]
+    far = Candidate("a", 5, 5, _exact(0.07, 0.03, 0.05 * (1 + 1e-6)))
+    assert [r.candidate.name for r in rank([better_gci, far], "mean")] == ["a", "b"]
+    # lower-is-better keys likewise: a length 1e-12 shorter does not decide
+    short = Candidate("s", 5, 5, _exact(0.07, 0.03, 0.05, 6.0 * (1 - 1e-12)))
+    long = Candidate("l", 5, 5, _exact(0.08, 0.02, 0.05, 6.0))
+    assert [r.candidate.name for r in rank([short, long], "length")] == ["l", "s"]
+
+
+def test_best_first_is_the_exact_sort_without_near_ties(rng: np.random.Generator) -> None:
+    """Figures at least 1e-6 apart (or equal) order as the sorted tuples, then the index;
+    each step is first_best of the rest."""
+    for _ in range(20):
+        figs = [tuple(float(v) for v in row) for row in rng.integers(0, 3, (12, 3)) * 1e-3 + 1]
+        want = sorted(range(len(figs)), key=lambda i: (figs[i], i))
+        assert best_first(figs) == want
+        assert first_best(figs) == want[0]
+    assert best_first([]) == []
+    assert best_first([(math.nan,), (math.inf,), (1.0,)]) == [2, 0, 1]  # NaN: the worst
+    assert 1e-12 < SAME_FIGURE < 1e-6
 
 
 def test_rank_errors() -> None:

@@ -27,7 +27,10 @@ Further keys, as P-II §6 suggests ("different performance measures can be used"
 Only feasible candidates (the best run reaches every task point) are ranked; the others
 are reported with ``rank = None`` (P-II Table 2's "−": "no solution for the problem").
 Ties are broken deterministically: the selected key, then mean, GCI, KCI (higher
-first), link length, prismatic joints (lower first), then the name. Pure math.
+first), link length, prismatic joints (lower first), then the name; figures within a
+relative :data:`SAME_FIGURE` count as equal (the rule that picks a topology's best run),
+so rounding noise never orders two topologies while a later figure or the name can.
+Pure math.
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ from dataclasses import dataclass
 from typing import Literal, get_args
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from reachwise.errors import InputError, check_choice
 from reachwise.kinematics.indices import (
@@ -165,21 +168,25 @@ def order_figures(m: Measures, key: RankKey) -> tuple[float, ...]:
     )
 
 
-def _sort_key(c: Candidate, key: RankKey) -> tuple[float | str, ...]:
+def _figures(c: Candidate, key: RankKey) -> tuple[float, ...]:
     m = c.measures
     if m is None:  # pragma: no cover - infeasible ones are sorted separately
         raise InputError("rank", c.name, "no measures")
-    return (*order_figures(m, key), c.name)
+    return order_figures(m, key)
 
 
 def rank(candidates: Sequence[Candidate], key: RankKey = "mean") -> tuple[RankedRow, ...]:
     """Feasible candidates ordered by ``key`` (ranks 1, 2, …), then the infeasible ones
-    (``rank = None``; most points reached first, then by name). Deterministic."""
+    (``rank = None``; most points reached first, then by name). Figures compare as in
+    :func:`first_best` (within :data:`SAME_FIGURE` equal: the next figure decides, finally
+    the name): rank 1 is the candidate :func:`first_best` picks among all, rank 2 among
+    the rest, and so on (:func:`best_first`). Deterministic."""
     key = check_key(key)
     names = [c.name for c in candidates]
     if len(set(names)) != len(names):
         raise InputError("rank", "candidates", "candidate names must be unique")
-    ok = sorted((c for c in candidates if c.feasible), key=lambda c: _sort_key(c, key))
+    feasible = sorted((c for c in candidates if c.feasible), key=lambda c: c.name)
+    ok = [feasible[i] for i in best_first([_figures(c, key) for c in feasible])]
     bad = sorted((c for c in candidates if not c.feasible), key=lambda c: (-c.n_reached, c.name))
     return tuple(RankedRow(i + 1, c) for i, c in enumerate(ok)) + tuple(
         RankedRow(None, c) for c in bad
@@ -192,26 +199,65 @@ def rank(candidates: Sequence[Candidate], key: RankKey = "mean") -> tuple[Ranked
 SAME_FIGURE = 1e-9
 
 
+def _same_as(values: NDArray[np.float64], ref: float) -> NDArray[np.bool_]:
+    """Which ``values`` equal ``ref`` within a relative :data:`SAME_FIGURE` (non-finite
+    ones only when identical)."""
+    finite = np.isfinite(values) & math.isfinite(ref)
+    with np.errstate(invalid="ignore"):
+        near = np.abs(values - ref) <= SAME_FIGURE * np.maximum(np.abs(values), abs(ref))
+    return np.where(finite, near, values == ref)
+
+
 def same_figure(a: float, b: float) -> bool:
     """Whether two figures are equal within a relative :data:`SAME_FIGURE` (non-finite
     ones only when identical)."""
-    if not (math.isfinite(a) and math.isfinite(b)):
-        return a == b
-    return abs(a - b) <= SAME_FIGURE * max(abs(a), abs(b))
+    return bool(_same_as(np.array([a], dtype=np.float64), b)[0])
+
+
+def _figure_table(figures: Sequence[tuple[float, ...]]) -> NDArray[np.float64]:
+    """``figures`` as rows of an array, a NaN (a figure not taken) the worst (+inf)."""
+    table = np.array(figures, dtype=np.float64).reshape(len(figures), -1)
+    table[np.isnan(table)] = math.inf
+    return table
+
+
+def _first_of(table: NDArray[np.float64], rows: NDArray[np.intp]) -> int:
+    """The best of ``rows`` of ``table``: figure by figure, the rows within
+    :data:`SAME_FIGURE` of the smallest stay; then the lowest row."""
+    for j in range(table.shape[1]):
+        if rows.size == 1:
+            break
+        col = table[rows, j]
+        rows = rows[_same_as(col, float(col.min()))]
+    return int(rows[0])
 
 
 def first_best(figures: Sequence[tuple[float, ...]]) -> int:
     """Index of the smallest of ``figures`` (tuples of one length, each figure
     lower-is-better) compared figure by figure, figures within :data:`SAME_FIGURE`
     equal; a tie goes to the lowest index. So rounding noise in a figure never decides
-    while a later figure can."""
+    while a later figure can. A NaN figure is the worst."""
     if not figures:
         raise InputError("rank", "runs", "no run")
-    pick = list(range(len(figures)))
-    for j in range(len(figures[0])):
-        low = min(figures[i][j] for i in pick)
-        pick = [i for i in pick if same_figure(figures[i][j], low)]
-    return pick[0]
+    table = _figure_table(figures)
+    return _first_of(table, np.arange(len(table)))
+
+
+def best_first(figures: Sequence[tuple[float, ...]]) -> list[int]:
+    """Indices of ``figures`` best first: the :func:`first_best` of all, then of the
+    rest, and so on. Equal to sorting the tuples when no two figures are within
+    :data:`SAME_FIGURE` of each other without being equal; figures within it never
+    decide while a later figure or the index can."""
+    if not figures:
+        return []
+    table = _figure_table(figures)
+    left = np.arange(len(table))
+    out: list[int] = []
+    while left.size:
+        i = _first_of(table, left)
+        out.append(i)
+        left = left[left != i]
+    return out
 
 
 def best_run_index(
