@@ -198,6 +198,66 @@ def test_state_errors_name_the_file_and_field(tmp_path: Path) -> None:
         store.read_reserved()
 
 
+def test_handed_over_clouds_saved_without_a_time_restore_as_unknown(tmp_path: Path) -> None:
+    """A state file written before stamps were kept holds handed-over clouds
+    (``version`` > 0) without a stamp; with ``"unknown"`` too, a cloud's time is not
+    known. Each restores (the server becomes ready) with its version and a NaN stamp,
+    stale under ``max_cloud_age``, not as a cloud that never ages; a timed one keeps its
+    time, the next hand-over's version goes on, and the state saved again says
+    ``"unknown"``, so a second restart gives the same."""
+    store = StateStore(tmp_path)
+    objects = {  # name: (version, saved stamp; absent: no "stamp" field)
+        "probe": (0, None),
+        "scan": (3, None),  # the older form
+        "unknown": (2, "unknown"),
+        "timed": (1, 6.5),
+        "added_at": (0, 2.0),
+        "unknown_added": (0, "unknown"),
+    }
+    rows = []
+    for k, (name, (version, stamp)) in enumerate(objects.items()):
+        pose = np.eye(4)
+        pose[0, 3] = float(k)
+        row = {"name": name, "cloud": store.write_cloud(np.zeros((1, 3))), "points": 1,
+               "source": "fixed", "pose": pose.tolist(), "version": version}  # fmt: skip
+        rows.append(row if stamp is None else {**row, "stamp": stamp})
+    pairs = [{"a": "probe", "b": n, "margin": 10.0, "kind": "custom"} for n in list(objects)[1:]]
+    manifest = {"version": 1, "strategy": "default", "objects": rows, "pairs": pairs}
+    (tmp_path / "scene.json").write_text(json.dumps(manifest))
+    want = {
+        "probe": [0.0, math.inf],
+        "scan": [3.0, math.nan],
+        "unknown": [2.0, math.nan],
+        "timed": [1.0, 6.5],
+        "added_at": [0.0, 2.0],
+        "unknown_added": [0.0, math.nan],
+    }
+
+    def restored() -> SceneService:
+        svc = _service(tmp_path)
+        svc.load()
+        assert svc.ready, svc.reason
+        rep = _query(svc)
+        assert rep.objects is not None and rep.clouds is not None
+        table = dict(zip(rep.objects, rep.clouds.tolist(), strict=True))
+        np.testing.assert_array_equal([table[n] for n in want], list(want.values()))
+        return svc
+
+    svc = restored()
+    svc.handle(P.OperationCall.of("watch", "scan", "timed", 1.0, kind="custom"))  # saves
+    saved = {o["name"]: o for o in json.loads((tmp_path / "scene.json").read_text())["objects"]}
+    assert {n: (o["version"], o.get("stamp")) for n, o in saved.items()} == {
+        **objects,
+        "scan": (3, "unknown"),
+    }
+    svc = restored()
+    rep = svc.handle(P.ReplaceCloud("scan", np.ones((2, 3)), 7.0, block=True))
+    assert isinstance(rep, P.ObjectReply) and rep.version == 4  # the version goes on
+    after = _query(svc)
+    assert after.objects is not None and after.clouds is not None
+    assert after.clouds.tolist()[after.objects.index("scan")] == [4.0, 7.0]
+
+
 def test_a_crash_between_cloud_and_manifest_leaves_no_trace(
     tmp_path: Path, crane: Robot, clouds: dict[str, NDArray[np.float64]]
 ) -> None:

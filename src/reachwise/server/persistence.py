@@ -200,18 +200,21 @@ class ScenePersistence(ServiceCore):
                     pose, stamp = np.array(ps.pose, dtype=np.float64), ps.stamp
                 runtime[o.name] = (check_pose(pose, o.name), stamp)
             dynamic = o.source == "runtime"
-            stamp_kept = math.nan if o.stamp == "unknown" else o.stamp
-            added_stamp = math.inf if o.version > 0 or stamp_kept is None else stamp_kept
+            stamp_kept = _restored_stamp(o)
+            timed = o.version > 0 and math.isfinite(stamp_kept)
             obj = scene.add_object(
-                o.name, cloud, pose, robot=o.robot, link=o.link, dynamic=dynamic, stamp=added_stamp
-            )
+                o.name, cloud, pose, robot=o.robot, link=o.link, dynamic=dynamic,
+                stamp=math.inf if timed else stamp_kept,
+            )  # fmt: skip
             source = stamp_source(o.name, obj.source)
-            meta[o.name] = ObjectMeta(o.cloud, source, o.points, o.version, stamp_kept)
-            if o.version > 0:  # a handed-over cloud: its version and stamp go on
-                cloud_stamp = math.inf if stamp_kept is None else stamp_kept
-                base[o.name] = o.version - scene.replace_cloud(
-                    o.name, cloud, block=True, stamp=cloud_stamp
-                )
+            meta[o.name] = ObjectMeta(
+                o.cloud, source, o.points, o.version, None if stamp_kept == math.inf else stamp_kept
+            )
+            if timed:  # a handed-over cloud: its version and stamp go on, as a hand-over's
+                swapped = scene.replace_cloud(o.name, cloud, block=True, stamp=stamp_kept)
+                base[o.name] = o.version - swapped
+            elif o.version > 0:  # the same without a time: its stamp is unknown, as added
+                base[o.name] = o.version
         for ms in m.memories:  # the setup of each scene memory; its map starts unknown
             config = MemoryConfig(ms.voxel, ms.shadow_depth, ms.memory_s, ms.free_hold_s, ms.band)
             add_memory(scene, ms.name, np.array(ms.lower), np.array(ms.upper), config)
@@ -231,6 +234,17 @@ class ScenePersistence(ServiceCore):
             self._unsaved = {}
             self._adopt()  # the robots and the memories' objects
         old_scene.close()
+
+
+def _restored_stamp(o: ObjectState) -> float:
+    """The stamp (s) of a saved cloud as restored: its time; +inf (does not age) for a
+    cloud the object was added with and saved without a stamp; NaN (unknown, so stale
+    under ``max_cloud_age``) when saved as ``"unknown"``, or for a handed-over cloud
+    (``version`` > 0) saved without one, as state files written before stamps were kept
+    hold them: its time was never recorded, and a scan must not count as never ageing."""
+    if o.stamp == "unknown" or (o.stamp is None and o.version > 0):
+        return math.nan
+    return math.inf if o.stamp is None else float(o.stamp)
 
 
 def _saved_stamp(stamp: float | None) -> float | Literal["unknown"] | None:
