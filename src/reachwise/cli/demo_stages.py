@@ -253,7 +253,12 @@ def topology(ctx: Ctx, folder: Path, p: dict[str, Any]) -> StageOutput:
     ranked = result.ranked()
     lines = [
         f"{len(topos)} topologies; round 1 on {cfg.subset} descriptive points, the top "
-        f"{cfg.top} on all {len(task)}; {cfg.runs} runs each ({data['new_items']} run now)"
+        f"{cfg.top} on all {len(task)}; {cfg.runs} runs each ({data['new_items']} run now"
+        + (
+            f", {result.stale_items} replacing runs of other code in sweep.db)"
+            if result.stale_items
+            else ")"
+        )
     ]
     for r in table:
         if r["rank"] is not None:
