@@ -514,8 +514,9 @@ def mark_points(state, seen_at, held, code, camera, pose_wc, grid, t):  # type: 
     of points that fell inside the grid. Per image row, the flat index of every pixel's
     voxel (−1 for a pixel without a scene point or outside the grid) and of its brick
     are found first in a branch-free pass (which the compiler vectorises), then the
-    voxels marked, each once per run of pixels that share it: neighbouring pixels
-    mostly do."""
+    voxels marked: every scene pixel writes its voxel's three marks, though
+    neighbouring pixels mostly share a voxel (the writes are the same; a test for a
+    repeat mispredicts once per run and measured slower)."""
     fx, fy, cx, cy = camera[0], camera[1], camera[2], camera[3]
     ox, oy, oz, vox = grid[0], grid[1], grid[2], grid[3]
     inv_vox = 1.0 / vox
@@ -533,7 +534,6 @@ def mark_points(state, seen_at, held, code, camera, pose_wc, grid, t):  # type: 
     voxel = np.empty(W, dtype=np.int64)
     brick = np.empty(W, dtype=np.int64)
     marked = 0
-    last = -1  # the last voxel marked
     for r in range(H):
         yr = (r - cy) / fy
         # world position of the ray's unit-depth point for this row, per column step
@@ -555,9 +555,7 @@ def mark_points(state, seen_at, held, code, camera, pose_wc, grid, t):  # type: 
             if f < 0:
                 continue
             marked += 1
-            if f != last:
-                flat_state[f] = OCCUPIED
-                flat_seen[f] = t
-                flat_held[brick[c]] = HELD_OBSTACLE
-                last = f
+            flat_state[f] = OCCUPIED
+            flat_seen[f] = t
+            flat_held[brick[c]] = HELD_OBSTACLE
     return marked
