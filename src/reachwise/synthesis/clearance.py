@@ -151,18 +151,27 @@ class ClearanceModel:
         return out
 
     # ---- evaluation -----------------------------------------------------------------
+    @cached_property
+    def _anchor_table(self) -> tuple[NDArray[np.int64], Array, list[tuple[int, int]]]:
+        """Every anchor's frame ``(A,)`` and local point ``(A, 3)``, and the
+        ``(anchor, DH row)`` of the elbows, whose local point follows the design."""
+        frames = np.array([a.frame for a in self.anchors], dtype=np.int64)
+        local = np.array([a.local for a in self.anchors], dtype=float).reshape(-1, 3)
+        elbows = [(i, a.elbow) for i, a in enumerate(self.anchors) if a.elbow >= 0]
+        return frames, local, elbows
+
     def anchor_points(self, problem: SynthesisProblem, z: Array) -> tuple[Array, Array, Array]:
         """World anchor points ``(K, A, 3)``, frames ``(K, N+2, 4, 4)`` and the robot's
         DH table at the design of ``z`` (with each pose's joint values)."""
         design, Q = problem.split(z)
         robot = problem.robot_at(design)
         F = np.asarray(fk_all(robot, Q))
-        pts = np.empty((problem.K, len(self.anchors), 3))
-        for i, a in enumerate(self.anchors):
-            local = np.broadcast_to(np.array(a.local, dtype=float), (problem.K, 3)).copy()
-            if a.elbow >= 0:
-                local[:] = self._elbow_local(robot, Q, a.elbow)
-            pts[:, i] = np.einsum("kij,kj->ki", F[:, a.frame, :3, :3], local) + F[:, a.frame, :3, 3]
+        frames, local0, elbows = self._anchor_table
+        local = np.broadcast_to(local0, (problem.K, *local0.shape)).copy()
+        for i, row in elbows:
+            local[:, i] = self._elbow_local(robot, Q, row)
+        W = F[:, frames]
+        pts = np.einsum("kaij,kaj->kai", W[:, :, :3, :3], local) + W[:, :, :3, 3]
         return pts, F, Q
 
     def _elbow_local(self, robot: Robot, Q: Array, row: int) -> Array:
@@ -217,6 +226,34 @@ class ClearanceModel:
         pts, F, _ = self.anchor_points(problem, z)
         return self._evaluate(problem, pts, F, None)[0]
 
+    @cached_property
+    def _env_terms(self) -> tuple[NDArray[np.int64], Array]:
+        """The anchors of the environment terms and their parts' radii, in term order."""
+        idx = [e for part in self.parts for e in part.env_ends]
+        rad = [part.radius for part in self.parts for _ in part.env_ends]
+        return np.array(idx, dtype=np.int64), np.array(rad, dtype=float)
+
+    @cached_property
+    def _pair_kinds(self) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:
+        """The part pairs of two segments and those of a segment and a box."""
+        seg = [(a, b) for a, b in self._part_pairs if self.parts[b].kind == "segment"]
+        box = [(a, b) for a, b in self._part_pairs if self.parts[b].kind == "box"]
+        return seg, box
+
+    @cached_property
+    def _segment_table(self) -> tuple[NDArray[np.int64], Array]:
+        """The end anchors ``(4, m)`` (``a0, a1, b0, b1``) of the segment pairs and the
+        sums of their radii ``(m,)``."""
+        pairs = self._pair_kinds[0]
+        ends = [
+            [self.parts[a].ends[0] for a, _ in pairs],
+            [self.parts[a].ends[1] for a, _ in pairs],
+            [self.parts[b].ends[0] for _, b in pairs],
+            [self.parts[b].ends[1] for _, b in pairs],
+        ]
+        rad = [self.parts[a].radius + self.parts[b].radius for a, b in pairs]
+        return np.array(ends, dtype=np.int64).reshape(4, -1), np.array(rad, dtype=float)
+
     def _evaluate(
         self, problem: SynthesisProblem, pts: Array, F: Array, jac: tuple[Array, Array] | None
     ) -> tuple[Array, Array | None, Array | None]:
@@ -227,8 +264,7 @@ class ClearanceModel:
         gd: list[Array] = []
         gq: list[Array] = []
         if self.envelope is not None:
-            idx = [e for part in self.parts for e in part.env_ends]
-            rad = np.array([part.radius for part in self.parts for _ in part.env_ends])
+            idx, rad = self._env_terms
             P = pts[:, idx].reshape(-1, 3)
             m = len(idx)
             if jac is None:
@@ -239,8 +275,7 @@ class ClearanceModel:
                 dist.append(s.reshape(K, m) - rad)
                 gd.append(np.einsum("kmi,kmia->kma", g, jac[0][:, idx]))
                 gq.append(np.einsum("kmi,kmia->kma", g, jac[1][:, idx]))
-        seg = [(a, b) for a, b in self._part_pairs if self.parts[b].kind == "segment"]
-        box = [(a, b) for a, b in self._part_pairs if self.parts[b].kind == "box"]
+        seg, box = self._pair_kinds
         for pairs, fn in ((seg, self._segment_pairs), (box, self._box_pairs)):
             if pairs:
                 d, a, b = fn(problem, pairs, pts, F, jac)
@@ -249,7 +284,7 @@ class ClearanceModel:
                     gd.append(a)
                     gq.append(b)
         # terms in label order: environment, then the part pairs in _part_pairs order
-        order = self._pair_order(seg, box)
+        order = self._pair_order
         D = np.concatenate(dist, axis=1) if dist else np.zeros((K, 0))
         if jac is None:
             return D[:, order], None, None
@@ -257,9 +292,11 @@ class ClearanceModel:
         GQ = np.concatenate(gq, axis=1) if gq else np.zeros((K, 0, problem.n_free_joints))
         return D[:, order], GD[:, order], GQ[:, order]
 
-    def _pair_order(
-        self, seg: list[tuple[int, int]], box: list[tuple[int, int]]
-    ) -> NDArray[np.int64]:
+    @cached_property
+    def _pair_order(self) -> NDArray[np.int64]:
+        """Where each computed term (environment, segment pairs, box pairs) goes in
+        label order."""
+        seg, box = self._pair_kinds
         n_env = len(self.labels) - len(self._part_pairs)
         computed = list(range(n_env)) + [n_env + self._part_pairs.index(p) for p in seg + box]
         order = np.empty(len(computed), dtype=np.int64)
@@ -274,28 +311,27 @@ class ClearanceModel:
         F: Array,
         jac: tuple[Array, Array] | None,
     ) -> tuple[Array, Array | None, Array | None]:
+        """The segment pairs' distances ``(K, m)`` and, given ``jac``, gradients (the
+        pairs are ``_pair_kinds``' first list, whose ends ``_segment_table`` holds)."""
         K = pts.shape[0]
-        a0 = [self.parts[a].ends[0] for a, _ in pairs]
-        a1 = [self.parts[a].ends[1] for a, _ in pairs]
-        b0 = [self.parts[b].ends[0] for _, b in pairs]
-        b1 = [self.parts[b].ends[1] for _, b in pairs]
-        rad = np.array([self.parts[a].radius + self.parts[b].radius for a, b in pairs])
-        A0, A1, B0, B1 = (pts[:, i].reshape(-1, 3) for i in (a0, a1, b0, b1))
+        ends, rad = self._segment_table
+        m = ends.shape[1]
+        A0, A1, B0, B1 = (pts[:, i].reshape(-1, 3) for i in ends)
         s, t = segment_closest_parameters(A0, A1, B0, B1)
         diff = (A0 + s[:, None] * (A1 - A0)) - (B0 + t[:, None] * (B1 - B0))
         nrm = np.sqrt(np.einsum("ij,ij->i", diff, diff))
-        m = len(pairs)
         if jac is None:
             return nrm.reshape(K, m) - rad, None, None
         n = np.where(nrm[:, None] > 1e-15, diff / np.where(nrm > 1e-15, nrm, 1.0)[:, None], 0.0)
         s, t, n = s.reshape(K, m, 1), t.reshape(K, m, 1), n.reshape(K, m, 3)
+        n4 = np.concatenate([n, n, n, n], axis=1)  # the normal at each of the four ends
+        flat = ends.ravel()
 
         def grad(J: Array) -> Array:
-            # nᵀ J interpolated along both segments: contract the normal first
-            nJ0 = np.einsum("kmi,kmia->kma", n, J[:, a0])
-            nJ1 = np.einsum("kmi,kmia->kma", n, J[:, a1])
-            nK0 = np.einsum("kmi,kmia->kma", n, J[:, b0])
-            nK1 = np.einsum("kmi,kmia->kma", n, J[:, b1])
+            # nᵀ J interpolated along both segments: contract the normal first, at the
+            # four ends of every pair in one product
+            nJ = np.einsum("kmi,kmia->kma", n4, J[:, flat]).reshape(K, 4, m, -1)
+            nJ0, nJ1, nK0, nK1 = nJ[:, 0], nJ[:, 1], nJ[:, 2], nJ[:, 3]
             return np.asarray((1 - s) * nJ0 + s * nJ1 - (1 - t) * nK0 - t * nK1)
 
         return nrm.reshape(K, m) - rad, grad(jac[0]), grad(jac[1])
