@@ -123,7 +123,9 @@ def prepare_frame(depth, scale, body, near, far, code, tiles):  # type: ignore[n
     ``depth · scale`` (m) within ``[near, far]`` (and > 0), and the per-tile bounds the
     brick tests of :func:`project_frame` use; returns the farthest return (0.0 when
     there is none). ``depth`` is read in the sensor's own pixel type (float64, float32,
-    uint16): no copy of the frame precedes this pass."""
+    uint16): no copy of the frame precedes this pass. Per image row, every pixel is
+    read without a branch (selects the compiler vectorises) into its ``code`` and the
+    row's per-pixel bounds, which then bound each tile once per row."""
     H, W = depth.shape
     L, nty, ntx = tiles.shape[0], tiles.shape[1], tiles.shape[2]
     for ty in range(nty):
@@ -132,27 +134,36 @@ def prepare_frame(depth, scale, body, near, far, code, tiles):  # type: ignore[n
             tiles[0, ty, tx, 1] = -np.inf
             tiles[0, ty, tx, 2] = 0.0
     dmax = 0.0
-    nan = np.float32(np.nan)
+    row_lo = np.empty(ntx * TILE)
+    row_hi = np.empty(ntx * TILE)
+    row_worst = np.empty(ntx * TILE)
+    row_lo[W:] = np.inf
+    row_hi[W:] = -np.inf
+    row_worst[W:] = 0.0
     for r in range(H):
         ty = r // TILE
+        # branch-free per pixel (the compiler vectorises it), then per tile
         for c in range(W):
-            tx = c // TILE
             d = np.float64(depth[r, c]) * scale
-            if d > 0.0 and d >= near and d <= far:
-                if d > dmax:
-                    dmax = d
-                if d < tiles[0, ty, tx, 0]:
-                    tiles[0, ty, tx, 0] = d
-                if d > tiles[0, ty, tx, 1]:
-                    tiles[0, ty, tx, 1] = d
-                if body[r, c]:
-                    code[r, c] = -d
-                    tiles[0, ty, tx, 2] = max(tiles[0, ty, tx, 2], _ROBOT)
-                else:
-                    code[r, c] = d
-            else:
-                code[r, c] = nan
-                tiles[0, ty, tx, 2] = _NO_RETURN
+            ok = (d > 0.0) & (d >= near) & (d <= far)
+            robot = body[r, c]
+            v = d if ok else np.nan
+            code[r, c] = np.float32(-v if robot else v)
+            row_lo[c] = d if ok else np.inf
+            row_hi[c] = d if ok else -np.inf
+            row_worst[c] = (_ROBOT if robot else 0.0) if ok else _NO_RETURN
+        for tx in range(ntx):
+            lo = np.inf
+            hi = -np.inf
+            worst = 0.0
+            for c in range(tx * TILE, tx * TILE + TILE):
+                lo = min(lo, row_lo[c])
+                hi = max(hi, row_hi[c])
+                worst = max(worst, row_worst[c])
+            dmax = max(dmax, hi)
+            tiles[0, ty, tx, 0] = min(tiles[0, ty, tx, 0], lo)
+            tiles[0, ty, tx, 1] = max(tiles[0, ty, tx, 1], hi)
+            tiles[0, ty, tx, 2] = max(tiles[0, ty, tx, 2], worst)
     for lv in range(1, L):
         h = 1 << (lv - 1)
         for ty in range(nty - 2 * h + 1):
