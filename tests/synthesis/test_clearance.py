@@ -186,6 +186,41 @@ def test_distances_without_gradients_equal_the_terms() -> None:
     assert on > 0  # some clearance rows were on
 
 
+def test_trial_merit_with_a_limit_decides_as_the_full_merit() -> None:
+    """With a ``limit``, the trial merit skips the bodies' distances when the task rows
+    alone exceed it: whether a trial is within the limit is decided exactly as by the
+    full merit, a merit within it is the full merit to the bit, and a skipped one is
+    the task rows' share, above the limit and at most the full merit. Limits are
+    chosen on both sides of the task share and of the full merit, and between them
+    (where the clearance rows alone push the trial over the limit)."""
+    from reachwise.synthesis.clearance_rows import merit, stacked_rows
+    from reachwise.synthesis.solvers import row_weights
+
+    rng = np.random.default_rng(12)
+    robot = _with_bodies(load_robot("sb60"), _tilted_box())
+    problem = _problem(robot, K=5)
+    model = ClearanceModel(robot, TUNNEL, 0.4)
+    wx = row_weights(problem)
+    skipped = between = 0
+    for _ in range(6):
+        z = _random_z(problem, rng)
+        ev = problem.evaluate(z)
+        full = merit(problem, ev, wx, z, model)
+        task = stacked_rows(problem, ev, wx, z, None).cost
+        assert task < full  # the clearance rows add to this merit
+        for limit in (0.5 * task, task, 0.5 * (task + full), full, 2.0 * full):
+            got = merit(problem, ev, wx, z, model, limit=limit)
+            assert (got <= limit) == (full <= limit)
+            if full <= limit or limit > task * (1 + 1e-9):
+                assert got == full
+            elif got != full:
+                skipped += 1
+                assert limit < got <= full
+                assert got == pytest.approx(task, rel=1e-12)
+            between += int(task * (1 + 1e-9) < limit < full)
+    assert skipped > 0 and between > 0
+
+
 def test_box_signed_distance_known_values() -> None:
     half = np.array([[1.0, 2.0, 3.0]])
     x = np.array([[[2.0, 0.0, 0.0]], [[0.5, 0.0, 0.0]], [[2.0, 3.0, 3.0]]])

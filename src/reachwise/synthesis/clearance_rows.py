@@ -20,6 +20,7 @@ padding rows have zero residual), which keeps the block solver's shapes.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -100,6 +101,12 @@ def stacked_rows(
     )
 
 
+def _task_shares(ev: Evaluation, wx: Array) -> Array:
+    """Each pose's share ``(K,)`` of the merit from its task rows alone."""
+    e = ev.e * wx
+    return np.asarray(0.5 * np.sum(e * e, axis=1))
+
+
 def pose_merits(
     problem: SynthesisProblem,
     ev: Evaluation,
@@ -111,10 +118,9 @@ def pose_merits(
     """Each pose's share ``(K,)`` of ``stacked_rows(...).cost``, from the distances alone
     (without the gradients of the clearance terms): a pose's rows depend on the design
     and its own joints only, so given the design the poses' shares are independent."""
-    e = ev.e * wx
-    out = 0.5 * np.sum(e * e, axis=1)
+    out = _task_shares(ev, wx)
     if model is None:
-        return np.asarray(out)
+        return out
     ec = clearance_excess(model.distances(problem, z), model.clearance + band)
     return np.asarray(out + 0.5 * np.sum(ec * ec, axis=1))
 
@@ -126,13 +132,24 @@ def merit(
     z: Array,
     model: ClearanceModel | None,
     band: float = CLEARANCE_BAND,
+    limit: float = math.inf,
 ) -> float:
     """``stacked_rows(...).cost`` without the gradients of the clearance terms: the
     merit of a trial step, which the solver keeps only if it lowers the merit (the
-    rows of an accepted step are built once, by ``stacked_rows``)."""
+    rows of an accepted step are built once, by ``stacked_rows``).
+
+    When the task rows' share alone exceeds ``limit`` (the most a trial may cost), that
+    share is returned without the clearance terms: a lower bound of the merit that is
+    above ``limit`` exactly when the merit is. Every pose's share only grows by its
+    clearance rows (rounding is monotone, and both sums add the poses alike), so a trial
+    rejected on its task rows is rejected as the full merit would reject it, without
+    the distances of its bodies."""
     if model is None:  # the reach-only merit, summed as ``Rows.cost`` sums it
         e = ev.e * wx
         return 0.5 * float(np.sum(e * e))
+    task = _task_shares(ev, wx)
+    if float(np.sum(task)) > limit:
+        return float(np.sum(task))
     return float(np.sum(pose_merits(problem, ev, wx, z, model, band)))
 
 

@@ -125,7 +125,9 @@ class _Iterate:
 @dataclass(frozen=True)
 class _Trial:
     """The outcome of a line search: the point (None when no step lowered the merit),
-    its evaluation, the merit of the last step tried and that step's length."""
+    its evaluation, the merit of the last step tried (of a rejected one, possibly only
+    its task rows' share, already too high: ``clearance_rows.merit``) and that step's
+    length."""
 
     z: Array | None
     ev: Evaluation | None
@@ -302,17 +304,19 @@ def _line_search(
     flat merit is taken, so the iteration moves on and the stall rule, not the line
     search, decides when it has stopped progressing (a step that lowers the merit by
     less than ``stall_decrease`` releases the bounds). The merit of a trial is computed
-    from the distances alone (``clearance_rows.merit``)."""
+    from the distances alone, and not even those when its task rows alone already
+    raise it too far (``clearance_rows.merit``)."""
     lo, hi = problem.bounds
     c_try, alpha = cur.cost, 1.0
+    limit = cur.cost * (1.0 + FLAT_MERIT) + 1e-12
     for raw in steps:
         step, _ = _capped(raw, caps.flat, problem.p, problem.K, problem.n_free_joints)
         alpha = 1.0
         for _ in range(5):
             z_try = np.clip(cur.z + alpha * step, lo, hi)
             ev_try = problem.evaluate(z_try)
-            c_try = merit(problem, ev_try, wx, z_try, clearance)
-            if c_try <= cur.cost * (1.0 + FLAT_MERIT) + 1e-12:
+            c_try = merit(problem, ev_try, wx, z_try, clearance, limit=limit)
+            if c_try <= limit:
                 return _Trial(z_try, ev_try, c_try, alpha)
             alpha *= 0.5
     return _Trial(None, None, c_try, alpha)
