@@ -17,7 +17,8 @@ objectives pay off (issues "Tasks and dimensional synthesis", "Design that optim
   best of 2 runs): GCI of ``--objective gci`` (min length 0.1 m) over the reach-only
   design's (target ≥ 1.25, KCI not lower), Σ|a|+Σ|d| of ``--objective size`` over the
   reach-only design's (target ≤ 0.8), non-dominated designs of the (gci, size) front with
-  8 points (target ≥ 5); the same three on tunnel-87 for comparison, where the task
+  8 points (target ≥ 5), the sweep's time and its settling solves (``pareto_settle``);
+  the same three on tunnel-87 for comparison, where the task
   leaves the stand-in SB60 little room (its design hugs the bounds it is given).
 * ``clearance`` — tunnel-87 with the sb60 bodies kept 0.1 m apart and from the tunnel
   (``synthesize(..., clearance=0.1)``; the poses no design can serve left out first):
@@ -168,12 +169,17 @@ def _objectives(rep: BenchReport, tag: str, task: Task, template: Robot, runs: i
     plain = synthesize(task, template, runs=1, seed=0)
     if plain.best.reached.all():
         prob = plain.problem
+        t0 = time.perf_counter()
         front = pareto_sweep(
             prob, prob.pack(plain.best.design, plain.best.q), ("gci", "size"), pareto_points,
             task.envelope,
         )  # fmt: skip
+        rep.metrics[f"{tag}.pareto_s"] = time.perf_counter() - t0
         rep.metrics[f"{tag}.pareto_non_dominated"] = float(len(front.front))
         rep.metrics[f"{tag}.pareto_points"] = float(len(front.points))
+        rep.metrics[f"{tag}.pareto_settle_solves"] = float(
+            sum(p.stage == "settle" for p in front.points)
+        )
 
 
 def run(quick: bool = False) -> BenchReport:
