@@ -91,7 +91,7 @@ from reachwise.synthesis.problem import SynthesisProblem
 from reachwise.synthesis.solvers import Workspace
 
 Array = NDArray[np.float64]
-#: How a design of the sweep was found (module docstring, steps 1–4).
+#: How a design of the sweep was found (module docstring, steps 1–5).
 Stage = Literal["start", "end", "level", "polish", "gap", "settle"]
 #: Two designs within this fraction of the front's extent in both objectives are one.
 SAME = 0.01
@@ -441,8 +441,9 @@ def pareto_sweep(
 ) -> ParetoResult:
     """The front of the module docstring from the reaching vector ``z0``: aims at
     ``points`` non-dominated designs with at most ``max_solves`` improvements (default
-    ``4 · points + 4``). ``stop``, if given, is called before each improvement; it may
-    raise (a command's Ctrl-C) to end the sweep between the compiled solves.
+    ``4 · points + 4``) in steps 1–4, then at most the settling budget in step 5.
+    ``stop``, if given, is called before each improvement; it may raise (a command's
+    Ctrl-C) to end the sweep between the compiled solves.
     ``clearance`` (the bodies' model) keeps every design that clear and measures it.
     ``options``: the improvement's (``ImproveOptions``, settling by default) or a
     ``ParetoOptions`` with the settling passes' budget too."""
