@@ -276,13 +276,14 @@ class ClearanceModel:
                 gd.append(np.einsum("kmi,kmia->kma", g, jac[0][:, idx]))
                 gq.append(np.einsum("kmi,kmia->kma", g, jac[1][:, idx]))
         seg, box = self._pair_kinds
-        for pairs, fn in ((seg, self._segment_pairs), (box, self._box_pairs)):
-            if pairs:
-                d, a, b = fn(problem, pairs, pts, F, jac)
-                dist.append(d)
-                if a is not None and b is not None:
-                    gd.append(a)
-                    gq.append(b)
+        pair_terms = [self._segment_pairs(pts, jac)] if seg else []
+        if box:
+            pair_terms.append(self._box_pairs(problem, box, pts, F, jac))
+        for d, a, b in pair_terms:
+            dist.append(d)
+            if a is not None and b is not None:
+                gd.append(a)
+                gq.append(b)
         # terms in label order: environment, then the part pairs in _part_pairs order
         order = self._pair_order
         D = np.concatenate(dist, axis=1) if dist else np.zeros((K, 0))
@@ -304,12 +305,7 @@ class ClearanceModel:
         return order
 
     def _segment_pairs(
-        self,
-        problem: SynthesisProblem,
-        pairs: list[tuple[int, int]],
-        pts: Array,
-        F: Array,
-        jac: tuple[Array, Array] | None,
+        self, pts: Array, jac: tuple[Array, Array] | None
     ) -> tuple[Array, Array | None, Array | None]:
         """The segment pairs' distances ``(K, m)`` and, given ``jac``, gradients (the
         pairs are ``_pair_kinds``' first list, whose ends ``_segment_table`` holds)."""
