@@ -123,27 +123,6 @@ def test_objective_improves_the_reaching_design_and_reports_it(tmp_path: Path) -
     assert "bound flag" in html
 
 
-def test_pareto_writes_the_front_and_links_every_design(tmp_path: Path) -> None:
-    out = tmp_path / "front"
-    res = runner.invoke(
-        app,
-        ["synth", "--task", str(small_task(tmp_path)), "--robot", "sb60", "--runs", "1",
-         "--pareto", "gci,size", "--points", "3", "--out", str(out), "--json", "--no-figures"],
-    )  # fmt: skip
-    assert res.exit_code == 0, res.output
-    front = json.loads(res.output)["pareto"]
-    assert front["objectives"] == ["gci", "size"] and len(front["points"]) >= 3
-    assert front["front_size"] == sum(p["front"] for p in front["points"]) >= 1
-    html = (out / "report.html").read_text()
-    assert 'id="pareto-table"' in html
-    for p in front["points"]:
-        assert p["all_reached"]
-        for key in ("design_yaml", "design_urdf"):
-            assert (out / p[key]).is_file() and f'href="{p[key]}"' in html
-        load_robot(str(out / p["design_yaml"]))
-    assert (out / "pareto" / "front.csv").is_file()
-
-
 def test_pareto_without_a_reaching_run_says_why_and_fails(tmp_path: Path) -> None:
     """A pose 6 m beyond the others: no run reaches every pose, so no sweep can start.
     The runs are written, the command names the pose the best run missed and what it

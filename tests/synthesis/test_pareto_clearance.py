@@ -17,7 +17,7 @@ import pytest
 from reachwise import load_robot, load_task
 from reachwise.synthesis.clearance import ClearanceModel
 from reachwise.synthesis.improve import restore
-from reachwise.synthesis.pareto import ParetoResult, pareto_sweep
+from reachwise.synthesis.pareto import ParetoProgress, ParetoResult, classify, pareto_sweep
 from reachwise.synthesis.problem import SynthesisProblem
 from reachwise.synthesis.solvers import row_weights
 from reachwise.synthesis.synthesize import clearance_setup, run_once
@@ -39,7 +39,8 @@ def reaches_every_pose(robot, q: np.ndarray, task: Task) -> bool:  # type: ignor
 
 
 @pytest.fixture(scope="module")
-def sweep() -> tuple[SynthesisProblem, ParetoResult]:
+def watched() -> tuple[SynthesisProblem, ParetoResult, list[ParetoProgress]]:
+    """The sweep, with the progress it reported (one event per solve)."""
     task = load_task("tunnel-87")
     task = task.subset([i for i, n in enumerate(task.names) if n.split("/")[0] in PLANS])
     sb60 = load_robot("sb60")
@@ -50,9 +51,19 @@ def sweep() -> tuple[SynthesisProblem, ParetoResult]:
     assert run.reached.all()
     z0 = prob.pack(run.design, run.q)
     front_model = ClearanceModel(sb60, task.envelope, FRONT_CLEARANCE)
-    return prob, pareto_sweep(
-        prob, z0, ("clearance", "size"), 6, task.envelope, clearance=front_model
-    )
+    events: list[ParetoProgress] = []
+    front = pareto_sweep(
+        prob, z0, ("clearance", "size"), 6, task.envelope, clearance=front_model,
+        progress=events.append,
+    )  # fmt: skip
+    return prob, front, events
+
+
+@pytest.fixture(scope="module")
+def sweep(
+    watched: tuple[SynthesisProblem, ParetoResult, list[ParetoProgress]],
+) -> tuple[SynthesisProblem, ParetoResult]:
+    return watched[0], watched[1]
 
 
 def check_clearance_front(
@@ -119,3 +130,62 @@ def test_restoring_a_reaching_design_stays_near_it(
     assert np.abs(z1 - z0).max() <= 0.05
     model = ClearanceModel(prob.template, load_task("tunnel-87").envelope, FRONT_CLEARANCE)
     assert model.distances(prob, z1).min() >= FRONT_CLEARANCE
+
+
+def test_the_progress_counts_every_solve(
+    watched: tuple[SynthesisProblem, ParetoResult, list[ParetoProgress]],
+) -> None:
+    """One event per design of the sweep, in order: its stage and two objective values,
+    the solves done, a budget never below them, and the front of the designs found so
+    far (counted again here from the result's designs); the last is the result's."""
+    _, front, events = watched
+    assert len(events) == len(front.points) > 0
+    names = front.names
+    for k, (e, p) in enumerate(zip(events, front.points, strict=True)):
+        assert e.solves == k + 1 <= e.budget and e.stage == p.stage
+        assert e.values == (p.values[names[0]], p.values[names[1]])
+        so_far = classify(front.points[: k + 1], names, front.same)
+        assert e.front == sum(not q.dominated for q in so_far)
+    assert events[-1].front == len(front.front)
+    assert {e.stage for e in events} >= {"end", "level", "polish", "settle"}
+    assert len({e.budget for e in events}) <= 2  # the budget, or one past it at the end
+    assert not front.partial
+
+
+def test_a_stopped_sweep_returns_the_designs_it_found(
+    watched: tuple[SynthesisProblem, ParetoResult, list[ParetoProgress]],
+) -> None:
+    """``stop`` raising KeyboardInterrupt (a command's Ctrl-C) before the fourth solve:
+    a partial result with the first three designs of the whole sweep (the same solves
+    from the same start), classified among themselves. A KeyboardInterrupt raised
+    elsewhere is not taken for a stop."""
+    prob, whole, _ = watched
+    calls = {"n": 0}
+
+    def ctrl_c_at_fourth() -> None:
+        calls["n"] += 1
+        if calls["n"] == 4:
+            raise KeyboardInterrupt
+
+    env = load_task("tunnel-87").envelope
+    model = ClearanceModel(prob.template, env, FRONT_CLEARANCE)
+    part = pareto_sweep(
+        prob, whole.start.z, ("clearance", "size"), 6, env, clearance=model, stop=ctrl_c_at_fourth
+    )
+    assert part.partial and calls["n"] == 4
+    assert [p.index for p in part.points] == [0, 1, 2]
+    for p, q in zip(part.points, whole.points[:3], strict=True):
+        assert p.values == q.values and p.stage == q.stage
+        np.testing.assert_array_equal(p.z, q.z)
+    first = classify(whole.points[:3], whole.names, whole.same)
+    assert [p.dominated for p in part.points] == [p.dominated for p in first]
+    assert len(part.front) >= 1
+
+    def ctrl_c_in_a_solve(event: ParetoProgress) -> None:
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        pareto_sweep(
+            prob, whole.start.z, ("clearance", "size"), 6, env, clearance=model,
+            progress=ctrl_c_in_a_solve,
+        )  # fmt: skip

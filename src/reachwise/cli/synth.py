@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +20,7 @@ from reachwise.cli._robot_options import RobotFileOptions
 
 if TYPE_CHECKING:
     from reachwise.cli.interrupts import Interrupts
+    from reachwise.synthesis.pareto import ParetoProgress
 
 
 @dataclass(frozen=True)
@@ -181,7 +183,8 @@ def synth(
     then, with --objective, the best reaching design (or a Pareto front, --pareto).
 
     Ctrl-C (once or more) ends the current run, writes the runs finished before it and
-    exits with 130; during --pareto it ends the sweep and keeps the runs' files.
+    exits with 130; during --pareto it ends the sweep and keeps the runs' files and
+    the designs the sweep found, marked as a partial front.
     --pareto with no run that reaches every pose writes the runs, says why no front
     was made (the poses the best run missed) and exits with 1.
     """
@@ -394,7 +397,9 @@ def _pareto(
 ) -> tuple[dict[str, Any] | None, Any]:  # fmt: skip
     """The Pareto sweep from the best run (if it reaches every pose): files in
     ``folder/pareto/``, the report section, and the data for the summary. ``stop`` is
-    called between the sweep's solves; it may raise to end the sweep, nothing written."""
+    called between the sweep's solves; it may raise to end the sweep, whose designs
+    found until then are written as a partial front. Without ``quiet``, one progress
+    line per solve on stderr."""
     from reachwise.report.design import pareto_figure, pareto_section
     from reachwise.report.html import section
     from reachwise.report.png import save_png
@@ -412,7 +417,7 @@ def _pareto(
         Console(stderr=True).print(f"Pareto sweep {names[0]}/{names[1]}: {points} weightings")
     front = pareto_sweep(
         prob, prob.pack(best.design, best.q), names, points, workspace, stop=stop,
-        clearance=bodies,
+        clearance=bodies, progress=None if quiet else _sweep_printer(names),
     )  # fmt: skip
     data = write_pareto(
         front, folder / "pareto", clearance=bodies.clearance if bodies is not None else 0.0
@@ -421,6 +426,26 @@ def _pareto(
     if fig is not None:
         save_png(fig, folder / "pareto" / "front.png", dpi=110)
     return data, pareto_section(front, data, fig)
+
+
+def _sweep_printer(names: tuple[str, str]) -> Callable[[ParetoProgress], None]:
+    """A ``pareto_sweep`` progress callback printing one line per improvement on
+    stderr (a line, not a live bar: the sweep runs for minutes, and a log or a pipe
+    sees each solve): solves done of the budget, the stage, the front so far and the
+    last design's two objective values, with the time since the sweep began."""
+    console = Console(stderr=True, highlight=False)
+    began = time.monotonic()
+
+    def show(event: ParetoProgress) -> None:
+        (a, b), (va, vb) = names, event.values
+        took = int(time.monotonic() - began)
+        console.print(
+            f"pareto {event.solves}/{event.budget} {event.stage}: {event.front} on the "
+            f"front; last {a} {va:.4g}, {b} {vb:.4g} ({took // 60}:{took % 60:02d})",
+            soft_wrap=True,
+        )
+
+    return show
 
 
 def no_sweep_reason(result: Any, listed: int = 8) -> str:
@@ -512,6 +537,8 @@ def _print(result: object, data: dict) -> None:  # type: ignore[type-arg]
             f"Pareto front {a}/{bb}: {f['front_size']} non-dominated of {len(f['points'])} "
             "designs, each reaching every pose (pareto/: front.csv, point-K/design.yaml|urdf)"
         )
+        if f["partial"]:
+            console.print("[yellow]partial front: the sweep was interrupted; its designs so far")
         for r in f["points"]:
             if r["front"]:
                 console.print(f"  #{r['index']}: {a} {r['values'][a]:.4g}, {bb} "

@@ -172,6 +172,11 @@ def pareto_section(
             f"{len(data['points'])} weightings of {a} and {b} from the reach-only design "
             f"(weights act on relative changes); {data['front_size']} designs are "
             "non-dominated. Every design reaches every pose."
+            + (
+                " Partial front: the sweep was interrupted after these designs."
+                if data.get("partial")
+                else ""
+            )
         )
     ]
     if fig is not None:

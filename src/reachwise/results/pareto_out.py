@@ -1,7 +1,8 @@
 """Write a Pareto sweep (``synthesis.pareto``) to a folder a designer can browse.
 
 ``pareto/`` holds ``front.json`` and ``front.csv`` (every design of the sweep: weights,
-objective values, reach, whether it is on the front, its bound flags) and one folder
+objective values, reach, whether it is on the front, its bound flags; ``front.json``'s
+``partial`` says the sweep was stopped and the front is that of the designs found) and one folder
 per design, ``point-K/``, with ``design.yaml`` and ``design.urdf``. The report links
 each row to those files.
 """
@@ -57,6 +58,7 @@ def write_pareto(
         "senses": {n: "max" if OBJECTIVES[n] > 0 else "min" for n in result.names},
         "start": {k: float(v) for k, v in result.start.values.items()},
         "front_size": len(result.front),
+        "partial": result.partial,
         "points": records,
     }
     atomic_write(folder / "front.json", json.dumps(data, indent=2))

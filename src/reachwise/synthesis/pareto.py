@@ -146,17 +146,39 @@ class ParetoPoint:
         return bool(self.reached.all())
 
 
+@dataclass(frozen=True)
+class ParetoProgress:
+    """One improvement of the sweep done: its ``stage`` (module docstring, steps 1–5),
+    the improvements done (``solves``) and the sweep's ``budget`` of them (steps 1–4
+    and the settling's; the sweep may end before it), the designs on the front so far
+    (``front``) and the last design's values of the two objectives (``values``, in the
+    order of the sweep's names)."""
+
+    stage: Stage
+    solves: int
+    budget: int
+    front: int
+    values: tuple[float, float]
+
+
+class _Stopped(Exception):
+    """The sweep's ``stop`` callback asked to end it."""
+
+
 @dataclass(frozen=True, eq=False)
 class ParetoResult:
     """The sweep over two objectives ``names`` from the reach-only ``start`` design;
     ``points`` holds every design tried, ``front`` the non-dominated distinct ones;
-    ``target`` is the number of front designs asked for, ``same`` the tolerance."""
+    ``target`` is the number of front designs asked for, ``same`` the tolerance;
+    ``partial`` when the sweep was stopped (``pareto_sweep``'s ``stop``) before its end,
+    its front then being that of the designs found until the stop."""
 
     names: tuple[str, str]
     start: ParetoPoint
     points: tuple[ParetoPoint, ...]
     target: int = 0
     same: float = SAME
+    partial: bool = False  # the sweep was stopped: the designs found until then
 
     @property
     def front(self) -> tuple[ParetoPoint, ...]:
@@ -304,7 +326,8 @@ class _Sweep:
     """The designs a sweep has found and how it improves one more (module docstring):
     the problem, the two objectives ``a`` and ``b``, the workspace, the improvement's
     options, the bodies' model, the common reference of the objectives' terms and the
-    ``stop`` callback."""
+    ``stop`` and ``progress`` callbacks (``pareto_sweep``) with the ``budget`` of
+    improvements the progress reports and the tolerance ``same`` it counts the front by."""
 
     problem: SynthesisProblem
     a: str
@@ -314,6 +337,9 @@ class _Sweep:
     clearance: ClearanceModel | None
     ref: Terms
     stop: Callable[[], None] | None
+    progress: Callable[[ParetoProgress], None] | None = None
+    budget: int = 0
+    same: float = SAME
     found: list[ParetoPoint] = field(default_factory=list)
 
     @property
@@ -357,9 +383,13 @@ class _Sweep:
 
     def solve(self, z: Array, name: str, level: float | None = None, stage: Stage = "level"
               ) -> ParetoPoint:  # fmt: skip
-        """Improve ``name`` from ``z`` (holding the other objective at ``level``)."""
+        """Improve ``name`` from ``z`` (holding the other objective at ``level``); report
+        it to ``progress``. A ``KeyboardInterrupt`` of ``stop`` ends the sweep."""
         if self.stop is not None:
-            self.stop()
+            try:
+                self.stop()
+            except KeyboardInterrupt:
+                raise _Stopped from None
         other = self.b if name == self.a else self.a
         obj = self.objective(name, level)
         z1 = improve(self.problem, z, obj, self.workspace, self.options, self.clearance).z
@@ -368,6 +398,12 @@ class _Sweep:
             self.clearance,
         )  # fmt: skip
         self.found.append(p)
+        if self.progress is not None:
+            names = (self.a, self.b)
+            front = sum(not q.dominated for q in classify(self.found, names, self.same))
+            values = (p.values[self.a], p.values[self.b])
+            done = len(self.found)  # an end's polish in settling may go one past its budget
+            self.progress(ParetoProgress(stage, done, max(self.budget, done), front, values))
         return p
 
     def best(self, name: str) -> ParetoPoint:
@@ -438,12 +474,15 @@ def pareto_sweep(
     max_solves: int | None = None,
     stop: Callable[[], None] | None = None,
     clearance: ClearanceModel | None = None,
+    progress: Callable[[ParetoProgress], None] | None = None,
 ) -> ParetoResult:
     """The front of the module docstring from the reaching vector ``z0``: aims at
     ``points`` non-dominated designs with at most ``max_solves`` improvements (default
     ``4 · points + 4``) in steps 1–4, then at most the settling budget in step 5.
-    ``stop``, if given, is called before each improvement; it may raise (a command's
-    Ctrl-C) to end the sweep between the compiled solves.
+    ``stop``, if given, is called before each improvement; a ``KeyboardInterrupt`` it
+    raises (a command's Ctrl-C) ends the sweep between the compiled solves, and the
+    designs found until then are returned as a ``partial`` result. ``progress``, if
+    given, is called after each improvement with a ``ParetoProgress``.
     ``clearance`` (the bodies' model) keeps every design that clear and measures it.
     ``options``: the improvement's (``ImproveOptions``, settling by default) or a
     ``ParetoOptions`` with the settling passes' budget too."""
@@ -467,8 +506,17 @@ def pareto_sweep(
         raise InputError("pareto", "start", "the start design does not reach every pose")
     margin = problem.template.design.margin
     ref = Objective({a: 1.0, b: 1.0}, margin=margin, bodies=clearance).terms(problem, z0)
-    sweep = _Sweep(problem, a, b, workspace, opts.improve or SWEEP_OPTIONS, clearance, ref, stop)
-    sweep.ends_and_levels(z0, points)
-    sweep.fill_gaps(points, budget, same)
-    sweep.settle(settle, same)
-    return ParetoResult((a, b), start, tuple(classify(sweep.found, (a, b), same)), points, same)
+    total = max(budget, 2 * points + 2) + settle  # steps 1-3 take 2 * points + 2
+    sweep = _Sweep(
+        problem, a, b, workspace, opts.improve or SWEEP_OPTIONS, clearance, ref, stop,
+        progress, total, same,
+    )  # fmt: skip
+    partial = False
+    try:
+        sweep.ends_and_levels(z0, points)
+        sweep.fill_gaps(points, budget, same)
+        sweep.settle(settle, same)
+    except _Stopped:
+        partial = True
+    points_found = tuple(classify(sweep.found, (a, b), same))
+    return ParetoResult((a, b), start, points_found, points, same, partial)
