@@ -13,6 +13,7 @@ import numpy as np
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
+from reachwise.distance._memory_kernel import BLOCK, from_blocks, to_blocks
 from reachwise.distance.scene_memory import MemoryConfig, SceneMemory, ViewIntrinsics
 from tests.distance.test_scene_memory import camera_pose, reference_update
 
@@ -139,3 +140,46 @@ def test_robot_pixels_free_whole_bricks_in_front_of_the_robot_and_shadow_none() 
     fuse(hole, 2.0)  # a pixel without a return: voxel by voxel, the same map
     assert np.all(mem.state == 1) and 0 < np.count_nonzero(mem.freed_at < 2.0) < 16
     assert not np.all(mem._freed_block == 2.0)  # the half-bricks over the hole
+
+
+@settings(max_examples=20, deadline=None)
+@given(shape=st.tuples(st.integers(1, 13), st.integers(1, 13), st.integers(1, 13)))
+def test_the_voxels_own_free_stamps_are_kept_block_by_block(shape: tuple[int, int, int]) -> None:
+    """The per-voxel stamps' block layout: voxel (i, j, k)'s stamp at its block
+    (i, j, k) // BLOCK and place ((i mod BLOCK)·BLOCK + j mod BLOCK)·BLOCK + k mod BLOCK,
+    the places past the grid's end never seen free (-inf), and back to the grid
+    unchanged."""
+    stamps = np.arange(float(np.prod(shape))).reshape(shape)  # every stamp distinct
+    blocks = to_blocks(stamps)
+    i, j, k = np.indices(shape)
+    place = ((i % BLOCK) * BLOCK + j % BLOCK) * BLOCK + k % BLOCK
+    assert blocks.shape == (*(-(-n // BLOCK) for n in shape), BLOCK**3)
+    assert np.array_equal(blocks[i // BLOCK, j // BLOCK, k // BLOCK, place], stamps)
+    assert np.count_nonzero(blocks == -np.inf) == blocks.size - stamps.size
+    assert np.array_equal(from_blocks(blocks, shape), stamps)
+
+
+@settings(max_examples=15, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), before=st.integers(1, 4), after=st.integers(1, 4))
+def test_a_restored_memory_decides_as_the_one_it_was_taken_from(
+    seed: int, before: int, after: int
+) -> None:
+    """A snapshot restored into a fresh memory (the voxels' free stamps put back in
+    their block layout) and then fed the same frames as the memory it was taken from,
+    20 ms apart within the 50 ms free hold: after every frame both hold the same
+    states, the same times seen occupied and the same times seen free."""
+    rng = np.random.default_rng(seed)
+    cfg = MemoryConfig(voxel=0.05, shadow_depth=0.4, memory_s=1.0, free_hold_s=0.05)
+    kept, restored = SceneMemory(LOWER, UPPER, cfg), SceneMemory(LOWER, UPPER, cfg)
+    for f in range(before):
+        depth, body, K, T = smooth_frame(rng)
+        kept.integrate(depth, T, K, t=0.02 * f, body=body)
+    restored.restore(kept.snapshot())
+    assert np.array_equal(restored.freed_at, kept.freed_at)
+    for f in range(before, before + after):
+        depth, body, K, T = smooth_frame(rng)
+        for mem in (kept, restored):
+            mem.integrate(depth, T, K, t=0.02 * f, body=body)
+        assert np.array_equal(restored.state, kept.state)
+        assert np.array_equal(restored.seen_at, kept.seen_at)
+        assert np.array_equal(restored.freed_at, kept.freed_at)

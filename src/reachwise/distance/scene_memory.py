@@ -73,10 +73,12 @@ from reachwise.distance._memory_kernel import (
     OCCUPIED,
     SHADOW,
     UNKNOWN,
+    from_blocks,
     mark_points,
     prepare_frame,
     project_frame,
     tile_levels,
+    to_blocks,
 )
 from reachwise.distance.index import INDICES, index_of_ordered
 from reachwise.errors import InputError
@@ -232,9 +234,11 @@ class SceneMemory:
         self.seen_at = np.full(shape, -np.inf)
         bricks = tuple(-(-n // BRICK) for n in shape)
         # when a voxel was last seen free: the later of its own stamp and its block's
-        # (a frame that frees a whole block of BLOCK**3 voxels stamps the block only)
-        self._freed_voxel = np.full(shape, -np.inf)
-        self._freed_block = np.full(tuple(-(-n // BLOCK) for n in shape), -np.inf)
+        # (a frame that frees a whole block of BLOCK**3 voxels stamps the block only);
+        # the voxels' own stamps are kept block by block (to_blocks)
+        blocks = tuple(-(-n // BLOCK) for n in shape)
+        self._freed_voxel = np.full((*blocks, BLOCK**3), -np.inf)
+        self._freed_block = np.full(blocks, -np.inf)
         # per brick of BRICK**3 voxels: HELD_NONE, HELD_OBSTACLE (may hold an occupied
         # or shadow voxel) or HELD_FREE (every voxel free)
         self._held = np.zeros(bricks, dtype=np.uint8)
@@ -257,10 +261,8 @@ class SceneMemory:
         later of the voxel's own stamp and that of its block of ``BLOCK``³ voxels (half
         a brick's edge), which a frame that frees the whole block stamps instead of its
         voxels."""
-        nx, ny, nz = self.shape
-        b = self._freed_block
-        per_block = np.repeat(np.repeat(np.repeat(b, BLOCK, 0), BLOCK, 1), BLOCK, 2)
-        out = np.maximum(self._freed_voxel, per_block[:nx, :ny, :nz])
+        stamps = np.maximum(self._freed_voxel, self._freed_block[..., None])
+        out = from_blocks(stamps, self.shape)
         out.setflags(write=False)
         return out
 
@@ -467,7 +469,7 @@ class SceneMemory:
             )
         np.copyto(self.state, snapshot.state)
         np.copyto(self.seen_at, snapshot.seen_at)
-        np.copyto(self._freed_voxel, snapshot.freed_at)
+        np.copyto(self._freed_voxel, to_blocks(snapshot.freed_at))
         self._freed_block.fill(-np.inf)
         self._held.fill(HELD_OBSTACLE)  # any brick may hold an obstacle: the next collection sees
         self._stamp = snapshot.stamp
