@@ -54,15 +54,21 @@ def random_frame(rng: np.random.Generator, h: int = 18, w: int = 24):
 def reference_update(mem: SceneMemory, freed: np.ndarray, depth, body, K, T, t) -> None:
     """The update written the plainest way: every voxel centre projected, one at a time
     in numpy, then every pixel's point marked; ``freed`` (one per voxel, flat) is when
-    each voxel was last seen free, written here."""
+    each voxel was last seen free, written here. Each return is read as a float32, as
+    the memory keeps it (:func:`~reachwise.distance._memory_kernel.prepare_frame`'s
+    ``code``; about 0.1 µm at 2 m): a float64 or millimetre point within that of a voxel's
+    face lands in the same voxel here as there; the farthest reach is the float64
+    return's, as there."""
     cfg = mem.config
+    farthest = np.nanmax(np.asarray(depth, dtype=np.float64))
+    depth = np.asarray(depth, dtype=np.float64).astype(np.float32).astype(np.float64)
     idx = np.indices(mem.shape).reshape(3, -1).T
     centres = mem.origin + (idx + 0.5) * cfg.voxel
     cw = np.linalg.inv(T)
     pc = centres @ cw[:3, :3].T + cw[:3, 3]
     z = pc[:, 2]
     h, w = depth.shape
-    reach = np.nanmax(depth) + cfg.shadow_depth
+    reach = farthest + cfg.shadow_depth
     with np.errstate(divide="ignore", invalid="ignore"):
         u = np.floor(K.fx * pc[:, 0] / z + K.cx + 0.5)
         v = np.floor(K.fy * pc[:, 1] / z + K.cy + 0.5)
