@@ -23,10 +23,16 @@ it. One iteration:
    (``Objective.keep``, ``keep``) is at least as good as at the start and the objective
    decreased; the radius then grows, otherwise it shrinks.
 
-So every accepted iterate reaches every pose: the result is never worse than the
-reach-only design it started from, and never worse in a kept index. The loop ends when
-the radius or the relative decrease over ``window`` accepted steps falls below its
-tolerance.
+So every accepted iterate reaches every pose and is never worse in a kept index. The
+loop ends when the radius or the relative decrease over ``window`` accepted steps falls
+below its tolerance. The first iterate is the start restored to a fraction of the task
+tolerance (``restore``), so that every trial lies well inside it; that restoration
+moves the design too when the joints alone cannot restore the poses, and may cost
+objective (on the SB60 family a size-minimal design restored 0.27 % larger, and the
+steps won back only 0.06 %). So the result is compared with the start as given, when
+that reaches every pose and keeps every guard: the cheaper of the two (objective plus
+barriers, the cost the steps lower) is returned, and the result is never worse than
+the design it started from (``ImproveOptions.never_worse``).
 """
 
 from __future__ import annotations
@@ -55,7 +61,10 @@ Array = NDArray[np.float64]
 class ImproveOptions:
     """Tuning of the null-space improvement (step sizes are fractions of each variable's
     range; ``restore_tolerance`` is a fraction of the task tolerances;
-    ``clearance_band`` (m) is how far above the clearance the bodies' barrier acts)."""
+    ``clearance_band`` (m) is how far above the clearance the bodies' barrier acts;
+    ``never_worse``: return the start as given when the steps end above its cost — the
+    Pareto sweep turns it off, its starts being designs it has found already, for which
+    a different design, even a worse one, is one more candidate for the front)."""
 
     max_iter: int = 500
     radius: float = 0.02
@@ -72,6 +81,7 @@ class ImproveOptions:
     max_passes: int = 60
     keep_weight: float = 1.0
     clearance_band: float = MOTION_BAND
+    never_worse: bool = True
 
 
 @dataclass(frozen=True)
@@ -406,6 +416,8 @@ def improve(
     ev = problem.evaluate(z)
     floors = kept_floors(problem, z, objective.keep, objective.bodies, objective.margin)
     guards = _Guards(problem, workspace, opt, clearance, objective, floors)
+    feasible = opt.never_worse and converged(problem, ev) and guards(z)[2]
+    given = (z, ev) if feasible else None  # the start as given, to return if it is better
     if converged(problem, ev):  # every iterate from here on lies well inside the tolerance
         z1, ev1 = restore(problem, z, opt.restore_iter, opt.restore_tolerance)
         if converged(problem, ev1) and guards(z1)[2]:  # restoring may cost clearance
@@ -445,4 +457,9 @@ def improve(
             ref = history[-1 - opt.window]
             if ref - now.cost <= opt.tolerance * max(abs(ref), 1.0):
                 break
+    if given is not None and given[0] is not now.z:  # never worse than the start as given
+        t0 = obj.terms(problem, given[0])
+        w0, gw0, _ = guards(given[0])
+        if obj.cost(t0) + w0 < now.cost:
+            now = _Iterate(given[0], given[1], t0, obj.cost(t0) + w0, gw0)
     return ImproveOutcome(now.z, now.ev, start, now.terms, obj, it, accepted, history, floors)

@@ -105,7 +105,11 @@ LEVEL_PENALTY = 1000.0
 #: boom–feed terms at 0.05 m put ~7 into the cost against ~1 of the objective, and
 #: the sweep spanned 0.15 % in size (4 designs); with 5 mm, 5 designs (clearance
 #: 0.030–0.069 m, size 6.418–6.473 m).
-SWEEP_OPTIONS = ImproveOptions(tolerance=1e-3, clearance_band=0.005)
+#: A solve that ends above its start's cost still returns its own design: the start is
+#: a design the sweep has already (or the reach-only start), and a different design
+#: is one more candidate for the front (``ImproveOptions.never_worse``; with it, the
+#: whole tunnel-87's front had 4 designs instead of 5).
+SWEEP_OPTIONS = ImproveOptions(tolerance=1e-3, clearance_band=0.005, never_worse=False)
 
 
 @dataclass(frozen=True)
