@@ -152,6 +152,15 @@ def pareto_figure(result: ParetoResult) -> Figure:
     return fig
 
 
+def _reaching(points: list[dict[str, Any]]) -> str:
+    """What the table's designs reach: every one every pose, or how many do (the front
+    holds only those)."""
+    full = sum(r["reached"] == r["points"] for r in points)
+    if full == len(points):
+        return "Every design reaches every pose."
+    return f"{full} of {len(points)} designs reach every pose; only they may be on the front."
+
+
 def pareto_section(
     result: ParetoResult, data: Mapping[str, Any], fig: Figure | bytes | None = None
 ) -> Raw:
@@ -171,7 +180,7 @@ def pareto_section(
         para(
             f"{len(data['points'])} weightings of {a} and {b} from the reach-only design "
             f"(weights act on relative changes); {data['front_size']} designs are "
-            "non-dominated. Every design reaches every pose."
+            f"non-dominated. {_reaching(data['points'])}"
             + (
                 " Partial front: the sweep was interrupted after these designs."
                 if data.get("partial")
