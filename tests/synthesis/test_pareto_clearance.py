@@ -17,7 +17,13 @@ import pytest
 from reachwise import load_robot, load_task
 from reachwise.synthesis.clearance import ClearanceModel
 from reachwise.synthesis.improve import restore
-from reachwise.synthesis.pareto import ParetoProgress, ParetoResult, classify, pareto_sweep
+from reachwise.synthesis.pareto import (
+    ParetoOptions,
+    ParetoProgress,
+    ParetoResult,
+    classify,
+    pareto_sweep,
+)
 from reachwise.synthesis.problem import SynthesisProblem
 from reachwise.synthesis.solvers import row_weights
 from reachwise.synthesis.synthesize import clearance_setup, run_once
@@ -54,7 +60,7 @@ def watched() -> tuple[SynthesisProblem, ParetoResult, list[ParetoProgress]]:
     events: list[ParetoProgress] = []
     front = pareto_sweep(
         prob, z0, ("clearance", "size"), 6, task.envelope, clearance=front_model,
-        progress=events.append,
+        options=ParetoOptions(progress=events.append),
     )  # fmt: skip
     return prob, front, events
 
@@ -187,5 +193,5 @@ def test_a_stopped_sweep_returns_the_designs_it_found(
     with pytest.raises(KeyboardInterrupt):
         pareto_sweep(
             prob, whole.start.z, ("clearance", "size"), 6, env, clearance=model,
-            progress=ctrl_c_in_a_solve,
+            options=ParetoOptions(progress=ctrl_c_in_a_solve),
         )  # fmt: skip

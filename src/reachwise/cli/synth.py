@@ -404,7 +404,7 @@ def _pareto(
     from reachwise.report.html import section
     from reachwise.report.png import save_png
     from reachwise.results.pareto_out import write_pareto
-    from reachwise.synthesis.pareto import pareto_sweep
+    from reachwise.synthesis.pareto import ParetoOptions, pareto_sweep
 
     best = result.best
     if not best.reached.all():
@@ -416,8 +416,9 @@ def _pareto(
     if not quiet:
         Console(stderr=True).print(f"Pareto sweep {names[0]}/{names[1]}: {points} weightings")
     front = pareto_sweep(
-        prob, prob.pack(best.design, best.q), names, points, workspace, stop=stop,
-        clearance=bodies, progress=None if quiet else _sweep_printer(names),
+        prob, prob.pack(best.design, best.q), names, points, workspace,
+        ParetoOptions(progress=None if quiet else _sweep_printer(names)), stop=stop,
+        clearance=bodies,
     )  # fmt: skip
     data = write_pareto(
         front, folder / "pareto", clearance=bodies.clearance if bodies is not None else 0.0

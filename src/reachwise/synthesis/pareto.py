@@ -115,11 +115,14 @@ SWEEP_OPTIONS = ImproveOptions(tolerance=1e-3, clearance_band=0.005, never_worse
 @dataclass(frozen=True)
 class ParetoOptions:
     """Options of the sweep beyond the improvement's: ``improve`` (default
-    ``SWEEP_OPTIONS``) and ``settle``, the settling passes' budget of improvements
-    (module docstring, step 5; default ``2 · points + 4``, 0 turns them off)."""
+    ``SWEEP_OPTIONS``), ``settle``, the settling passes' budget of improvements
+    (module docstring, step 5; default ``2 · points + 4``, 0 turns them off), and
+    ``progress``, called after each improvement with a ``ParetoProgress`` (a
+    ``KeyboardInterrupt`` it raises propagates: ending the sweep is ``stop``'s)."""
 
     improve: ImproveOptions | None = None
     settle: int | None = None
+    progress: Callable[[ParetoProgress], None] | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -478,18 +481,16 @@ def pareto_sweep(
     max_solves: int | None = None,
     stop: Callable[[], None] | None = None,
     clearance: ClearanceModel | None = None,
-    progress: Callable[[ParetoProgress], None] | None = None,
 ) -> ParetoResult:
     """The front of the module docstring from the reaching vector ``z0``: aims at
     ``points`` non-dominated designs with at most ``max_solves`` improvements (default
     ``4 · points + 4``) in steps 1–4, then at most the settling budget in step 5.
     ``stop``, if given, is called before each improvement; a ``KeyboardInterrupt`` it
     raises (a command's Ctrl-C) ends the sweep between the compiled solves, and the
-    designs found until then are returned as a ``partial`` result. ``progress``, if
-    given, is called after each improvement with a ``ParetoProgress``.
+    designs found until then are returned as a ``partial`` result.
     ``clearance`` (the bodies' model) keeps every design that clear and measures it.
     ``options``: the improvement's (``ImproveOptions``, settling by default) or a
-    ``ParetoOptions`` with the settling passes' budget too."""
+    ``ParetoOptions`` with the settling passes' budget and the ``progress`` callback too."""
     a, b = check_names(names)
     if clearance is None and "clearance" in (a, b):
         raise InputError(
@@ -513,7 +514,7 @@ def pareto_sweep(
     total = max(budget, 2 * points + 2) + settle  # steps 1-3 take 2 * points + 2
     sweep = _Sweep(
         problem, a, b, workspace, opts.improve or SWEEP_OPTIONS, clearance, ref, stop,
-        progress, total, same,
+        opts.progress, total, same,
     )  # fmt: skip
     partial = False
     try:
