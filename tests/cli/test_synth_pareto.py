@@ -13,6 +13,7 @@ from typer.testing import CliRunner
 from reachwise import load_robot
 from reachwise.cli import app
 from reachwise.cli.interrupts import Interrupts
+from tests.cli.sigint import restored_sigint
 
 from .test_synth_cli import small_task
 
@@ -77,7 +78,8 @@ def test_ctrl_c_during_the_sweep_writes_the_designs_found(
 
     monkeypatch.setattr(Interrupts, "check", ctrl_c_at_fourth)
     out = tmp_path / "front"
-    res = runner.invoke(app, _args(small_task(tmp_path), out, "--json"))
+    with restored_sigint():  # the interrupted command leaves SIGINT blocked
+        res = runner.invoke(app, _args(small_task(tmp_path), out, "--json"))
     assert res.exit_code == 130, res.output
     data = json.loads(res.stdout)
     assert data["interrupted"] and data["runs"] == 1
